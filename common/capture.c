@@ -1,0 +1,49 @@
+/* capture: loading a posed panorama (see capture.h). */
+#include "capture.h"
+
+#include <string.h>
+
+int rs_capture_load(const rs_config *cfg, const char *section, rs_capture *cap, rs_err *err)
+{
+    memset(cap, 0, sizeof *cap);
+    if (!rs_config_path(cfg, section, "panorama", cap->path, sizeof cap->path))
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                          "[%s] panorama is not set: expected an equirectangular EXR or HDR file", section);
+    rs_image *img = rs_image_read(cap->path, err);
+    if (!img) return -1;
+    if (img->width != 2 * img->height) {
+        rs_err_set(err, RS_ERR_INPUT, cap->path, 0,
+                   "panorama is %d x %d: expected an equirectangular image with width = 2 x height",
+                   img->width, img->height);
+        rs_image_free(img);
+        return -1;
+    }
+    if (img->channels == 1) {
+        rs_image *rgb = rs_image_new(img->width, img->height, 3);
+        if (!rgb) {
+            rs_image_free(img);
+            return rs_err_set(err, RS_ERR_SYSTEM, cap->path, 0, "out of memory");
+        }
+        for (size_t k = 0; k < (size_t)img->width * img->height; k++)
+            rgb->data[3 * k] = rgb->data[3 * k + 1] = rgb->data[3 * k + 2] = img->data[k];
+        rs_image_free(img);
+        img = rgb;
+    }
+    cap->pano = img;
+    for (size_t k = 0; k < (size_t)img->width * img->height; k++) {
+        const float *px = img->data + 3 * k;
+        if (!(isfinite(px[0]) && isfinite(px[1]) && isfinite(px[2]))) cap->nonfinite++;
+        else if (px[0] < 0 || px[1] < 0 || px[2] < 0) cap->negative++;
+    }
+    double pos[3];
+    rs_config_reals(cfg, section, "position", pos);
+    cap->pose.position = rs_v3_make(pos[0], pos[1], pos[2]);
+    rs_config_reals(cfg, section, "rotation", cap->pose.rot);
+    return 0;
+}
+
+void rs_capture_release(rs_capture *cap)
+{
+    rs_image_free(cap->pano);
+    cap->pano = NULL;
+}

@@ -1,0 +1,48 @@
+/* fileio: atomic output files (write a temporary file beside the target, then rename),
+ * checksums for provenance and rerun decisions, and path helpers.
+ * A fault-injection switch (RHOSCAN_FAULT=enospc:N, fail the N-th write) lets tests
+ * simulate a full disk. */
+#ifndef RS_FILEIO_H
+#define RS_FILEIO_H
+
+#include <stdint.h>
+#include <stdio.h>
+#include "err.h"
+
+/* An output being written: a FILE* on "<path>.tmp.<pid>" that becomes <path> on commit. */
+typedef struct rs_atomic_file {
+    FILE *fp;
+    char path[4096];
+    char tmp_path[4200];
+    int failed;
+} rs_atomic_file;
+
+int rs_atomic_open(rs_atomic_file *f, const char *path, rs_err *err);
+/* Writes n bytes; returns 0 or -1 (ENOSPC and friends reported with the target path). */
+int rs_atomic_write(rs_atomic_file *f, const void *data, size_t n, rs_err *err);
+/* Flushes, fsyncs and renames over the target. On failure the target is left untouched. */
+int rs_atomic_commit(rs_atomic_file *f, rs_err *err);
+/* Drops the temporary file; safe to call after a failed commit or twice. */
+void rs_atomic_abort(rs_atomic_file *f);
+/* Whole buffer to path, atomically. */
+int rs_write_file_atomic(const char *path, const void *data, size_t n, rs_err *err);
+
+/* Reads a whole file (NUL-terminated for convenience); caller frees *data. */
+int rs_read_file(const char *path, char **data, size_t *size, rs_err *err);
+
+/* 64-bit FNV-1a over bytes, chainable through seed (use RS_HASH_SEED to start). */
+#define RS_HASH_SEED 0xcbf29ce484222325ULL
+uint64_t rs_hash_bytes(const void *data, size_t n, uint64_t seed);
+/* Hash of a file's contents; 0 with *err set when unreadable. */
+int rs_hash_file(const char *path, uint64_t *hash, rs_err *err);
+
+int rs_file_exists(const char *path);
+/* Creates a folder and its parents (mkdir -p). */
+int rs_mkdir_p(const char *path, rs_err *err);
+/* dir/name into out (size n); returns out. */
+char *rs_path_join(char *out, size_t n, const char *dir, const char *name);
+
+/* Fault injection for tests: returns 1 when the current write should fail with ENOSPC. */
+int rs_fault_should_fail(void);
+
+#endif

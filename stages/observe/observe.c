@@ -1,0 +1,266 @@
+/* observe: which facet each panorama pixel sees, and each facet's observed radiance L_i.
+ * Large facets: the footprint-weighted mean of their pure pixels (pixels whose four sub-pixel
+ * rays all hit the facet, so no mixed pixels on borders). Small facets (fewer pure pixels
+ * than [observe] min_pixels): points sampled on the facet that the camera sees, each reading
+ * the panorama bilinearly. Writes observe.ply (mesh + radiance_*, observed, observe_pixels)
+ * and facet_id.exr (channel Y: facet index, -1 where the camera sees no facet). */
+#include <stdlib.h>
+#include <string.h>
+#include "capture.h"
+#include "faceprop.h"
+#include "fileio.h"
+#include "log.h"
+#include "sampling.h"
+#include "scene.h"
+#include "stages.h"
+
+typedef struct {
+    uint32_t face;             /* facet hit by the pixel's centre ray, RS_NO_HIT if none */
+    uint8_t pure;              /* all sub-pixel rays hit the same facet, from the front */
+    float weight;              /* footprint area on the facet (m^2), 0 when not usable */
+    float depth;               /* distance to the hit (m) */
+} pixel_hit;
+
+/* Casts a centre ray and four sub-pixel rays per pixel, row by row. */
+static void trace_pixels(const rs_scene *scene, const rs_capture *cap, double cos_max_view,
+                         pixel_hit *out)
+{
+    int w = cap->pano->width, h = cap->pano->height;
+    static const double sub[5][2] = {{0.5, 0.5}, {0.25, 0.25}, {0.75, 0.25}, {0.25, 0.75}, {0.75, 0.75}};
+    rs_progress *prog = rs_progress_start("observe: tracing pixels", (size_t)h);
+#pragma omp parallel
+    {
+        rs_ray *rays = malloc((size_t)w * 5 * sizeof *rays);
+        rs_hit *hits = malloc((size_t)w * 5 * sizeof *hits);
+#pragma omp for schedule(dynamic, 4)
+        for (int r = 0; r < h; r++) {
+            if (!rays || !hits) continue;
+            for (int c = 0; c < w; c++)
+                for (int s = 0; s < 5; s++) {
+                    rs_v3 d = rs_pano_uv_to_dir((c + sub[s][0]) / w, (r + sub[s][1]) / h);
+                    rs_ray *ray = &rays[5 * c + s];
+                    ray->org = cap->pose.position;
+                    ray->dir = rs_pose_dir_to_world(&cap->pose, d);
+                    ray->tnear = 0;
+                    ray->tfar = INFINITY;
+                }
+            rs_scene_intersect(scene, rays, hits, (size_t)w * 5);
+            double omega = rs_pano_pixel_solid_angle(w, h, r);
+            for (int c = 0; c < w; c++) {
+                const rs_hit *hc = &hits[5 * c];
+                pixel_hit *p = &out[(size_t)r * w + c];
+                p->face = hc->face;
+                p->pure = 0;
+                p->weight = 0;
+                p->depth = hc->t;
+                if (hc->face == RS_NO_HIT || hc->backface) continue;
+                int pure = 1;
+                for (int s = 1; s < 5; s++)
+                    if (hits[5 * c + s].face != hc->face || hits[5 * c + s].backface) pure = 0;
+                double cosv = -rs_v3_dot(rays[5 * c].dir, rs_scene_normal(scene, hc->face));
+                if (cosv < cos_max_view) continue;   /* grazing: footprint unbounded */
+                p->pure = (uint8_t)pure;
+                p->weight = (float)(omega * (double)hc->t * hc->t / cosv);
+            }
+            rs_progress_add(prog, 1);
+        }
+        free(rays);
+        free(hits);
+    }
+    rs_progress_end(prog);
+}
+
+/* Radiance of a facet too small for pixel averaging: mean over sampled points that the camera
+ * sees from the front. Returns the number of usable points; *visible_share the share seen. */
+static int small_facet_radiance(const rs_scene *scene, const rs_capture *cap, uint32_t f, int npoints,
+                                double cos_max_view, double rgb[3], double *visible_share)
+{
+    const rs_mesh *m = rs_scene_mesh(scene);
+    rs_v3 a = rs_mesh_vert(m, m->tris[3 * f]), b = rs_mesh_vert(m, m->tris[3 * f + 1]),
+          c = rs_mesh_vert(m, m->tris[3 * f + 2]);
+    rs_v3 n = rs_scene_normal(scene, f);
+    int used = 0, seen = 0;
+    rgb[0] = rgb[1] = rgb[2] = 0;
+    for (int k = 0; k < npoints; k++) {
+        double x, y;
+        rs_sobol2_owen((uint32_t)k, rs_hash_u32(f ^ 0x0b5e7u), &x, &y);
+        rs_v3 p = rs_triangle_point(a, b, c, x, y);
+        rs_v3 d = rs_v3_sub(p, cap->pose.position);
+        rs_ray ray = {cap->pose.position, d, 0, 1.0 + 1e-3};
+        rs_hit hit;
+        rs_scene_intersect(scene, &ray, &hit, 1);
+        if (hit.face != f || hit.backface) continue;
+        seen++;
+        double cosv = -rs_v3_dot(rs_v3_norm(d), n);
+        if (cosv < cos_max_view) continue;
+        double u, v;
+        float px[3];
+        rs_pano_dir_to_uv(rs_pose_dir_to_local(&cap->pose, d), &u, &v);
+        rs_pano_sample(cap->pano, u, v, px);
+        if (!rs_capture_pixel_ok(px)) continue;
+        for (int ch = 0; ch < 3; ch++) rgb[ch] += px[ch];
+        used++;
+    }
+    *visible_share = (double)seen / npoints;
+    if (used)
+        for (int ch = 0; ch < 3; ch++) rgb[ch] /= used;
+    return used;
+}
+
+static int write_facet_ids(const rs_config *cfg, const rs_capture *cap, const pixel_hit *px, rs_err *err)
+{
+    int w = cap->pano->width, h = cap->pano->height;
+    rs_image *ids = rs_image_new(w, h, 1);
+    if (!ids) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+    for (size_t k = 0; k < (size_t)w * h; k++)
+        ids->data[k] = px[k].face == RS_NO_HIT ? -1.0f : (float)px[k].face;
+    char path[4096];
+    static const char *const names[] = {"Y"};
+    int rc = rs_image_write_exr(ids, rs_work_path(cfg, "facet_id.exr", path, sizeof path), names, 0,
+                                "facet index seen by each pixel's centre ray; -1: none", err);
+    rs_image_free(ids);
+    return rc;
+}
+
+int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
+{
+    char path[4096];
+    int rc = -1;
+    rs_capture cap = {0};
+    rs_scene *scene = NULL;
+    pixel_hit *px = NULL;
+    double *rgb = NULL, *wsum = NULL, *npix = NULL;
+    uint8_t *observed = NULL;
+    rs_ply *out = NULL;
+    rs_mesh *mesh = rs_mesh_read(rs_work_path(cfg, "mesh.ply", path, sizeof path), NULL, err);
+    if (!mesh) return -1;
+    if (rs_capture_load(cfg, "capture", &cap, err) != 0) goto out;
+    if (cap.nonfinite || cap.negative)
+        rs_log_warn("%s: %zu non-finite and %zu negative pixels are excluded", cap.path, cap.nonfinite,
+                    cap.negative);
+    double t0 = rs_now();
+    if (!(scene = rs_scene_new(mesh, err))) goto out;
+    rs_report_time(rep, "bvh", rs_now() - t0);
+
+    int w = cap.pano->width, h = cap.pano->height;
+    size_t nf = mesh->nfaces, npx = (size_t)w * h;
+    double cos_max_view = cos(rs_config_real(cfg, "observe", "max_view_deg") * M_PI / 180);
+    long min_pixels = rs_config_int(cfg, "observe", "min_pixels");
+    int facet_points = (int)rs_config_int(cfg, "observe", "facet_points");
+    double min_visible = rs_config_real(cfg, "observe", "min_visible");
+    px = malloc(npx * sizeof *px);
+    rgb = calloc(3 * nf, sizeof *rgb);
+    wsum = calloc(nf, sizeof *wsum);
+    npix = calloc(nf, sizeof *npix);
+    observed = calloc(nf, 1);
+    if (!px || !rgb || !wsum || !npix || !observed) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu pixels and %zu facets", npx, nf);
+        goto out;
+    }
+    t0 = rs_now();
+    trace_pixels(scene, &cap, cos_max_view, px);
+    rs_report_time(rep, "trace_pixels", rs_now() - t0);
+
+    /* Serial accumulation in pixel order: the sums do not depend on the thread count. */
+    size_t model_px = 0, bad_px = 0;
+    for (size_t k = 0; k < npx; k++) {
+        if (px[k].face == RS_NO_HIT) continue;
+        model_px++;
+        if (!px[k].pure || px[k].weight <= 0) continue;
+        const float *v = cap.pano->data + 3 * k;
+        if (!rs_capture_pixel_ok(v)) {
+            bad_px++;
+            continue;
+        }
+        uint32_t f = px[k].face;
+        for (int ch = 0; ch < 3; ch++) rgb[3 * f + ch] += (double)px[k].weight * v[ch];
+        wsum[f] += px[k].weight;
+        npix[f] += 1;
+    }
+
+    /* Facets with too few pure pixels: sample points on them instead. */
+    size_t by_pixels = 0, by_points = 0;
+    t0 = rs_now();
+#pragma omp parallel for schedule(dynamic, 64) reduction(+ : by_pixels, by_points)
+    for (size_t f = 0; f < nf; f++) {
+        if (npix[f] >= (double)min_pixels) {
+            for (int ch = 0; ch < 3; ch++) rgb[3 * f + ch] /= wsum[f];
+            observed[f] = 1;
+            by_pixels++;
+            continue;
+        }
+        double share, l[3];
+        if (rs_scene_normal(scene, (uint32_t)f).z == 0 && rs_v3_len(rs_scene_normal(scene, (uint32_t)f)) == 0) {
+            rgb[3 * f] = rgb[3 * f + 1] = rgb[3 * f + 2] = 0;
+            continue;      /* degenerate facet */
+        }
+        int used = small_facet_radiance(scene, &cap, (uint32_t)f, facet_points, cos_max_view, l, &share);
+        if (used > 0 && share >= min_visible) {
+            for (int ch = 0; ch < 3; ch++) rgb[3 * f + ch] = l[ch];
+            observed[f] = 1;
+            by_points++;
+        } else {
+            rgb[3 * f] = rgb[3 * f + 1] = rgb[3 * f + 2] = 0;
+        }
+    }
+    rs_report_time(rep, "small_facets", rs_now() - t0);
+
+    /* Area of the facets the camera sees that ended up observed: the coverage figure. */
+    double area_seen = 0, area_obs = 0;
+    uint8_t *seen = calloc(nf, 1);
+    if (!seen) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+        goto out;
+    }
+    for (size_t k = 0; k < npx; k++)
+        if (px[k].face != RS_NO_HIT) seen[px[k].face] = 1;
+    for (size_t f = 0; f < nf; f++) {
+        rs_v3 c, n;
+        double a;
+        rs_mesh_face(mesh, f, &c, &n, &a);
+        if (seen[f]) area_seen += a;
+        if (seen[f] && observed[f]) area_obs += a;
+    }
+    free(seen);
+
+    if (write_facet_ids(cfg, &cap, px, err) != 0) goto out;
+    out = rs_ply_new();
+    rs_ply_element *faces = out ? rs_mesh_to_ply(mesh, out) : NULL;
+    if (!faces || rs_faceprop_add_rgb(faces, "radiance", rgb) != 0 ||
+        !rs_ply_add_scalar(faces, "observe_pixels", RS_PLY_INT32, npix)) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory building observe.ply");
+        goto out;
+    }
+    double *obs_d = wsum;      /* reuse as a double buffer for the flag */
+    for (size_t f = 0; f < nf; f++) obs_d[f] = observed[f];
+    rs_ply_add_scalar(faces, "observed", RS_PLY_UINT8, obs_d);
+    rs_ply_add_comment(out, "rhoscan %s observe: radiance_* is the observed radiance of each facet", RHOSCAN_VERSION);
+    if (rs_ply_write(out, rs_work_path(cfg, "observe.ply", path, sizeof path), 1, err) != 0) goto out;
+
+    rs_json_set_int(rep->metrics, "pixels", (long long)npx);
+    rs_json_set_int(rep->metrics, "model_pixels", (long long)model_px);
+    rs_json_set_int(rep->metrics, "excluded_pixels_nonfinite_or_negative", (long long)(cap.nonfinite + cap.negative));
+    rs_json_set_int(rep->metrics, "excluded_model_pixels_bad_value", (long long)bad_px);
+    rs_json_set_int(rep->metrics, "facets", (long long)nf);
+    rs_json_set_int(rep->metrics, "observed_by_pixels", (long long)by_pixels);
+    rs_json_set_int(rep->metrics, "observed_by_points", (long long)by_points);
+    rs_json_set_int(rep->metrics, "unobserved", (long long)(nf - by_pixels - by_points));
+    rs_json_set_num(rep->metrics, "observed_share_of_seen_area", area_seen > 0 ? area_obs / area_seen : 0);
+    if (nf - by_pixels - by_points)
+        rs_report_skip(rep, "unobserved facets", "%zu facets are hidden from the camera or seen too little",
+                       nf - by_pixels - by_points);
+    rs_log_info("observe: %zu facets, %zu observed by pixels, %zu by points; %.1f %% of the seen area observed",
+                nf, by_pixels, by_points, area_seen > 0 ? 100 * area_obs / area_seen : 0.0);
+    rc = 0;
+out:
+    rs_ply_free(out);
+    free(px);
+    free(rgb);
+    free(wsum);
+    free(npix);
+    free(observed);
+    rs_scene_free(scene);
+    rs_capture_release(&cap);
+    rs_mesh_free(mesh);
+    return rc;
+}

@@ -1,0 +1,284 @@
+/* reflectance: albedo per facet, rho_i = pi L_i / E_i, with
+ *   direct:          E_i = E_sky,i                       (Okura et al. 2008 baseline)
+ *   interreflection: E_i = E_sky,i + G_i, G from the gather (panorama readings where the camera
+ *                    sees the hit point, else K_ij times facet j's radiance)
+ *   paper:           E_i = E_sky,i + sum_j K_ij L_j with the paper's dense point-to-point K.
+ * Facets the camera does not see still light their neighbours: their radiance is modelled as
+ * rho_fill (E_sky + G) / pi, rho_fill being [reflectance] unobserved_albedo or the
+ * area-weighted mean albedo of the estimable facets, solved together by fixed-point iteration.
+ * Writes albedo.ply with the face properties of DESIGN.md section 2. */
+#include <stdlib.h>
+#include <string.h>
+#include "faceprop.h"
+#include "image.h"
+#include "log.h"
+#include "paper.h"
+#include "stages.h"
+#include "transport.h"
+
+typedef struct {
+    size_t nf;
+    const double *area, *L, *esky, *gseen;
+    const uint8_t *observed;
+    const rs_transport *K;     /* gather kernel (interreflection) */
+    const float *dense;        /* paper kernel, m * m (paper) */
+    int method;                /* 0 interreflection, 1 direct, 2 paper */
+    double min_irradiance;
+    int fill_given;
+    double fill_given_value;
+} refl_in;
+
+typedef struct {
+    double *rho, *G, *Lfill;
+    uint8_t *estimable;
+    double fill[3];
+    int iterations;
+    size_t blowups;            /* paper: rows whose kernel sums past pi */
+} refl_out;
+
+static double lum3(const double *v) { return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; }
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* G_i with the current radiance model (observed L, else Lfill). */
+static void compute_G(const refl_in *in, const double *Lfill, double *G)
+{
+#pragma omp parallel for schedule(static)
+    for (size_t i = 0; i < in->nf; i++) {
+        double g[3] = {0, 0, 0};
+        if (in->method == 0) {
+            for (int ch = 0; ch < 3; ch++) g[ch] = in->gseen[3 * i + ch];
+            for (size_t e = in->K->row_start[i]; e < in->K->row_start[i + 1]; e++) {
+                uint32_t j = in->K->col[e];
+                const double *Lj = in->observed[j] ? in->L + 3 * j : Lfill + 3 * j;
+                for (int ch = 0; ch < 3; ch++) g[ch] += in->K->k_unseen[e] * Lj[ch];
+            }
+        } else if (in->method == 2) {
+            const float *row = in->dense + i * in->nf;
+            for (size_t j = 0; j < in->nf; j++) {
+                if (row[j] == 0) continue;
+                const double *Lj = in->observed[j] ? in->L + 3 * j : Lfill + 3 * j;
+                for (int ch = 0; ch < 3; ch++) g[ch] += row[j] * Lj[ch];
+            }
+        }
+        for (int ch = 0; ch < 3; ch++) G[3 * i + ch] = g[ch];
+    }
+}
+
+/* One pass: albedo and estimable flags from G, then the fill albedo. */
+static void estimate(const refl_in *in, refl_out *out, double Emin)
+{
+    double sum[3] = {0, 0, 0}, wsum = 0;
+    for (size_t i = 0; i < in->nf; i++) {
+        double E[3];
+        int ok = in->observed[i];
+        for (int ch = 0; ch < 3; ch++) {
+            E[ch] = in->esky[3 * i + ch] + out->G[3 * i + ch];
+            if (!(isfinite(E[ch]) && E[ch] > Emin && isfinite(in->L[3 * i + ch]))) ok = 0;
+        }
+        if (in->method == 2 && in->dense) {
+            double rs = 0;
+            for (size_t j = 0; j < in->nf; j++) rs += in->dense[i * in->nf + j];
+            if (rs > M_PI) ok = 0;   /* point-to-point form factor blew up: not written out */
+        }
+        out->estimable[i] = (uint8_t)ok;
+        for (int ch = 0; ch < 3; ch++) out->rho[3 * i + ch] = ok ? M_PI * in->L[3 * i + ch] / E[ch] : 0;
+        if (ok) {
+            for (int ch = 0; ch < 3; ch++) sum[ch] += in->area[i] * out->rho[3 * i + ch];
+            wsum += in->area[i];
+        }
+    }
+    for (int ch = 0; ch < 3; ch++)
+        out->fill[ch] = in->fill_given ? in->fill_given_value : (wsum > 0 ? sum[ch] / wsum : 0.5);
+}
+
+static int solve(const refl_in *in, refl_out *out)
+{
+    size_t nf = in->nf;
+    /* Threshold for "receives enough light": a share of the median over observed facets. */
+    double *e = malloc((nf ? nf : 1) * sizeof *e);
+    if (!e) return -1;
+    size_t ne = 0;
+    for (size_t i = 0; i < nf; i++)
+        if (in->observed[i]) e[ne++] = lum3(in->esky + 3 * i) + lum3(in->gseen + 3 * i);
+    qsort(e, ne, sizeof *e, cmp_double);
+    double Emin = ne ? in->min_irradiance * e[ne / 2] : 0;
+    if (!(Emin > 0)) Emin = 1e-30;
+    free(e);
+
+    memset(out->Lfill, 0, 3 * nf * sizeof *out->Lfill);
+    double prev[3] = {-1, -1, -1};
+    for (out->iterations = 1; out->iterations <= 200; out->iterations++) {
+        compute_G(in, out->Lfill, out->G);
+        estimate(in, out, Emin);
+        if (in->method == 1) break;              /* direct: no G, nothing to iterate */
+        double change = 0;
+        for (size_t i = 0; i < nf; i++) {
+            if (in->observed[i]) continue;
+            for (int ch = 0; ch < 3; ch++) {
+                double Lnew = out->fill[ch] * (in->esky[3 * i + ch] + out->G[3 * i + ch]) / M_PI;
+                double d = fabs(Lnew - out->Lfill[3 * i + ch]) / fmax(fabs(Lnew), 1e-30);
+                if (d > change) change = d;
+                out->Lfill[3 * i + ch] = Lnew;
+            }
+        }
+        for (int ch = 0; ch < 3; ch++) {
+            double d = fabs(out->fill[ch] - prev[ch]);
+            if (d > change) change = d;
+            prev[ch] = out->fill[ch];
+        }
+        if (change < 1e-7) break;
+    }
+    if (in->method == 1) memset(out->G, 0, 3 * nf * sizeof *out->G);
+    return 0;
+}
+
+static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in *in, const refl_out *out,
+                        rs_err *err)
+{
+    size_t nf = in->nf;
+    rs_ply *ply = rs_ply_new();
+    double *alb = malloc(3 * nf * sizeof *alb), *tmp = malloc(nf * sizeof *tmp);
+    int rc = -1;
+    rs_ply_element *faces = ply ? rs_mesh_to_ply(mesh, ply) : NULL;
+    if (!faces || !alb || !tmp) goto oom;
+    /* Facets with no estimate carry the fill albedo, so the model is complete for relighting;
+     * estimable = 0 says it is assumed, not measured. */
+    for (size_t i = 0; i < nf; i++)
+        for (int ch = 0; ch < 3; ch++)
+            alb[3 * i + ch] = out->estimable[i] ? out->rho[3 * i + ch] : out->fill[ch];
+    if (rs_faceprop_add_rgb(faces, "albedo", alb) != 0 || rs_faceprop_add_rgb(faces, "radiance", in->L) != 0 ||
+        rs_faceprop_add_rgb(faces, "irradiance_sky", in->esky) != 0 ||
+        rs_faceprop_add_rgb(faces, "irradiance_inter", out->G) != 0)
+        goto oom;
+    for (size_t i = 0; i < nf; i++) tmp[i] = in->observed[i];
+    if (!rs_ply_add_scalar(faces, "observed", RS_PLY_UINT8, tmp)) goto oom;
+    for (size_t i = 0; i < nf; i++) tmp[i] = out->estimable[i];
+    if (!rs_ply_add_scalar(faces, "estimable", RS_PLY_UINT8, tmp)) goto oom;
+    static const char *const rgbnames[3] = {"red", "green", "blue"};
+    for (int ch = 0; ch < 3; ch++) {
+        for (size_t i = 0; i < nf; i++) {
+            double a = alb[3 * i + ch];
+            tmp[i] = floor(255.0 * rs_linear_to_srgb((float)(a < 0 ? 0 : (a > 1 ? 1 : a))) + 0.5);
+        }
+        if (!rs_ply_add_scalar(faces, rgbnames[ch], RS_PLY_UINT8, tmp)) goto oom;
+    }
+    rs_ply_add_comment(ply, "rhoscan %s reflectance: method %s; albedo of non-estimable facets is the fill "
+                            "%.4f %.4f %.4f", RHOSCAN_VERSION, rs_config_string(cfg, "reflectance", "method"),
+                       out->fill[0], out->fill[1], out->fill[2]);
+    rs_ply_add_comment(ply, "rhoscan_fill_albedo %.9g %.9g %.9g", out->fill[0], out->fill[1], out->fill[2]);
+    char path[4096];
+    rc = rs_ply_write(ply, rs_work_path(cfg, "albedo.ply", path, sizeof path), 1, err);
+    goto done;
+oom:
+    rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory building albedo.ply");
+done:
+    rs_ply_free(ply);
+    free(alb);
+    free(tmp);
+    return rc;
+}
+
+int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
+{
+    char path[4096];
+    int rc = -1;
+    rs_ply *obs = NULL, *irr = NULL;
+    rs_transport *K = NULL;
+    float *dense = NULL;
+    rs_mesh *mesh = rs_mesh_read(rs_work_path(cfg, "mesh.ply", path, sizeof path), NULL, err);
+    if (!mesh) return -1;
+    size_t nf = mesh->nfaces;
+    double *buf = calloc(20 * nf + 1, sizeof *buf);
+    uint8_t *flags = calloc(2 * nf + 1, 1);
+    if (!buf || !flags) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu facets", nf);
+        goto out;
+    }
+    double *area = buf, *L = buf + nf, *esky = buf + 4 * nf, *gseen = buf + 7 * nf, *obsd = buf + 10 * nf;
+    refl_out ro = {buf + 11 * nf, buf + 14 * nf, buf + 17 * nf, flags + nf, {0, 0, 0}, 0, 0};
+    for (size_t f = 0; f < nf; f++) {
+        rs_v3 c, n;
+        rs_mesh_face(mesh, f, &c, &n, &area[f]);
+    }
+    const char *method = rs_config_string(cfg, "reflectance", "method");
+    int m = strcmp(method, "direct") == 0 ? 1 : (strcmp(method, "paper") == 0 ? 2 : 0);
+    const char *op = rs_work_path(cfg, "observe.ply", path, sizeof path);
+    if (!(obs = rs_ply_read(op, err)) || rs_faceprop_get_rgb(obs, op, "radiance", nf, L, err) != 0 ||
+        rs_faceprop_get(obs, op, "observed", nf, obsd, err) != 0)
+        goto out;
+    for (size_t f = 0; f < nf; f++) flags[f] = obsd[f] > 0;
+    const char *ip = rs_work_path(cfg, "irradiance.ply", path, sizeof path);
+    if (!(irr = rs_ply_read(ip, err)) || rs_faceprop_get_rgb(irr, ip, "irradiance_sky", nf, esky, err) != 0 ||
+        rs_faceprop_get_rgb(irr, ip, "irradiance_inter_seen", nf, gseen, err) != 0)
+        goto out;
+    double t0 = rs_now();
+    if (m == 0) {
+        if (!(K = rs_transport_read(rs_work_path(cfg, "transport.ply", path, sizeof path), nf, err))) goto out;
+    } else if (m == 2) {
+        long maxf = rs_config_int(cfg, "reflectance", "paper_max_facets");
+        if ((long)nf > maxf) {
+            rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                       "[reflectance] method = paper on %zu facets: its O(m^3) visibility would not finish "
+                       "in minutes; expected at most [reflectance] paper_max_facets = %ld facets", nf, maxf);
+            goto out;
+        }
+        double pairs;
+        if (rs_paper_kernel(mesh, &dense, &pairs, err) != 0) goto out;
+        rs_json_set_num(rep->metrics, "paper_pairs_tested", pairs);
+        memset(gseen, 0, 3 * nf * sizeof *gseen);   /* the paper reads no panorama at hit points */
+    } else {
+        rs_report_skip(rep, "interreflection", "method = direct ignores light from other facets");
+    }
+    rs_report_time(rep, "kernel", rs_now() - t0);
+    refl_in in = {nf, area, L, esky, gseen, flags, K, dense, m,
+                  rs_config_real(cfg, "reflectance", "min_irradiance"),
+                  rs_config_has(cfg, "reflectance", "unobserved_albedo"), 0};
+    if (in.fill_given) in.fill_given_value = rs_config_real(cfg, "reflectance", "unobserved_albedo");
+    t0 = rs_now();
+    if (solve(&in, &ro) != 0) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+        goto out;
+    }
+    rs_report_time(rep, "solve", rs_now() - t0);
+    size_t nobs = 0, nest = 0, blow = 0;
+    for (size_t f = 0; f < nf; f++) {
+        nobs += flags[f];
+        nest += ro.estimable[f];
+        if (m == 2 && flags[f] && !ro.estimable[f]) {
+            double rs = 0;
+            for (size_t j = 0; j < nf; j++) rs += dense[f * nf + j];
+            if (rs > M_PI) blow++;
+        }
+    }
+    if (blow)
+        rs_log_warn("paper: %zu facets have kernel row sums above pi (the point-to-point form factor "
+                    "diverges for close neighbours); they are flagged not estimable", blow);
+    rs_json_set_str(rep->metrics, "method", method);
+    rs_json_set_int(rep->metrics, "facets", (long long)nf);
+    rs_json_set_int(rep->metrics, "observed", (long long)nobs);
+    rs_json_set_int(rep->metrics, "estimable", (long long)nest);
+    rs_json_set_int(rep->metrics, "paper_rows_diverged", (long long)blow);
+    rs_json_set_int(rep->metrics, "fill_iterations", ro.iterations);
+    rs_json *fill = rs_json_set_arr(rep->metrics, "fill_albedo");
+    for (int ch = 0; ch < 3; ch++) rs_json_push_num(fill, ro.fill[ch]);
+    if (nobs > nest)
+        rs_report_skip(rep, "albedo of observed facets", "%zu observed facets receive too little light "
+                       "or are degenerate: flagged estimable = 0", nobs - nest);
+    rs_log_info("reflectance (%s): %zu facets, %zu observed, %zu estimable; fill albedo %.3f %.3f %.3f",
+                method, nf, nobs, nest, ro.fill[0], ro.fill[1], ro.fill[2]);
+    rc = write_albedo(cfg, mesh, &in, &ro, err);
+out:
+    free(buf);
+    free(flags);
+    free(dense);
+    rs_transport_free(K);
+    rs_ply_free(obs);
+    rs_ply_free(irr);
+    rs_mesh_free(mesh);
+    return rc;
+}

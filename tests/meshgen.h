@@ -1,0 +1,21 @@
+/* meshgen: small procedural meshes for tests: subdivided rectangles, boxes (outward or inward). */
+#ifndef RS_MESHGEN_H
+#define RS_MESHGEN_H
+
+#include "mesh.h"
+
+/* A mesh with room for nverts / nfaces that rs_meshgen_rect appends to. */
+typedef struct {
+    rs_mesh *m;
+    size_t nv, nf;
+} rs_meshgen;
+
+rs_meshgen rs_meshgen_new(size_t max_verts, size_t max_faces);
+/* Rectangle origin + s*e1 + t*e2, s,t in [0,1], split into nu x nv cells of two triangles,
+ * normal along e1 x e2. Returns the index of its first face. */
+size_t rs_meshgen_rect(rs_meshgen *g, rs_v3 origin, rs_v3 e1, rs_v3 e2, int nu, int nv);
+/* Axis-aligned box [lo, hi] with n x n cells per side; inward: normals point inside. */
+void rs_meshgen_box(rs_meshgen *g, rs_v3 lo, rs_v3 hi, int n, int inward);
+rs_mesh *rs_meshgen_done(rs_meshgen *g);
+
+#endif

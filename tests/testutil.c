@@ -1,0 +1,102 @@
+/* testutil: helpers shared by the test programs (see testutil.h). */
+#include "testutil.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+const char *rs_test_tmpdir(const char *tag)
+{
+    static char dirs[8][512];
+    static int next;
+    char *d = dirs[next++ % 8];
+    const char *base = getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp";
+    snprintf(d, sizeof dirs[0], "%s/rhoscan-%s-XXXXXX", base, tag);
+    if (!mkdtemp(d)) {
+        perror("mkdtemp");
+        exit(1);
+    }
+    return d;
+}
+
+void rs_test_rmtree(const char *path)
+{
+    char cmd[1200];
+    if (!path || !*path || strcmp(path, "/") == 0) return;
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", path);
+    if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", path);
+}
+
+const char *rs_test_path(const char *dir, const char *name)
+{
+    static char buf[8][1024];
+    static int next;
+    char *b = buf[next++ % 8];
+    snprintf(b, sizeof buf[0], "%s/%s", dir, name);
+    return b;
+}
+
+void rs_test_write(const char *path, const char *text)
+{
+    FILE *f = fopen(path, "wb");
+    assert_non_null(f);
+    assert_int_equal(fwrite(text, 1, strlen(text), f), strlen(text));
+    assert_int_equal(fclose(f), 0);
+}
+
+const char *rs_test_shared_dir(void)
+{
+    const char *d = getenv("RHOSCAN_SHARED_DIR");
+    struct stat st;
+    if (d && stat(d, &st) == 0 && S_ISDIR(st.st_mode)) return d;
+    const char *ci = getenv("CI");
+    if (ci && strcmp(ci, "true") == 0) {
+        fprintf(stderr, "FAIL: shared data folder '%s' is missing, and CI=true requires it\n",
+                d ? d : "(RHOSCAN_SHARED_DIR unset)");
+        exit(1);
+    }
+    fprintf(stderr, "SKIP: shared data folder '%s' is missing (set -DRHOSCAN_SHARED_DIR=...)\n",
+            d ? d : "(RHOSCAN_SHARED_DIR unset)");
+    exit(RS_TEST_SKIP);
+}
+
+const char *rs_test_source_dir(void)
+{
+    const char *d = getenv("RHOSCAN_SOURCE_DIR");
+    return d ? d : ".";
+}
+
+const char *rs_test_bin_dir(void)
+{
+    const char *d = getenv("RHOSCAN_BIN_DIR");
+    return d ? d : ".";
+}
+
+int rs_test_run(const char *cmd, char **output)
+{
+    char full[8192];
+    snprintf(full, sizeof full, "%s 2>&1", cmd);
+    FILE *p = popen(full, "r");
+    if (!p) return -1;
+    size_t cap = 4096, len = 0;
+    char *buf = malloc(cap);
+    size_t n;
+    while (buf && (n = fread(buf + len, 1, cap - len - 1, p)) > 0) {
+        len += n;
+        if (cap - len < 1024) {
+            char *nb = realloc(buf, cap * 2);
+            if (!nb) break;
+            buf = nb;
+            cap *= 2;
+        }
+    }
+    if (buf) buf[len] = 0;
+    int status = pclose(p);
+    if (output) *output = buf;
+    else free(buf);
+    if (status == -1) return -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}

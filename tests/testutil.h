@@ -1,0 +1,33 @@
+/* testutil: what the test programs share: temporary folders, the shared reference data
+ * (skip when absent, fail under CI=true), running programs of the build. */
+#ifndef RS_TESTUTIL_H
+#define RS_TESTUTIL_H
+
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#define RS_TEST_SKIP 77
+
+/* A fresh temporary folder (removed by rs_test_rmtree); returns a static-lifetime string. */
+const char *rs_test_tmpdir(const char *tag);
+void rs_test_rmtree(const char *path);
+/* dir/name in a static rotating buffer (8 slots). */
+const char *rs_test_path(const char *dir, const char *name);
+/* Writes text to a file; aborts the test on failure. */
+void rs_test_write(const char *path, const char *text);
+
+/* RHOSCAN_SHARED_DIR when it exists. When it does not: prints why and exits 77 (ctest skip),
+ * or exits 1 under CI=true, where the data must be there. */
+const char *rs_test_shared_dir(void);
+/* The source tree and the build tree (set by ctest). */
+const char *rs_test_source_dir(void);
+const char *rs_test_bin_dir(void);
+
+/* Runs a shell command, capturing stderr+stdout into *output (caller frees); returns the exit
+ * status (or -1). */
+int rs_test_run(const char *cmd, char **output);
+
+#endif
