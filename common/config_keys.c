@@ -36,6 +36,8 @@ const rs_cfg_key rs_cfg_keys[] = {
 
     {"observe", "min_pixels", RS_CFG_INT, "3", 1, 1000000, NULL, "px", "observe",
      "pure pixels (not on a facet border) needed to average a facet's radiance from pixels"},
+    {"observe", "guard_px", RS_CFG_REAL, "0.75", 0, 4, NULL, "px", "observe",
+     "a pixel counts as pure when rays this far from its centre (diagonally) hit the same facet"},
     {"observe", "facet_points", RS_CFG_INT, "16", 1, 4096, NULL, "", "observe",
      "points sampled on a facet too small for pixel averaging"},
     {"observe", "min_visible", RS_CFG_REAL, "0.5", 0.01, 1, NULL, "", "observe",
@@ -45,10 +47,14 @@ const rs_cfg_key rs_cfg_keys[] = {
 
     {"irradiance", "samples", RS_CFG_INT, "256", 1, 1 << 20, NULL, "rays", "irradiance",
      "hemisphere rays per facet (explicit sun rays come on top)"},
+    {"irradiance", "sky_samples", RS_CFG_INT, "512", 0, 1 << 16, NULL, "rays", "irradiance",
+     "rays per facet drawn from the sky map's brightness, combined with the hemisphere rays (MIS)"},
     {"irradiance", "sun_samples", RS_CFG_INT, "64", 0, 1 << 16, NULL, "rays", "irradiance",
-     "shadow rays per facet toward bright sky pixels (0 turns explicit sun sampling off)"},
+     "shadow rays per facet toward the bright sky pixels (0 turns explicit sun sampling off)"},
     {"irradiance", "sun_threshold", RS_CFG_REAL, "50", 1, 1e9, NULL, "", "irradiance",
      "sky pixels brighter than this multiple of the median sky radiance are sampled explicitly"},
+    {"irradiance", "sun_max_cone_deg", RS_CFG_REAL, "3", 0.01, 90, NULL, "deg", "irradiance",
+     "bright pixels are sampled explicitly up to the solid angle of a cone of this half-angle"},
     {"irradiance", "seed", RS_CFG_INT, "1", 0, 2147483647, NULL, "", "irradiance",
      "seed of the sample sequences"},
 

@@ -16,6 +16,7 @@ struct rs_gather_scratch {
     rs_ray *rays;
     rs_hit *hits;
     hit_ref *refs;
+    uint32_t *pixels;          /* sky pixel of each map-sampled ray */
     uint8_t *occl;
 };
 
@@ -27,8 +28,9 @@ rs_gather_scratch *rs_gather_scratch_new(size_t n)
     s->rays = malloc(n * sizeof *s->rays);
     s->hits = malloc(n * sizeof *s->hits);
     s->refs = malloc(n * sizeof *s->refs);
+    s->pixels = malloc(n * sizeof *s->pixels);
     s->occl = malloc(n);
-    if (!s->rays || !s->hits || !s->refs || !s->occl) {
+    if (!s->rays || !s->hits || !s->refs || !s->pixels || !s->occl) {
         rs_gather_scratch_free(s);
         return NULL;
     }
@@ -41,6 +43,7 @@ void rs_gather_scratch_free(rs_gather_scratch *s)
     free(s->rays);
     free(s->hits);
     free(s->refs);
+    free(s->pixels);
     free(s->occl);
     free(s);
 }
@@ -66,6 +69,16 @@ static int read_seen(const rs_gather_ctx *g, uint32_t j, rs_v3 x, double out[3])
     if (!rs_capture_pixel_ok(px)) return 0;
     for (int ch = 0; ch < 3; ch++) out[ch] = px[ch];
     return 1;
+}
+
+/* Adds weight * (sky radiance of pixel pix) to E_sky. */
+static void add_sky(const rs_skyenv *env, size_t pix, double weight, rs_facet_gather *out)
+{
+    const float *L = env->radiance + 3 * pix;
+    for (int ch = 0; ch < 3; ch++) out->esky[ch] += weight * L[ch];
+    double lum = weight * rs_skyenv_luminance(L);
+    out->esky_lum += lum;
+    if (env->filled[pix]) out->filled_lum += lum;
 }
 
 /* Gathers one facet; rays/hits/refs are the thread's scratch (samples entries each). */
@@ -95,16 +108,20 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
     }
     rs_scene_intersect(g->scene, rays, hits, (size_t)N);
     const rs_skyenv *env = g->env;
+    /* The sky is split in two. The sun set (small, very bright) gets Ns rays of its own, chosen
+     * by power. The rest is sampled two ways combined by multiple importance sampling (Veach
+     * 1997, balance heuristic): the cosine-weighted rays above and Ne rays drawn from the map's
+     * distribution. Cosine rays that land in the sun set count nothing: the sun rays have it. */
+    int Nc = N, Ne = env && env->cdf ? g->sky_samples : 0, Ns = env && env->sun_cdf ? g->sun_samples : 0;
     int nrefs = 0;
     for (int k = 0; k < N; k++) {
         if (hits[k].face == RS_NO_HIT) {
             if (!env) continue;
             size_t pix = rs_skyenv_pixel(env, rays[k].dir);
-            const float *L = env->radiance + 3 * pix;
-            for (int ch = 0; ch < 3; ch++) out->esky[ch] += L[ch];
-            double lum = 0.2126 * L[0] + 0.7152 * L[1] + 0.0722 * L[2];
-            out->esky_lum += lum;
-            if (env->filled[pix]) out->filled_lum += lum;
+            if (env->sun[pix]) continue;
+            double pdf_c = rs_v3_dot(rays[k].dir, n) / M_PI, pdf_e = Ne ? rs_skyenv_pdf(env, pix) : 0;
+            double wgt = Nc * pdf_c / (Nc * pdf_c + Ne * pdf_e) * M_PI / Nc;  /* L cos / pdf_c = pi L */
+            add_sky(env, pix, wgt, out);
             continue;
         }
         double L[3];
@@ -118,43 +135,39 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
         nrefs++;
     }
     double w = M_PI / N;                      /* cosine-weighted: E = pi * mean radiance */
-    for (int ch = 0; ch < 3; ch++) {
-        out->esky[ch] *= w;
-        out->gseen[ch] *= w;
-    }
-    out->esky_lum *= w;
-    out->filled_lum *= w;
+    for (int ch = 0; ch < 3; ch++) out->gseen[ch] *= w;
 
-    /* Explicit rays toward the bright pixels, chosen by power, from points over the facet. */
-    int M = env && env->nlights ? g->sun_samples : 0;
-    for (int k = 0; k < M; k++) {
-        double x, y, z, unused, px, py;
-        rs_sobol2_owen((uint32_t)k, rs_hash_combine(seed, 3), &x, &y);       /* light, jitter u */
-        rs_sobol2_owen((uint32_t)k, rs_hash_combine(seed, 4), &z, &unused);  /* jitter v */
-        rs_sobol2_owen((uint32_t)k, rs_hash_combine(seed, 5), &px, &py);     /* point on the facet */
-        size_t li = rs_skyenv_pick_light(env, x);
-        uint32_t pix = env->light_pixel[li];
-        int col = (int)(pix % (uint32_t)env->width), row = (int)(pix / (uint32_t)env->width);
-        rs_v3 d = rs_pose_dir_to_world(&env->pose, rs_pano_uv_to_dir((col + y) / env->width,
-                                                                     (row + z) / env->height));
-        rs_v3 p = rs_triangle_point(a, b, c, px, py);
-        rays[k].org = rs_v3_add(p, rs_v3_scale(n, rs_scene_offset(g->scene, p)));
-        rays[k].dir = d;
-        rays[k].tnear = 0;
-        rays[k].tfar = rs_v3_dot(d, n) > 0 ? INFINITY : 0;   /* below the horizon: no ray */
-    }
-    if (M) rs_scene_occluded(g->scene, rays, occl, (size_t)M);
-    for (int k = 0; k < M; k++) {
-        double cosn = rs_v3_dot(rays[k].dir, n);
-        if (cosn <= 0 || occl[k]) continue;
-        double x, y;
-        rs_sobol2_owen((uint32_t)k, rs_hash_combine(seed, 3), &x, &y);
-        size_t li = rs_skyenv_pick_light(env, x);
-        const float *P = env->light_power + 3 * li;
-        double py = 0.2126 * P[0] + 0.7152 * P[1] + 0.0722 * P[2];
-        double scale = env->light_cdf[env->nlights] / py * cosn / M;
-        for (int ch = 0; ch < 3; ch++) out->esky[ch] += P[ch] * scale;
-        out->esky_lum += py * scale;
+    /* Rays drawn from the map: first the rest of the sky, then the sun set. */
+    for (int pass = 0; pass < 2; pass++) {
+        int M = pass ? Ns : Ne;
+        for (int k = 0; k < M; k++) {
+            double x, y, z, unused, px, py;
+            rs_sobol2_owen((uint32_t)k, rs_hash_combine(seed, 3 + 3 * pass), &x, &y);       /* pixel, jitter u */
+            rs_sobol2_owen((uint32_t)k, rs_hash_combine(seed, 4 + 3 * pass), &z, &unused);  /* jitter v */
+            rs_sobol2_owen((uint32_t)k, rs_hash_combine(seed, 5 + 3 * pass), &px, &py);     /* point */
+            size_t pix = pass ? rs_skyenv_pick_sun(env, x) : rs_skyenv_pick(env, x);
+            int col = (int)(pix % (size_t)env->width), row = (int)(pix / (size_t)env->width);
+            rs_v3 d = rs_pose_dir_to_world(&env->pose, rs_pano_uv_to_dir((col + y) / env->width,
+                                                                         (row + z) / env->height));
+            rs_v3 p = rs_triangle_point(a, b, c, px, py);
+            rays[k].org = rs_v3_add(p, rs_v3_scale(n, rs_scene_offset(g->scene, p)));
+            rays[k].dir = d;
+            rays[k].tnear = 0;
+            rays[k].tfar = rs_v3_dot(d, n) > 0 ? INFINITY : 0;   /* below the horizon: no ray */
+            s->pixels[k] = (uint32_t)pix;
+        }
+        if (M) rs_scene_occluded(g->scene, rays, occl, (size_t)M);
+        for (int k = 0; k < M; k++) {
+            double cosn = rs_v3_dot(rays[k].dir, n);
+            if (cosn <= 0 || occl[k]) continue;
+            size_t pix = s->pixels[k];
+            double lum = rs_skyenv_luminance(env->radiance + 3 * pix), wgt;
+            if (pass)                                        /* L cos / pdf / Ns, pdf = lum / power */
+                wgt = cosn * env->sun_power / (lum * Ns);
+            else                                             /* balance heuristic, already / Ne */
+                wgt = cosn / (Nc * cosn / M_PI + Ne * rs_skyenv_pdf(env, pix));
+            add_sky(env, pix, wgt, out);
+        }
     }
 
     /* K row: merge hits per facet j (sorted, so the file does not depend on thread timing). */

@@ -26,7 +26,9 @@ typedef struct rs_gather_ctx {
     const rs_skyenv *env;      /* NULL: no sky (escaping rays bring nothing) */
     const rs_capture *cap;     /* NULL: no panorama readings (every hit goes through K) */
     const float *facet_id;     /* the observe stage's facet-id image (with cap) */
-    int samples, sun_samples;
+    int samples;               /* cosine-weighted rays */
+    int sky_samples;           /* rays drawn from the sky map (all but the sun set) */
+    int sun_samples;           /* rays toward the sun set */
     uint32_t seed;
 } rs_gather_ctx;
 

@@ -128,31 +128,34 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     }
     int sun_samples = (int)rs_config_int(cfg, "irradiance", "sun_samples");
     double t0 = rs_now();
-    if (rs_skyenv_build(&cap, ids->data, rs_config_real(cfg, "irradiance", "sun_threshold"), sun_samples > 0,
+    double cone = rs_config_real(cfg, "irradiance", "sun_max_cone_deg") * M_PI / 180;
+    if (rs_skyenv_build(&cap, ids->data, rs_config_real(cfg, "irradiance", "sun_threshold"),
+                        2 * M_PI * (1 - cos(cone)), sun_samples > 0 || rs_config_int(cfg, "irradiance", "sky_samples") > 0,
                         &env, err) != 0)
         goto out;
     rs_report_time(rep, "sky_map", rs_now() - t0);
-    rs_log_info("irradiance: sky %zu pixels (median luminance %.4g), %zu filled, %zu bright (%s)",
-                env.sky_pixels, env.sky_median, env.filled_pixels, env.bright_pixels,
-                env.nlights ? "sampled explicitly" : "kept in the map");
-    if (!env.bright_pixels)
-        rs_report_skip(rep, "sun sampling", "no sky pixel is brighter than %.0f x the median sky",
+    rs_log_info("irradiance: sky %zu pixels (median luminance %.4g), %zu filled, %zu bright kept out of the fill",
+                env.sky_pixels, env.sky_median, env.filled_pixels, env.bright_pixels);
+    if (!sun_samples)
+        rs_report_skip(rep, "sun sampling", "[irradiance] sun_samples = 0: cosine-weighted rays only");
+    else if (!env.sun_cdf)
+        rs_report_skip(rep, "sun sampling", "no sky pixel is brighter than %g x the median sky",
                        rs_config_real(cfg, "irradiance", "sun_threshold"));
-    else if (!env.nlights)
-        rs_report_skip(rep, "sun sampling", "[irradiance] sun_samples = 0");
 
     t0 = rs_now();
     if (!(scene = rs_scene_new(mesh, err))) goto out;
     rs_report_time(rep, "bvh", rs_now() - t0);
     rs_gather_ctx g = {scene, &env, &cap, ids->data, (int)rs_config_int(cfg, "irradiance", "samples"),
-                    sun_samples, (uint32_t)rs_config_int(cfg, "irradiance", "seed")};
+                    (int)rs_config_int(cfg, "irradiance", "sky_samples"), sun_samples, (uint32_t)rs_config_int(cfg, "irradiance", "seed")};
     fg = calloc(nf, sizeof *fg);
     if (!fg) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu facets", nf);
         goto out;
     }
     int failed = 0;
-    size_t scratch = (size_t)(g.samples > g.sun_samples ? g.samples : g.sun_samples);
+    size_t scratch = (size_t)g.samples;
+    if ((size_t)g.sky_samples > scratch) scratch = (size_t)g.sky_samples;
+    if ((size_t)g.sun_samples > scratch) scratch = (size_t)g.sun_samples;
     t0 = rs_now();
     rs_progress *prog = rs_progress_start("irradiance: gather", nf);
 #pragma omp parallel
@@ -178,13 +181,13 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory during the gather");
         goto out;
     }
-    double rays = (double)nf * (g.samples + (env.nlights ? g.sun_samples : 0));
+    double rays = (double)nf * (g.samples + (env.cdf ? g.sky_samples : 0) + (env.sun_cdf ? g.sun_samples : 0));
     rs_json_set_num(rep->metrics, "rays", rays);
     rs_json_set_num(rep->metrics, "rays_per_second", gather_s > 0 ? rays / gather_s : 0);
     rs_json_set_int(rep->metrics, "sky_pixels", (long long)env.sky_pixels);
     rs_json_set_int(rep->metrics, "filled_pixels", (long long)env.filled_pixels);
     rs_json_set_int(rep->metrics, "bright_pixels", (long long)env.bright_pixels);
-    rs_json_set_int(rep->metrics, "explicit_lights", (long long)env.nlights);
+    rs_json_set_num(rep->metrics, "bright_solid_angle_sr", env.bright_sr);
     rs_json_set_num(rep->metrics, "sky_median_luminance", env.sky_median);
     double fl = 0, el = 0;
     for (size_t f = 0; f < nf; f++) {

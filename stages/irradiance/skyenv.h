@@ -11,24 +11,29 @@
 typedef struct rs_skyenv {
     int width, height;
     rs_pose pose;              /* the capture's: directions are looked up in its frame */
-    float *radiance;           /* 3 * W * H: radiance an escaping ray sees; bright pixels are 0
-                                  here when they are sampled explicitly */
+    float *radiance;           /* 3 * W * H: radiance an escaping ray sees */
     uint8_t *filled;           /* W * H: 1 where the value was filled in (not measured) */
-    size_t nlights;            /* bright pixels sampled explicitly */
-    uint32_t *light_pixel;     /* index r * W + c of each */
-    float *light_power;        /* 3 per light: radiance * solid angle (W m^-2 at normal incidence) */
-    double *light_cdf;         /* nlights + 1 entries over luminance power, last = total */
+    uint8_t *sun;              /* W * H: 1 for the sun set (bright pixels sampled on their own) */
+    double *cdf;               /* W * H + 1: cumulative luminance x solid angle over the pixels not
+                                  in the sun set; NULL when not importance-sampled */
+    double total_power;        /* cdf[W * H] */
+    double *sun_cdf;           /* the same over the sun set; NULL when it is empty */
+    double sun_power;
     double sky_median;         /* median luminance of the measured sky pixels */
     size_t sky_pixels, filled_pixels, bright_pixels;
+    double bright_sr;          /* solid angle of the bright pixels */
 } rs_skyenv;
 
 /* facet_id: the observe stage's image (W x H, -1 where no facet). sun_threshold: pixels
- * brighter than this multiple of the median sky luminance are lights; explicit: split them off
- * (else they stay in radiance). Fill method: each hidden pixel takes the linear interpolation,
+ * brighter than this multiple of the median sky luminance are lights, brightest first, up to a
+ * total solid angle of max_sr (sr): the sun set. It never feeds the fill.
+ * explicit: the sun set is sampled on its own and the rest by importance (rs_skyenv_pick_sun,
+ * rs_skyenv_pick, rs_skyenv_pdf); otherwise there is no sun set and cosine rays see everything.
+ * Fill method: each hidden pixel takes the linear interpolation,
  * along its row (in azimuth, wrapping), of the nearest measured non-bright sky pixels on either
  * side; rows with none copy the nearest row that has some. Bright pixels never feed the fill. */
-int rs_skyenv_build(const rs_capture *cap, const float *facet_id, double sun_threshold, int explicit,
-                    rs_skyenv *env, rs_err *err);
+int rs_skyenv_build(const rs_capture *cap, const float *facet_id, double sun_threshold, double max_sr,
+                    int explicit, rs_skyenv *env, rs_err *err);
 void rs_skyenv_release(rs_skyenv *env);
 
 /* Pixel index of world direction d. */
@@ -39,7 +44,21 @@ static inline size_t rs_skyenv_pixel(const rs_skyenv *env, rs_v3 d_world)
     return (size_t)r * env->width + c;
 }
 
-/* Picks a light by luminance power from x in [0,1); returns its index. */
-size_t rs_skyenv_pick_light(const rs_skyenv *env, double x);
+/* Picks a pixel outside (rs_skyenv_pick) or inside (rs_skyenv_pick_sun) the sun set with
+ * probability proportional to luminance x solid angle, from x in [0,1). */
+size_t rs_skyenv_pick(const rs_skyenv *env, double x);
+size_t rs_skyenv_pick_sun(const rs_skyenv *env, double x);
+
+static inline double rs_skyenv_luminance(const float *rgb)
+{
+    return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+}
+
+/* Solid-angle density (1/sr) with which rs_skyenv_pick + uniform jitter in the pixel yields a
+ * direction in pixel pix (not in the sun set): luminance / total power. */
+static inline double rs_skyenv_pdf(const rs_skyenv *env, size_t pix)
+{
+    return env->cdf && !env->sun[pix] ? rs_skyenv_luminance(env->radiance + 3 * pix) / env->total_power : 0;
+}
 
 #endif

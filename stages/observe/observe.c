@@ -1,8 +1,8 @@
 /* observe: which facet each panorama pixel sees, and each facet's observed radiance L_i.
- * Large facets: the footprint-weighted mean of their pure pixels (pixels whose four sub-pixel
- * rays all hit the facet, so no mixed pixels on borders). Small facets (fewer pure pixels
+ * Large facets: the footprint-weighted mean of their pure pixels (pixels whose four guard rays,
+ * [observe] guard_px from the centre, all hit the facet, so no mixed pixels on borders). Small facets (fewer pure pixels
  * than [observe] min_pixels): points sampled on the facet that the camera sees, each reading
- * the panorama bilinearly. Writes observe.ply (mesh + radiance_*, observed, observe_pixels)
+ * the pixel that holds it if that pixel lies wholly on one surface. Writes observe.ply (mesh + radiance_*, observed, observe_pixels)
  * and facet_id.exr (channel Y: facet index, -1 where the camera sees no facet). */
 #include <stdlib.h>
 #include <string.h>
@@ -16,17 +16,23 @@
 
 typedef struct {
     uint32_t face;             /* facet hit by the pixel's centre ray, RS_NO_HIT if none */
-    uint8_t pure;              /* all sub-pixel rays hit the same facet, from the front */
+    uint8_t pure;              /* all guard rays hit the same facet, from the front */
+    uint8_t smooth;            /* all sub-pixel rays hit one surface: the centre hit's plane, from
+                                  the front, no silhouette or crease inside the pixel */
     float weight;              /* footprint area on the facet (m^2), 0 when not usable */
     float depth;               /* distance to the hit (m) */
 } pixel_hit;
 
-/* Casts a centre ray and four sub-pixel rays per pixel, row by row. */
-static void trace_pixels(const rs_scene *scene, const rs_capture *cap, double cos_max_view,
+/* Casts a centre ray and four guard rays per pixel, row by row. */
+static void trace_pixels(const rs_scene *scene, const rs_capture *cap, double cos_max_view, double guard,
                          pixel_hit *out)
 {
     int w = cap->pano->width, h = cap->pano->height;
-    static const double sub[5][2] = {{0.5, 0.5}, {0.25, 0.25}, {0.75, 0.25}, {0.25, 0.75}, {0.75, 0.75}};
+    /* The four guard rays sit `guard` pixels from the centre along the diagonals: a camera's
+     * pixel integrates a footprint wider than the pixel (lens blur, demosaicing, a renderer's
+     * 1.5-pixel filter), and next to a sky 50 times brighter a 1 % leak is a 50 % error. */
+    const double sub[5][2] = {{0.5, 0.5}, {0.5 - guard, 0.5 - guard}, {0.5 + guard, 0.5 - guard},
+                              {0.5 - guard, 0.5 + guard}, {0.5 + guard, 0.5 + guard}};
     rs_progress *prog = rs_progress_start("observe: tracing pixels", (size_t)h);
 #pragma omp parallel
     {
@@ -51,15 +57,29 @@ static void trace_pixels(const rs_scene *scene, const rs_capture *cap, double co
                 pixel_hit *p = &out[(size_t)r * w + c];
                 p->face = hc->face;
                 p->pure = 0;
+                p->smooth = 0;
                 p->weight = 0;
                 p->depth = hc->t;
                 if (hc->face == RS_NO_HIT || hc->backface) continue;
-                int pure = 1;
-                for (int s = 1; s < 5; s++)
-                    if (hits[5 * c + s].face != hc->face || hits[5 * c + s].backface) pure = 0;
+                int pure = 1, smooth = 1;
+                rs_v3 nc = rs_scene_normal(scene, hc->face);
+                rs_v3 xc = rs_v3_add(rays[5 * c].org, rs_v3_scale(rays[5 * c].dir, hc->t));
+                for (int s = 1; s < 5; s++) {
+                    const rs_hit *hs = &hits[5 * c + s];
+                    if (hs->face != hc->face || hs->backface) pure = 0;
+                    if (hs->face == RS_NO_HIT || hs->backface) {
+                        smooth = 0;
+                        continue;
+                    }
+                    rs_v3 xs = rs_v3_add(rays[5 * c + s].org, rs_v3_scale(rays[5 * c + s].dir, hs->t));
+                    if (rs_v3_dot(nc, rs_scene_normal(scene, hs->face)) < 0.95 ||
+                        fabs(rs_v3_dot(nc, rs_v3_sub(xs, xc))) > 0.01 * hc->t)
+                        smooth = 0;
+                }
                 double cosv = -rs_v3_dot(rays[5 * c].dir, rs_scene_normal(scene, hc->face));
                 if (cosv < cos_max_view) continue;   /* grazing: footprint unbounded */
                 p->pure = (uint8_t)pure;
+                p->smooth = (uint8_t)smooth;
                 p->weight = (float)(omega * (double)hc->t * hc->t / cosv);
             }
             rs_progress_add(prog, 1);
@@ -70,16 +90,18 @@ static void trace_pixels(const rs_scene *scene, const rs_capture *cap, double co
     rs_progress_end(prog);
 }
 
-/* Radiance of a facet too small for pixel averaging: mean over sampled points that the camera
- * sees from the front. Returns the number of usable points; *visible_share the share seen. */
-static int small_facet_radiance(const rs_scene *scene, const rs_capture *cap, uint32_t f, int npoints,
-                                double cos_max_view, double rgb[3], double *visible_share)
+/* Radiance of a facet too small for pixel averaging: mean over points sampled on it that the
+ * camera sees from the front, each reading the pixel that holds it when that pixel lies wholly on
+ * the same surface (smooth), so that sky or another surface across a silhouette or crease never
+ * leaks in. Returns the number of usable points; *visible_share the share the camera sees. */
+static int small_facet_radiance(const rs_scene *scene, const rs_capture *cap, const pixel_hit *px, uint32_t f,
+                                int npoints, double cos_max_view, double rgb[3], double *visible_share)
 {
     const rs_mesh *m = rs_scene_mesh(scene);
     rs_v3 a = rs_mesh_vert(m, m->tris[3 * f]), b = rs_mesh_vert(m, m->tris[3 * f + 1]),
           c = rs_mesh_vert(m, m->tris[3 * f + 2]);
     rs_v3 n = rs_scene_normal(scene, f);
-    int used = 0, seen = 0;
+    int used = 0, seen = 0, w = cap->pano->width, h = cap->pano->height;
     rgb[0] = rgb[1] = rgb[2] = 0;
     for (int k = 0; k < npoints; k++) {
         double x, y;
@@ -93,12 +115,12 @@ static int small_facet_radiance(const rs_scene *scene, const rs_capture *cap, ui
         seen++;
         double cosv = -rs_v3_dot(rs_v3_norm(d), n);
         if (cosv < cos_max_view) continue;
-        double u, v;
-        float px[3];
-        rs_pano_dir_to_uv(rs_pose_dir_to_local(&cap->pose, d), &u, &v);
-        rs_pano_sample(cap->pano, u, v, px);
-        if (!rs_capture_pixel_ok(px)) continue;
-        for (int ch = 0; ch < 3; ch++) rgb[ch] += px[ch];
+        int col, row;
+        rs_pano_world_to_pixel(&cap->pose, w, h, d, &col, &row);
+        size_t k2 = (size_t)row * w + col;
+        const float *v = cap->pano->data + 3 * k2;
+        if (!px[k2].smooth || !rs_capture_pixel_ok(v)) continue;
+        for (int ch = 0; ch < 3; ch++) rgb[ch] += v[ch];
         used++;
     }
     *visible_share = (double)seen / npoints;
@@ -158,7 +180,7 @@ int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         goto out;
     }
     t0 = rs_now();
-    trace_pixels(scene, &cap, cos_max_view, px);
+    trace_pixels(scene, &cap, cos_max_view, rs_config_real(cfg, "observe", "guard_px"), px);
     rs_report_time(rep, "trace_pixels", rs_now() - t0);
 
     /* Serial accumulation in pixel order: the sums do not depend on the thread count. */
@@ -190,11 +212,11 @@ int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
             continue;
         }
         double share, l[3];
-        if (rs_scene_normal(scene, (uint32_t)f).z == 0 && rs_v3_len(rs_scene_normal(scene, (uint32_t)f)) == 0) {
+        if (rs_v3_len(rs_scene_normal(scene, (uint32_t)f)) == 0) {
             rgb[3 * f] = rgb[3 * f + 1] = rgb[3 * f + 2] = 0;
             continue;      /* degenerate facet */
         }
-        int used = small_facet_radiance(scene, &cap, (uint32_t)f, facet_points, cos_max_view, l, &share);
+        int used = small_facet_radiance(scene, &cap, px, (uint32_t)f, facet_points, cos_max_view, l, &share);
         if (used > 0 && share >= min_visible) {
             for (int ch = 0; ch < 3; ch++) rgb[3 * f + ch] = l[ch];
             observed[f] = 1;

@@ -19,6 +19,7 @@ static rs_skyenv uniform_env(int w, float L)
     rs_m3_identity(env.pose.rot);
     env.radiance = malloc(3 * (size_t)w * (w / 2) * sizeof(float));
     env.filled = calloc((size_t)w * (w / 2), 1);
+    env.sun = calloc((size_t)w * (w / 2), 1);
     for (size_t k = 0; k < 3 * (size_t)w * (w / 2); k++) env.radiance[k] = L;
     return env;
 }
@@ -26,7 +27,7 @@ static rs_skyenv uniform_env(int w, float L)
 static rs_facet_gather gather_one(const rs_scene *scene, const rs_skyenv *env, uint32_t f, int samples,
                                   int sun_samples)
 {
-    rs_gather_ctx g = {scene, env, NULL, NULL, samples, sun_samples, 1};
+    rs_gather_ctx g = {scene, env, NULL, NULL, samples, 64, sun_samples, 1};
     rs_gather_scratch *s = rs_gather_scratch_new((size_t)(samples > sun_samples ? samples : sun_samples));
     rs_facet_gather out;
     assert_int_equal(rs_gather_facet(&g, f, s, &out), 0);
@@ -76,8 +77,9 @@ static void test_sun_pixel(void **state)
     float *ids = malloc((size_t)w * h * sizeof *ids);
     for (size_t k = 0; k < (size_t)w * h; k++) ids[k] = -1;
     rs_skyenv env;
-    assert_int_equal(rs_skyenv_build(&cap, ids, 50, 1, &env, &err), 0);
-    assert_int_equal(env.nlights, 1);
+    assert_int_equal(rs_skyenv_build(&cap, ids, 50, 0.01, 1, &env, &err), 0);
+    assert_int_equal(env.bright_pixels, 1);
+    assert_non_null(env.cdf);
     /* Exact value for the piecewise-constant map: sum over the upper hemisphere's pixels. */
     double expect = 0;
     for (int r = 0; r < h; r++)
