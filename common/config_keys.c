@@ -27,6 +27,11 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"mesh", "facets", RS_CFG_INT, NULL, 4, 100000000, NULL, "facets", "mesh",
      "simplify down to this many facets (with facet_size too: whichever comes first)"},
 
+    {"mesh", "fill_nadir", RS_CFG_BOOL, "true", 0, 0, NULL, "", "mesh",
+     "close the hole below each scanner with the plane of its lowest ring, when that ground is flat"},
+    {"mesh", "nadir_max_rms", RS_CFG_REAL, "0.02", 0, 10, NULL, "m", "mesh",
+     "the lowest ring must lie within this RMS distance of a plane for the nadir fill"},
+
     {"capture", "panorama", RS_CFG_PATH, NULL, 0, 0, NULL, "", "mesh observe irradiance render",
      "equirectangular panorama (EXR or Radiance HDR), linear radiance, width = 2 x height"},
     {"capture", "position", RS_CFG_VEC3, "0 0 0", 0, 0, NULL, "m", "mesh observe irradiance render",

@@ -12,6 +12,7 @@
 #include "image.h"
 #include "log.h"
 #include "mesh.h"
+#include "nadir.h"
 #include "simplify.h"
 
 /* Cells spanning more than this many angular grid steps are not surface (the seam of a
@@ -127,9 +128,11 @@ out:
     return rc;
 }
 
-/* The facet size from the panorama: a facet spans pixels_per_facet pixels at the median
- * distance from the camera to the model. */
-static int derive_facet_size(const rs_config *cfg, const rs_mesh *m, double *facet_m, rs_err *err)
+/* The facet size from the panorama: a facet spans about pixels_per_facet pixels wherever it is,
+ * so its size grows with the distance from the camera (*edge_per_m: metres of edge per metre of
+ * distance). *facet_m is that size at the median distance from the camera to the model. */
+static int derive_facet_size(const rs_config *cfg, const rs_mesh *m, double *facet_m, double *edge_per_m,
+                             rs_err *err)
 {
     char pano[4096];
     if (!rs_config_path(cfg, "capture", "panorama", pano, sizeof pano))
@@ -151,12 +154,41 @@ static int derive_facet_size(const rs_config *cfg, const rs_mesh *m, double *fac
     double med = median(dist, m->nverts);
     free(dist);
     double ppf = rs_config_real(cfg, "mesh", "pixels_per_facet");
-    *facet_m = ppf * (2 * M_PI / width) * med;
+    *edge_per_m = ppf * (2 * M_PI / width);
+    *facet_m = *edge_per_m * med;
     if (!(*facet_m > 0))
         return rs_err_set(err, RS_ERR_INPUT, pano, 0, "cannot derive a facet size: median distance %g m from the "
                           "camera to the model; expected the camera away from the scan", med);
-    rs_log_info("facet_size = %.4g m: %g px per facet of %d px across 2 pi at the median distance %.3g m",
-                *facet_m, ppf, width, med);
+    rs_log_info("facet size grows with distance: %g px of a %d px panorama, %.4g m at the median distance %.3g m",
+                ppf, width, *facet_m, med);
+    return 0;
+}
+
+/* Adds each scan's nadir cap to the grid mesh (see nadir.h); a scan whose ground below is not
+ * flat is left open and the report says why. */
+static int fill_nadir(const rs_config *cfg, const rs_cloud *c, rs_mesh **grid, rs_report *rep, rs_err *err)
+{
+    size_t added = 0;
+    for (int s = 0; s < c->nscans; s++) {
+        rs_nadir_stats ns;
+        rs_mesh *cap = rs_nadir_cap(c, s, rs_config_real(cfg, "mesh", "nadir_max_rms"), &ns, err);
+        if (!cap) {
+            if (!ns.why_not[0]) return -1;
+            char what[64];
+            snprintf(what, sizeof what, "nadir fill of scan %d", s);
+            rs_report_skip(rep, what, "%s", ns.why_not);
+            continue;
+        }
+        rs_mesh *merged = rs_mesh_merge_welded(*grid, cap);
+        rs_mesh_free(cap);
+        if (!merged) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory merging the nadir cap");
+        rs_mesh_free(*grid);
+        *grid = merged;
+        added += ns.triangles;
+        rs_log_info("scan %d: nadir hole closed by %zu triangles on the plane of its %zu-point rim (RMS %.3g m)", s,
+                    ns.triangles, ns.ring_points, ns.rms_m);
+    }
+    rs_json_set_int(rep->metrics, "nadir_triangles", (long long)added);
     return 0;
 }
 
@@ -196,6 +228,7 @@ static int run_scan(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_int(rep->metrics, "cells_dropped_gap", (long long)gs.dropped_gap);
     rs_json_set_int(rep->metrics, "triangles_dropped_depth", (long long)gs.dropped_depth);
     rs_json_set_int(rep->metrics, "triangles_dropped_grazing", (long long)gs.dropped_grazing);
+    if (rs_config_bool(cfg, "mesh", "fill_nadir") && fill_nadir(cfg, c, &grid, rep, err) != 0) goto out;
     rs_json_set_int(rep->metrics, "faces_in", (long long)grid->nfaces);
     if (grid->nfaces == 0) {
         rs_err_set(err, RS_ERR_INPUT, path, 0, "no triangle survived the grid triangulation (%zu cells, %zu without "
@@ -204,7 +237,7 @@ static int run_scan(const rs_config *cfg, rs_report *rep, rs_err *err)
         goto out;
     }
 
-    double facet_m = 0;
+    double facet_m = 0, edge_per_m = 0;
     const char *facet_source = "config";
     if (rs_config_has(cfg, "mesh", "facet_size")) {
         facet_m = rs_config_real(cfg, "mesh", "facet_size");
@@ -212,7 +245,7 @@ static int run_scan(const rs_config *cfg, rs_report *rep, rs_err *err)
         facet_source = "none ([mesh] facets)";
     } else {
         facet_source = "panorama";
-        if (derive_facet_size(cfg, grid, &facet_m, err) != 0) goto out;
+        if (derive_facet_size(cfg, grid, &facet_m, &edge_per_m, err) != 0) goto out;
     }
     if (facet_m > 0) rs_json_set_num(rep->metrics, "facet_size_m", facet_m);
     rs_json_set_str(rep->metrics, "facet_size_source", facet_source);
@@ -220,7 +253,9 @@ static int run_scan(const rs_config *cfg, rs_report *rep, rs_err *err)
     t0 = rs_now();
     rs_simplify_opts so;
     rs_simplify_defaults(&so);
-    so.target_edge_m = facet_m;
+    so.target_edge_m = edge_per_m > 0 ? 0 : facet_m;
+    so.edge_per_metre = edge_per_m;
+    if (edge_per_m > 0) rs_config_reals(cfg, "capture", "position", so.view_point);
     if (rs_config_has(cfg, "mesh", "facets")) so.target_faces = (size_t)rs_config_int(cfg, "mesh", "facets");
     rs_simplify_stats ss;
     simple = rs_simplify_apply(grid, &so, &ss, err);
@@ -230,6 +265,8 @@ static int run_scan(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_int(rep->metrics, "rejected_topology", (long long)ss.rejected_topology);
     rs_json_set_int(rep->metrics, "rejected_flip", (long long)ss.rejected_flip);
     rs_json_set_int(rep->metrics, "rejected_quality", (long long)ss.rejected_quality);
+    rs_json_set_int(rep->metrics, "rejected_size", (long long)ss.rejected_size);
+    if (edge_per_m > 0) rs_json_set_num(rep->metrics, "edge_per_metre_of_distance", edge_per_m);
     rs_json_set_num(rep->metrics, "mean_edge_in_m", ss.mean_edge_in);
     report_mesh(rep, simple);
     rs_log_info("%zu grid triangles -> %zu facets (mean edge %.3g m -> %.3g m)", grid->nfaces, simple->nfaces,

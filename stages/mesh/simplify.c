@@ -332,6 +332,23 @@ static int check_faces(const simp *s, uint32_t from, uint32_t other, const doubl
     return 0;
 }
 
+/* 1 when an edge from x to a neighbour in set N (other than a and b) would be longer than
+ * edge_per_metre times the distance from x to the view point. */
+static int too_long(const simp *s, const double *x, const nbset *N, uint32_t a, uint32_t b)
+{
+    double dv[3];
+    for (int j = 0; j < 3; j++) dv[j] = x[j] - (s->o->view_point[j] - s->centre[j]);
+    double limit = s->o->edge_per_metre * sqrt(dot3(dv, dv));
+    for (size_t k = 0; k < N->n; k++) {
+        uint32_t v = N->v[k];
+        if (v == a || v == b) continue;
+        double e[3];
+        for (int j = 0; j < 3; j++) e[j] = s->pos[3 * (size_t)v + j] - x[j];
+        if (dot3(e, e) > limit * limit) return 1;
+    }
+    return 0;
+}
+
 /* Collapses edge e = (a, b) into a if the checks allow. Returns 1 done, 0 refused, -1 no memory. */
 static int try_collapse(simp *s, uint32_t e)
 {
@@ -373,6 +390,11 @@ static int try_collapse(simp *s, uint32_t e)
     }
     if (q_new < s->o->min_quality && q_new < q_old) {
         s->st->rejected_quality++;
+        s->retry[a] = s->retry[b] = 1;
+        return 0;
+    }
+    if (s->o->edge_per_metre > 0 && too_long(s, x, A, a, b) + too_long(s, x, B, a, b)) {
+        s->st->rejected_size++;
         s->retry[a] = s->retry[b] = 1;
         return 0;
     }

@@ -18,9 +18,13 @@ typedef struct rs_simplify_opts {
                                     squared edge length (face planes weigh their area) */
     double length_weight;        /* cost added per squared edge length and unit of quadric area:
                                     on flat parts the shortest edges go first */
+    double edge_per_metre;       /* > 0: refuse a collapse that makes an edge longer than this
+                                    times its distance from view_point (a size that grows with
+                                    distance, as a panorama's pixel footprint does); 0: off */
+    double view_point[3];        /* m, world frame */
 } rs_simplify_opts;
 
-/* 60 degrees, 0.2, 10, 0.01; no targets. */
+/* 60 degrees, 0.2, 10, 0.01; no targets, no size limit. */
 void rs_simplify_defaults(rs_simplify_opts *o);
 
 typedef struct rs_simplify_stats {
@@ -29,6 +33,7 @@ typedef struct rs_simplify_stats {
     size_t rejected_topology;    /* link condition, non-manifold edge, pinched boundary */
     size_t rejected_flip;        /* a face's normal would turn too far */
     size_t rejected_quality;     /* a face would become a needle (or a worse one) */
+    size_t rejected_size;        /* an edge would outgrow edge_per_metre */
     double mean_edge_in, mean_edge_out;   /* m */
 } rs_simplify_stats;
 

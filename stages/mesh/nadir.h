@@ -1,0 +1,27 @@
+/* nadir: closing the hole a terrestrial scanner leaves below itself (below its lowest elevation,
+ * where the tripod stands). A camera on a tripod beside it sees that ground, so a model without
+ * it leaves the pixels there unexplained and the ground's light missing from every gather. */
+#ifndef RS_NADIR_H
+#define RS_NADIR_H
+
+#include <stddef.h>
+#include "cloud.h"
+#include "mesh.h"
+
+typedef struct rs_nadir_stats {
+    size_t ring_points;        /* lowest valid point of each column used as the cap's rim */
+    double rms_m;              /* RMS distance of the rim from the fitted plane */
+    size_t triangles;          /* triangles added */
+    char why_not[160];         /* when nothing was added: the reason */
+} rs_nadir_stats;
+
+/* The cap for scan s of c: the plane fitted to the lowest ring of points, meshed from the ring
+ * down to the point below the scanner along the scanner's own grid directions. Returns NULL
+ * (with st->why_not set, err untouched) when there is no ring below the scanner or the ground
+ * there is not flat within max_rms_m; NULL with err set when out of memory. */
+rs_mesh *rs_nadir_cap(const rs_cloud *c, int s, double max_rms_m, rs_nadir_stats *st, rs_err *err);
+
+/* a + b with b's vertices that equal one of a's (bit for bit) merged into it. Caller frees. */
+rs_mesh *rs_mesh_merge_welded(const rs_mesh *a, const rs_mesh *b);
+
+#endif
