@@ -31,7 +31,9 @@ int rs_err_errno(rs_err *err, const char *file, const char *fmt, ...)
     if (!err) return -1;
     va_list ap;
     va_start(ap, fmt);
-    err_fill(err, RS_ERR_SYSTEM, file, 0, fmt, ap);
+    /* A path that is missing, unreadable or a folder is the user's input, not the system's. */
+    int input = saved == ENOENT || saved == EACCES || saved == EISDIR || saved == ENOTDIR;
+    err_fill(err, input ? RS_ERR_INPUT : RS_ERR_SYSTEM, file, 0, fmt, ap);
     va_end(ap);
     size_t len = strlen(err->msg);
     snprintf(err->msg + len, sizeof err->msg - len, ": %s", strerror(saved));

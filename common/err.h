@@ -25,7 +25,8 @@ typedef struct rs_err {
 int rs_err_set(rs_err *err, rs_err_kind kind, const char *file, long line, const char *fmt, ...)
     __attribute__((format(printf, 5, 6)));
 
-/* Same, appending strerror(errno) to the message; kind RS_ERR_SYSTEM. */
+/* Same, appending strerror(errno) to the message; kind RS_ERR_INPUT for a missing or
+ * unreadable path (ENOENT, EACCES, EISDIR, ENOTDIR), RS_ERR_SYSTEM otherwise. */
 int rs_err_errno(rs_err *err, const char *file, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
 

@@ -228,8 +228,7 @@ static int run_scan(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_int(rep->metrics, "cells_dropped_gap", (long long)gs.dropped_gap);
     rs_json_set_int(rep->metrics, "triangles_dropped_depth", (long long)gs.dropped_depth);
     rs_json_set_int(rep->metrics, "triangles_dropped_grazing", (long long)gs.dropped_grazing);
-    if (rs_config_bool(cfg, "mesh", "fill_nadir") && fill_nadir(cfg, c, &grid, rep, err) != 0) goto out;
-    rs_json_set_int(rep->metrics, "faces_in", (long long)grid->nfaces);
+
     if (grid->nfaces == 0) {
         rs_err_set(err, RS_ERR_INPUT, path, 0, "no triangle survived the grid triangulation (%zu cells, %zu without "
                    "returns, %zu across depth jumps, %zu at grazing angles); expected a scan of surfaces",
@@ -249,6 +248,10 @@ static int run_scan(const rs_config *cfg, rs_report *rep, rs_err *err)
     }
     if (facet_m > 0) rs_json_set_num(rep->metrics, "facet_size_m", facet_m);
     rs_json_set_str(rep->metrics, "facet_size_source", facet_source);
+
+    /* After the facet size: that is a property of what the scanner measured. */
+    if (rs_config_bool(cfg, "mesh", "fill_nadir") && fill_nadir(cfg, c, &grid, rep, err) != 0) goto out;
+    rs_json_set_int(rep->metrics, "faces_in", (long long)grid->nfaces);
 
     t0 = rs_now();
     rs_simplify_opts so;

@@ -339,7 +339,7 @@ static void test_section_text(void **state)
     char *mesh = rs_config_section_text(cfg, "mesh");
     /* Table order, canonical numbers, absolute paths, unset keys without default left out. */
     assert_string_equal(mesh, "[mesh]\ninput_mesh = /base/m.ply\npixels_per_facet = 6.5\n"
-                              "max_depth_ratio = 0.05\nmax_grazing_deg = 85\n");
+                              "max_depth_ratio = 0.05\nmax_grazing_deg = 85\nfill_nadir = true\nnadir_max_rms = 0.02\n");
     free(mesh);
     char *north = rs_config_section_text(cfg, "capture.north");
     assert_string_equal(north, "[capture.north]\nposition = 1 2.5 -3\nrotation = 0 -1 0 1 0 0 0 0 1\n");

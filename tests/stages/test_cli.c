@@ -1,0 +1,233 @@
+/* The programs' behaviour on bad input: a clear message naming the file, the line or key, and
+ * what was expected, with a non-zero exit; and, for panorama pixels that are not finite, a
+ * warning and finite results. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "image.h"
+#include "meshgen.h"
+#include "ply.h"
+#include "testutil.h"
+
+static const char *prog(const char *name)
+{
+    static char buf[4][1024];
+    static int next;
+    char *b = buf[next++ % 4];
+    snprintf(b, sizeof buf[0], "%s/%s", rs_test_bin_dir(), name);
+    return b;
+}
+
+/* Runs `rhoscan run CONFIG`, returns the exit status and the output in *out. */
+static int run(const char *config, const char *extra, char **out)
+{
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "'%s' run '%s' %s", prog("rhoscan"), config, extra ? extra : "");
+    return rs_test_run(cmd, out);
+}
+
+static void expect_failure(const char *config, const char *const *needles)
+{
+    char *out = NULL;
+    int rc = run(config, NULL, &out);
+    print_message("exit %d: %s", rc, out);
+    assert_int_not_equal(rc, 0);
+    for (; *needles; needles++) {
+        if (!strstr(out, *needles)) print_message("missing in the message: '%s'\n", *needles);
+        assert_non_null(strstr(out, *needles));
+    }
+    free(out);
+}
+
+/* A wall and a floor as a mesh file, and a panorama of a uniform radiance. */
+static void write_scene(const char *dir, int pano_w, int pano_h, int nan_pixels)
+{
+    rs_meshgen g = rs_meshgen_new(400, 400);
+    rs_meshgen_rect(&g, rs_v3_make(-5, -5, 0), rs_v3_make(10, 0, 0), rs_v3_make(0, 10, 0), 8, 8);
+    rs_meshgen_rect(&g, rs_v3_make(-5, 5, 0), rs_v3_make(10, 0, 0), rs_v3_make(0, 0, 6), 8, 5);
+    rs_mesh *m = rs_meshgen_done(&g);
+    /* the wall's normal must face the camera (-y): swap its winding */
+    for (size_t f = 128; f < m->nfaces; f++) {
+        uint32_t t = m->tris[3 * f + 1];
+        m->tris[3 * f + 1] = m->tris[3 * f + 2];
+        m->tris[3 * f + 2] = t;
+    }
+    rs_ply *ply = rs_ply_new();
+    rs_mesh_to_ply(m, ply);
+    rs_err err;
+    assert_int_equal(rs_ply_write(ply, rs_test_path(dir, "mesh.ply"), 1, &err), 0);
+    rs_ply_free(ply);
+    rs_mesh_free(m);
+    rs_image *img = rs_image_new(pano_w, pano_h, 3);
+    for (size_t k = 0; k < 3 * (size_t)pano_w * pano_h; k++) img->data[k] = 0.5f;
+    for (int k = 0; k < nan_pixels; k++) img->data[3 * ((size_t)k * 7919 % ((size_t)pano_w * pano_h))] = NAN;
+    static const char *const rgb[] = {"R", "G", "B"};
+    assert_int_equal(rs_image_write_exr(img, rs_test_path(dir, "pano.exr"), rgb, 0, NULL, &err), 0);
+    rs_image_free(img);
+}
+
+static const char *write_config(const char *dir, const char *extra)
+{
+    static char text[4096];
+    snprintf(text, sizeof text,
+             "[pipeline]\nworkdir = work\n[mesh]\ninput_mesh = mesh.ply\n[capture]\npanorama = pano.exr\n"
+             "position = 0 -4 1.5\n[irradiance]\nsamples = 64\nsky_samples = 64\nsun_samples = 16\n%s",
+             extra ? extra : "");
+    const char *path = rs_test_path(dir, "scene.ini");
+    rs_test_write(path, text);
+    return path;
+}
+
+static void test_misspelt_key(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("cli");
+    write_scene(dir, 64, 32, 0);
+    const char *cfg = write_config(dir, "[reflectance]\nmethd = direct\n");
+    const char *needles[] = {"scene.ini:13", "methd", "did you mean method", NULL};
+    expect_failure(cfg, needles);
+    rs_test_rmtree(dir);
+}
+
+static void test_bad_value_and_rotation(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("cli");
+    write_scene(dir, 64, 32, 0);
+    const char *cfg = write_config(dir, "[reflectance]\nmethod = magic\n");
+    const char *n1[] = {"scene.ini:13", "magic", "interreflection", NULL};
+    expect_failure(cfg, n1);
+    cfg = write_config(dir, "[capture.bad]\nrotation = 2 0 0 0 1 0 0 0 1\npanorama = pano.exr\n");
+    const char *n2[] = {"scene.ini", "rotation", NULL};
+    expect_failure(cfg, n2);
+    rs_test_rmtree(dir);
+}
+
+static void test_missing_file(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("cli");
+    rs_test_write(rs_test_path(dir, "scene.ini"),
+                  "[pipeline]\nworkdir = work\n[ingest]\nscan = nowhere.ptx\n[capture]\npanorama = pano.exr\n");
+    const char *needles[] = {"nowhere.ptx", NULL};
+    expect_failure(rs_test_path(dir, "scene.ini"), needles);
+    char *out = NULL;
+    assert_int_not_equal(run(rs_test_path(dir, "absent.ini"), NULL, &out), 0);
+    assert_non_null(strstr(out, "absent.ini"));
+    free(out);
+    rs_test_rmtree(dir);
+}
+
+static void test_truncated_ptx(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("cli");
+    rs_test_write(rs_test_path(dir, "scan.ptx"),
+                  "3\n3\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n"
+                  "1 0 0 0.5\n1 1 0 0.5\n1 2 0 0.5\n2 0 0 0.5\n");
+    rs_test_write(rs_test_path(dir, "scene.ini"),
+                  "[pipeline]\nworkdir = work\n[ingest]\nscan = scan.ptx\n[capture]\npanorama = pano.exr\n");
+    const char *needles[] = {"scan.ptx", NULL};
+    expect_failure(rs_test_path(dir, "scene.ini"), needles);
+    rs_test_rmtree(dir);
+}
+
+static void test_truncated_ply(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("cli");
+    write_scene(dir, 64, 32, 0);
+    /* cut the mesh file in the middle of its faces */
+    char *data;
+    size_t size;
+    FILE *f = fopen(rs_test_path(dir, "mesh.ply"), "rb");
+    assert_non_null(f);
+    fseek(f, 0, SEEK_END);
+    size = (size_t)ftell(f);
+    rewind(f);
+    data = malloc(size);
+    assert_int_equal(fread(data, 1, size, f), size);
+    fclose(f);
+    f = fopen(rs_test_path(dir, "mesh.ply"), "wb");
+    fwrite(data, 1, size - 100, f);
+    fclose(f);
+    free(data);
+    const char *needles[] = {"mesh.ply", "face", NULL};
+    expect_failure(write_config(dir, NULL), needles);
+    rs_test_rmtree(dir);
+}
+
+static void test_pano_not_2_to_1(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("cli");
+    write_scene(dir, 64, 48, 0);
+    const char *needles[] = {"pano.exr", "64 x 48", "width = 2 x height", NULL};
+    expect_failure(write_config(dir, NULL), needles);
+    rs_test_rmtree(dir);
+}
+
+/* Non-finite pixels: a warning, a count in the metrics, and finite albedo everywhere. */
+static void test_nonfinite_pixels(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("cli");
+    write_scene(dir, 256, 128, 500);
+    char *out = NULL;
+    int rc = run(write_config(dir, NULL), NULL, &out);
+    if (rc != 0) print_message("%s", out);
+    assert_int_equal(rc, 0);
+    assert_non_null(strstr(out, "non-finite"));
+    free(out);
+    rs_err err;
+    rs_ply *ply = rs_ply_read(rs_test_path(dir, "work/albedo.ply"), &err);
+    assert_non_null(ply);
+    rs_ply_element *faces = rs_ply_find_element(ply, "face");
+    const char *names[] = {"albedo_r", "albedo_g", "albedo_b", "irradiance_sky_r", "irradiance_inter_r", "radiance_r"};
+    size_t estimable = 0;
+    for (int k = 0; k < 6; k++) {
+        rs_ply_prop *p = rs_ply_find_prop(faces, names[k]);
+        assert_non_null(p);
+        for (size_t i = 0; i < faces->count; i++) assert_true(isfinite(p->data[i]));
+    }
+    rs_ply_prop *e = rs_ply_find_prop(faces, "estimable");
+    for (size_t i = 0; i < faces->count; i++) estimable += e->data[i] > 0;
+    assert_true(estimable > faces->count / 2);
+    rs_ply_free(ply);
+    rs_test_rmtree(dir);
+}
+
+/* A second run with nothing changed does no stage work; a change of method reruns only
+ * reflectance and render. */
+static void test_reruns(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("cli");
+    write_scene(dir, 128, 64, 0);
+    const char *cfg = write_config(dir, NULL);
+    char *out = NULL;
+    assert_int_equal(run(cfg, NULL, &out), 0);
+    free(out);
+    assert_int_equal(run(cfg, NULL, &out), 0);
+    assert_non_null(strstr(out, "0 stages run"));
+    free(out);
+    assert_int_equal(run(cfg, "--set reflectance.method=direct", &out), 0);
+    assert_non_null(strstr(out, "skipped stage observe"));
+    assert_non_null(strstr(out, "skipped stage irradiance"));
+    assert_non_null(strstr(out, "reflectance: started"));
+    assert_non_null(strstr(out, "render: started"));
+    free(out);
+    rs_test_rmtree(dir);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_misspelt_key), cmocka_unit_test(test_bad_value_and_rotation),
+        cmocka_unit_test(test_missing_file), cmocka_unit_test(test_truncated_ptx),
+        cmocka_unit_test(test_truncated_ply), cmocka_unit_test(test_pano_not_2_to_1),
+        cmocka_unit_test(test_nonfinite_pixels), cmocka_unit_test(test_reruns),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
