@@ -1,0 +1,19 @@
+#!/bin/sh
+# Installs the Debian 12 packages rhoscan builds and tests with (run as root).
+# Usage: tools/setup-debian.sh [--tests]   (--tests adds what the test suites need)
+set -eu
+pkgs="build-essential cmake pkg-config libembree-dev libtbb-dev libopenexr-dev libstb-dev libinih-dev"
+if [ "${1:-}" = "--tests" ]; then
+    # cmocka: unit tests; python3 with numpy/scipy/OpenImageIO: the reference evaluator;
+    # clang + libclang-rt-14-dev: fuzzing and sanitizer builds.
+    pkgs="$pkgs libcmocka-dev python3 python3-numpy python3-scipy python3-openimageio clang libclang-rt-14-dev"
+fi
+missing=""
+for p in $pkgs; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"
+done
+if [ -n "$missing" ]; then
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get update -qq
+    apt-get install -y -qq --no-install-recommends $missing
+fi
