@@ -21,14 +21,17 @@ static inline float *rs_image_px(const rs_image *img, int x, int y)
 }
 
 /* Reads by file content (EXR magic, "#?RADIANCE"/"#?RGBE", PNG, JPEG). Result has 1 or 3
- * channels: R,G,B (matched by name in EXR; A dropped), or a single channel when the file has
- * one (any name). 8-bit files are linearised from sRGB. Negative and non-finite values are
- * kept as they are: the caller decides. Errors name the file and what was wrong. */
+ * channels: R,G,B (matched by name in EXR; A dropped), else Y, or a single channel when the
+ * file has one (any name). An EXR result covers the display window (0 where the data window
+ * has no pixels). PNG and JPEG (8 or 16 bit) are linearised from sRGB. Accepted sizes: up to
+ * 65536 per side and 2^27 pixels. Negative and non-finite values are kept as they are: the
+ * caller decides. Errors name the file and what was wrong. */
 rs_image *rs_image_read(const char *path, rs_err *err);
 rs_image *rs_image_read_mem(const void *data, size_t size, const char *name, rs_err *err);
 
 /* Writes an EXR atomically (temporary file, then rename), ZIP compression.
- * names: one per channel (e.g. {"R","G","B"} or {"Y"}); half: store as 16-bit float.
+ * names: one per channel (e.g. {"R","G","B"} or {"Y"}); half: store as 16-bit float
+ * (finite values beyond +-65504 become Inf: keep float for skies and radiance with the sun).
  * note: optional text stored as the string attribute "rhoscan" (provenance), may be NULL. */
 int rs_image_write_exr(const rs_image *img, const char *path, const char *const *names,
                        int half, const char *note, rs_err *err);

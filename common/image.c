@@ -1,0 +1,297 @@
+/* image: float images and their files (see image.h): Radiance .hdr, PNG and JPEG through
+ * stb_image, PNG previews through stb_image_write; OpenEXR is in image_exr.c. */
+#include "image_internal.h"
+
+#include <limits.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fileio.h"
+
+/* stb: the implementations live in this one file; only the formats we detect are compiled. */
+#define STBI_ONLY_PNG
+#define STBI_ONLY_JPEG
+#define STBI_ONLY_HDR
+#define STBI_MAX_DIMENSIONS RS_IMAGE_MAX_SIDE
+#define STB_IMAGE_IMPLEMENTATION
+#define STB_IMAGE_WRITE_IMPLEMENTATION
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wsign-compare"
+#pragma GCC diagnostic ignored "-Wunused-function"
+#pragma GCC diagnostic ignored "-Wunused-but-set-variable"
+#pragma GCC diagnostic ignored "-Wmissing-field-initializers"
+#pragma GCC diagnostic ignored "-Wimplicit-fallthrough"
+#include <stb_image.h>
+#include <stb_image_write.h>
+#pragma GCC diagnostic pop
+
+#define FORMATS "an OpenEXR, Radiance .hdr, PNG or JPEG image"
+
+rs_image *rs_image_new(int width, int height, int channels)
+{
+    if (width <= 0 || height <= 0 || width > RS_IMAGE_MAX_SIDE || height > RS_IMAGE_MAX_SIDE ||
+        channels <= 0 || channels > 64)
+        return NULL;
+    size_t n = (size_t)width * (size_t)height;
+    if (n > SIZE_MAX / (size_t)channels || n * (size_t)channels > SIZE_MAX / sizeof(float))
+        return NULL;
+    rs_image *img = malloc(sizeof *img);
+    if (!img) return NULL;
+    img->data = calloc(n * (size_t)channels, sizeof(float));
+    if (!img->data) {
+        free(img);
+        return NULL;
+    }
+    img->width = width;
+    img->height = height;
+    img->channels = channels;
+    return img;
+}
+
+void rs_image_free(rs_image *img)
+{
+    if (!img) return;
+    free(img->data);
+    free(img);
+}
+
+/* IEC 61966-2-1 piecewise curves. */
+float rs_srgb_to_linear(float v)
+{
+    return v <= 0.04045f ? v / 12.92f : powf((v + 0.055f) / 1.055f, 2.4f);
+}
+
+float rs_linear_to_srgb(float v)
+{
+    return v <= 0.0031308f ? v * 12.92f : 1.055f * powf(v, 1.0f / 2.4f) - 0.055f;
+}
+
+int rs_image_check_size(long long w, long long h, const char *name, rs_err *err)
+{
+    if (w <= 0 || h <= 0 || w > RS_IMAGE_MAX_SIDE || h > RS_IMAGE_MAX_SIDE)
+        return rs_err_set(err, RS_ERR_INPUT, name, 0,
+                          "image size %lld x %lld: expected 1 to %d pixels per side", w, h,
+                          RS_IMAGE_MAX_SIDE);
+    if (w * h > RS_IMAGE_MAX_PIXELS)
+        return rs_err_set(err, RS_ERR_INPUT, name, 0,
+                          "image size %lld x %lld: expected at most %lld pixels", w, h,
+                          RS_IMAGE_MAX_PIXELS);
+    return 0;
+}
+
+rs_image *rs_image_new_or_fail(int w, int h, int c, const char *name, rs_err *err)
+{
+    rs_image *img = rs_image_new(w, h, c);
+    if (!img)
+        rs_err_set(err, RS_ERR_SYSTEM, name, 0, "out of memory for a %d x %d x %d image", w, h, c);
+    return img;
+}
+
+/* ---------------------------------------------------------------- stb formats */
+
+/* Debian's stb_image 2.27 loops forever on a run-length count of 0, which is also what it
+ * reads past the end of a truncated file (CVE-2021-42715, fixed upstream after 2.27). This
+ * walks the scanlines the way stbi__hdr_load does and returns the offset of the first zero
+ * count, or 0 when the data is safe to hand to stb (stb reports any other corruption). */
+static size_t hdr_zero_run_at(const unsigned char *p, size_t n, int width, int height)
+{
+    size_t pos = 0;
+    /* Header lines end at an empty line; the resolution line follows. */
+    for (int empty = 0, lines = 0; !empty || lines < 1;) {
+        size_t start = pos;
+        while (pos < n && p[pos] != '\n') pos++;
+        if (pos >= n) return 0; /* stb fails on the header */
+        if (empty) lines++;
+        else empty = pos == start;
+        pos++;
+    }
+    if (width < 8 || width >= 32768) return 0; /* stb reads these flat, without runs */
+#define NEXT() (pos < n ? p[pos++] : (pos++, 0))
+    for (int j = 0; j < height; j++) {
+        int c1 = NEXT(), c2 = NEXT(), len = NEXT();
+        if (c1 != 2 || c2 != 2 || (len & 0x80)) return 0; /* flat from here on */
+        len = (len << 8) | NEXT();
+        if (len != width) return 0;
+        for (int k = 0; k < 4; k++) {
+            for (int i = 0; i < width;) {
+                size_t at = pos;
+                int count = NEXT();
+                if (count == 0) return at ? at : 1;
+                if (count > 128) {
+                    count -= 128;
+                    pos++;
+                } else {
+                    pos += (size_t)count;
+                }
+                if (count > width - i) return 0;
+                i += count;
+            }
+        }
+    }
+#undef NEXT
+    return 0;
+}
+
+static rs_image *hdr_read_mem(const void *data, size_t size, const char *name, rs_err *err)
+{
+    int w = 0, h = 0, comp = 0;
+    if (!stbi_info_from_memory(data, (int)size, &w, &h, &comp)) {
+        rs_err_set(err, RS_ERR_INPUT, name, 0, "Radiance .hdr: %s", stbi_failure_reason());
+        return NULL;
+    }
+    if (rs_image_check_size(w, h, name, err) != 0) return NULL;
+    size_t bad = hdr_zero_run_at(data, size, w, h);
+    if (bad) {
+        rs_err_set(err, RS_ERR_INPUT, name, 0, "Radiance .hdr: run-length data %s at byte %zu: "
+                   "expected %d x %d pixels", bad >= size ? "truncated" : "corrupt", bad, w, h);
+        return NULL;
+    }
+    float *px = stbi_loadf_from_memory(data, (int)size, &w, &h, &comp, 3);
+    if (!px) {
+        rs_err_set(err, RS_ERR_INPUT, name, 0, "Radiance .hdr: %s", stbi_failure_reason());
+        return NULL;
+    }
+    rs_image *img = rs_image_new_or_fail(w, h, 3, name, err);
+    if (img) memcpy(img->data, px, sizeof(float) * 3 * (size_t)w * (size_t)h);
+    stbi_image_free(px);
+    return img;
+}
+
+/* 8- or 16-bit PNG and JPEG: sRGB-decoded to linear; grey (+alpha) -> 1 channel, colour
+ * (+alpha) -> 3; alpha is dropped. */
+static rs_image *ldr_read_mem(const void *data, size_t size, const char *name, const char *kind,
+                              rs_err *err)
+{
+    int w = 0, h = 0, comp = 0;
+    if (!stbi_info_from_memory(data, (int)size, &w, &h, &comp)) {
+        rs_err_set(err, RS_ERR_INPUT, name, 0, "%s: %s", kind, stbi_failure_reason());
+        return NULL;
+    }
+    if (rs_image_check_size(w, h, name, err) != 0) return NULL;
+    int is16 = stbi_is_16_bit_from_memory(data, (int)size);
+    void *px = is16 ? (void *)stbi_load_16_from_memory(data, (int)size, &w, &h, &comp, 0)
+                    : (void *)stbi_load_from_memory(data, (int)size, &w, &h, &comp, 0);
+    if (!px) {
+        rs_err_set(err, RS_ERR_INPUT, name, 0, "%s: %s", kind, stbi_failure_reason());
+        return NULL;
+    }
+    int out_c = comp >= 3 ? 3 : 1;
+    rs_image *img = rs_image_new_or_fail(w, h, out_c, name, err);
+    if (img) {
+        float lut[256];
+        for (int i = 0; i < 256; i++) lut[i] = rs_srgb_to_linear((float)i / 255.0f);
+        size_t n = (size_t)w * (size_t)h;
+        for (size_t i = 0; i < n; i++)
+            for (int k = 0; k < out_c; k++) {
+                size_t s = i * (size_t)comp + (size_t)k;
+                img->data[i * (size_t)out_c + (size_t)k] =
+                    is16 ? rs_srgb_to_linear((float)((const uint16_t *)px)[s] / 65535.0f)
+                         : lut[((const unsigned char *)px)[s]];
+            }
+    }
+    stbi_image_free(px);
+    return img;
+}
+
+/* ---------------------------------------------------------------- dispatch */
+
+rs_image *rs_image_read_mem(const void *data, size_t size, const char *name, rs_err *err)
+{
+    static const unsigned char exr_magic[4] = {0x76, 0x2f, 0x31, 0x01};
+    static const unsigned char png_magic[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+    const unsigned char *p = data;
+    if (!name) name = "(memory)";
+    if (!data || size == 0) {
+        rs_err_set(err, RS_ERR_INPUT, name, 0, "empty file: expected " FORMATS);
+        return NULL;
+    }
+    if (size >= 4 && memcmp(p, exr_magic, 4) == 0)
+        return rs_image_exr_read_mem(data, size, name, err);
+    /* stb takes int sizes. */
+    if (size > (size_t)INT_MAX) {
+        rs_err_set(err, RS_ERR_INPUT, name, 0, "file of %zu bytes: too large for a non-EXR image",
+                   size);
+        return NULL;
+    }
+    if ((size >= 10 && memcmp(p, "#?RADIANCE", 10) == 0) ||
+        (size >= 6 && memcmp(p, "#?RGBE", 6) == 0))
+        return hdr_read_mem(data, size, name, err);
+    if (size >= 8 && memcmp(p, png_magic, 8) == 0)
+        return ldr_read_mem(data, size, name, "PNG", err);
+    if (size >= 3 && p[0] == 0xff && p[1] == 0xd8 && p[2] == 0xff)
+        return ldr_read_mem(data, size, name, "JPEG", err);
+    char first[40] = "";
+    for (size_t i = 0, len = 0; i < size && i < 8; i++)
+        len += (size_t)snprintf(first + len, sizeof first - len, "%s%02x", i ? " " : "", p[i]);
+    rs_err_set(err, RS_ERR_INPUT, name, 0,
+               "unknown file format (first bytes %s): expected " FORMATS, first);
+    return NULL;
+}
+
+rs_image *rs_image_read(const char *path, rs_err *err)
+{
+    char *data = NULL;
+    size_t size = 0;
+    if (rs_read_file(path, &data, &size, err) != 0) return NULL;
+    rs_image *img = rs_image_read_mem(data, size, path, err);
+    free(data);
+    return img;
+}
+
+/* ---------------------------------------------------------------- PNG previews */
+
+typedef struct byte_buf {
+    unsigned char *p;
+    size_t n, cap;
+    int failed;
+} byte_buf;
+
+static void byte_buf_append(void *ctx, void *data, int size)
+{
+    byte_buf *b = ctx;
+    if (b->failed || size <= 0) return;
+    if (b->n + (size_t)size > b->cap) {
+        size_t cap = b->cap ? b->cap : 65536;
+        while (cap < b->n + (size_t)size) cap *= 2;
+        unsigned char *p = realloc(b->p, cap);
+        if (!p) {
+            b->failed = 1;
+            return;
+        }
+        b->p = p;
+        b->cap = cap;
+    }
+    memcpy(b->p + b->n, data, (size_t)size);
+    b->n += (size_t)size;
+}
+
+int rs_image_write_png(const rs_image *img, const char *path, float scale, rs_err *err)
+{
+    if (!img || !img->data || (img->channels != 1 && img->channels != 3))
+        return rs_err_set(err, RS_ERR_INTERNAL, path, 0,
+                          "rs_image_write_png: %d channels: expected 1 or 3",
+                          img ? img->channels : 0);
+    if (rs_image_check_size(img->width, img->height, path, err) != 0) return -1;
+    size_t n = (size_t)img->width * (size_t)img->height * (size_t)img->channels;
+    unsigned char *px = malloc(n);
+    if (!px) return rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
+    for (size_t i = 0; i < n; i++) {
+        float v = scale * img->data[i];
+        v = v > 0.0f ? (v < 1.0f ? v : 1.0f) : 0.0f; /* also maps NaN to 0 */
+        px[i] = (unsigned char)(rs_linear_to_srgb(v) * 255.0f + 0.5f);
+    }
+    byte_buf b = {0};
+    int ok = stbi_write_png_to_func(byte_buf_append, &b, img->width, img->height, img->channels,
+                                    px, img->width * img->channels);
+    free(px);
+    int status;
+    if (!ok || b.failed)
+        status = rs_err_set(err, RS_ERR_SYSTEM, path, 0, "cannot encode the PNG (out of memory)");
+    else
+        status = rs_write_file_atomic(path, b.p, b.n, err);
+    free(b.p);
+    return status;
+}
