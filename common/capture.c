@@ -36,7 +36,12 @@ int rs_capture_load(const rs_config *cfg, const char *section, rs_capture *cap, 
         else if (px[0] < 0 || px[1] < 0 || px[2] < 0) cap->negative++;
     }
     double pos[3];
-    rs_config_reals(cfg, section, "position", pos);
+    if (rs_config_reals(cfg, section, "position", pos) != 0) {
+        rs_capture_release(cap);
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                          "[%s] position is not set: expected the camera centre as three numbers (m, world frame)",
+                          section);
+    }
     cap->pose.position = rs_v3_make(pos[0], pos[1], pos[2]);
     rs_config_reals(cfg, section, "rotation", cap->pose.rot);
     return 0;

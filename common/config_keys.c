@@ -34,8 +34,8 @@ const rs_cfg_key rs_cfg_keys[] = {
 
     {"capture", "panorama", RS_CFG_PATH, NULL, 0, 0, NULL, "", "mesh observe irradiance render",
      "equirectangular panorama (EXR or Radiance HDR), linear radiance, width = 2 x height"},
-    {"capture", "position", RS_CFG_VEC3, "0 0 0", 0, 0, NULL, "m", "mesh observe irradiance render",
-     "camera centre in the world frame"},
+    {"capture", "position", RS_CFG_VEC3, NULL, 0, 0, NULL, "m", "mesh observe irradiance render",
+     "camera centre in the world frame (required: a forgotten pose would silently misplace every pixel)"},
     {"capture", "rotation", RS_CFG_ROTATION, "1 0 0 0 1 0 0 0 1", 0, 0, NULL, "", "mesh observe irradiance render",
      "camera local -> world rotation, 9 numbers row-major"},
 

@@ -14,6 +14,31 @@
 #include "fileio.h"
 #include "log.h"
 
+/* Every skip of this process, for the summary at the end of a run. */
+static char *skip_lines;
+static size_t skip_len;
+static const char *current_stage = "";
+
+static void remember_skip(const char *stage, const char *what, const char *why)
+{
+    char line[768];
+    int n = snprintf(line, sizeof line, "  %s: %s: %s\n", stage, what, why);
+    if (n <= 0) return;
+    char *grown = realloc(skip_lines, skip_len + (size_t)n + 1);
+    if (!grown) return;
+    memcpy(grown + skip_len, line, (size_t)n + 1);
+    skip_lines = grown;
+    skip_len += (size_t)n;
+}
+
+void rs_report_skips_summary(void)
+{
+    if (skip_len) rs_log_info("what was skipped, and why:\n%.*s", (int)skip_len - 1, skip_lines);
+    free(skip_lines);
+    skip_lines = NULL;
+    skip_len = 0;
+}
+
 void rs_report_skip(rs_report *rep, const char *what, const char *why_fmt, ...)
 {
     char why[512];
@@ -22,6 +47,7 @@ void rs_report_skip(rs_report *rep, const char *what, const char *why_fmt, ...)
     vsnprintf(why, sizeof why, why_fmt, ap);
     va_end(ap);
     rs_log_info("skipped %s: %s", what, why);
+    remember_skip(rep ? current_stage : "run", what, why);
     if (!rep || !rep->skipped) return;
     rs_json *o = rs_json_push_obj(rep->skipped);
     rs_json_set_str(o, "what", what);
@@ -201,6 +227,7 @@ int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_err *err)
     rep.skipped = rs_json_set_arr(rep.metrics, "skipped");
 
     rs_log_info("%s: started", def->name);
+    current_stage = def->name;
     double t0 = rs_now();
     int rc = def->run(cfg, &rep, err);
     double wall = rs_now() - t0;

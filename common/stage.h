@@ -21,6 +21,8 @@ typedef struct rs_report {
 void rs_report_skip(rs_report *rep, const char *what, const char *why_fmt, ...)
     __attribute__((format(printf, 3, 4)));
 void rs_report_time(rs_report *rep, const char *step, double seconds);
+/* Logs every skip recorded by this process ("stage: what: why"), then forgets them. */
+void rs_report_skips_summary(void);
 
 typedef int (*rs_stage_fn)(const rs_config *cfg, rs_report *rep, rs_err *err);
 

@@ -77,6 +77,11 @@ static int run_pipeline(const rs_config *cfg, const char *from, const char *only
         }
         if (why[0]) {
             rs_log_info("skipped stage %s: %s", d->name, why);
+            {
+                char what[64];
+                snprintf(what, sizeof what, "stage %s", d->name);
+                rs_report_skip(NULL, what, "%s", why);
+            }
             rs_json *o = rs_json_push_obj(skipped);
             rs_json_set_str(o, "stage", d->name);
             rs_json_set_str(o, "why", why);
@@ -91,6 +96,7 @@ static int run_pipeline(const rs_config *cfg, const char *from, const char *only
     }
     rs_json_set_num(run, "wall_time_s", rs_now() - t0);
     if (rc == 0) {
+        rs_report_skips_summary();
         rc = merge_metrics(cfg, run, err);
         if (rc == 0)
             rs_log_info("done in %.1f s: %d stage%s run, the rest up to date (see metrics.json)",
