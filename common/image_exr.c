@@ -1,5 +1,6 @@
 /* image_exr: the OpenEXR side of common/image.h, through the OpenEXR core C API: reading
  * (scanline or tiled, any compression the library decodes) and writing (ZIP, float or half). */
+#include "exr_dwa.h"
 #include "image_internal.h"
 
 #include <stdint.h>
@@ -319,6 +320,20 @@ rs_image *rs_image_exr_read_mem(const void *data, size_t size, const char *name,
     }
     rd.img = rs_image_new_or_fail((int)w, (int)h, rd.nsel, name, err);
     if (!rd.img) goto out;
+    exr_compression_t comp = EXR_COMPRESSION_NONE;
+    if (exr_get_compression(rd.ctx, 0, &comp) == EXR_ERR_SUCCESS &&
+        (comp == EXR_COMPRESSION_DWAA || comp == EXR_COMPRESSION_DWAB)) {
+        /* OpenEXR 3.1's C library cannot decode DWA; its C++ library can (exr_dwa.h). */
+        char msg[256];
+        if (rs_exr_cxx_read(data, size, rd.sel, rd.nsel, rd.disp.min.x, rd.disp.min.y, (int)w, (int)h,
+                            rd.img->data, msg, sizeof msg) != 0) {
+            rs_err_set(err, RS_ERR_INPUT, name, 0, "DWA-compressed EXR could not be decoded: %s", msg);
+            goto out;
+        }
+        result = rd.img;
+        rd.img = NULL;
+        goto out;
+    }
     int bad = storage == EXR_STORAGE_TILED ? exr_read_tiles(&rd, err)
                                            : exr_read_scanlines(&rd, err);
     if (bad) goto out;
