@@ -323,6 +323,8 @@ int rs_stage_main(const char *stage, int argc, char **argv)
         if (rs_stage_execute(def, cfg, &err) != 0) {
             rs_log_error(&err);
             rc = err.kind ? (int)err.kind : 3;
+        } else {
+            rs_report_skips_summary();
         }
     }
     rs_config_free(cfg);

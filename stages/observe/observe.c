@@ -253,9 +253,11 @@ int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory building observe.ply");
         goto out;
     }
-    double *obs_d = wsum;      /* reuse as a double buffer for the flag */
-    for (size_t f = 0; f < nf; f++) obs_d[f] = observed[f];
-    rs_ply_add_scalar(faces, "observed", RS_PLY_UINT8, obs_d);
+    for (size_t f = 0; f < nf; f++) wsum[f] = observed[f];   /* wsum is free now: the flag as doubles */
+    if (!rs_ply_add_scalar(faces, "observed", RS_PLY_UINT8, wsum)) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory building observe.ply");
+        goto out;
+    }
     rs_ply_add_comment(out, "rhoscan %s observe: radiance_* is the observed radiance of each facet", RHOSCAN_VERSION);
     if (rs_ply_write(out, rs_work_path(cfg, "observe.ply", path, sizeof path), 1, err) != 0) goto out;
 
