@@ -92,22 +92,38 @@ rs_image *rs_image_new_or_fail(int w, int h, int c, const char *name, rs_err *er
 
 /* ---------------------------------------------------------------- stb formats */
 
+/* Reads one header token exactly as stbi__hdr_gettoken does (up to and including '\n', long
+ * lines cut at 1023 bytes, the byte read at the end of the data dropped) and returns 1 when
+ * stb sees it as empty: the header ends at the first such token, which may be a line that
+ * starts with a NUL byte or the end of the data, not only an empty line. */
+static int hdr_token_empty(const unsigned char *p, size_t n, size_t *pos)
+{
+    size_t len = 0;
+    unsigned char first = 0, c = *pos < n ? p[(*pos)++] : 0;
+    while (*pos < n && c != '\n') {
+        if (len++ == 0) first = c;
+        if (len == 1023) {
+            while (*pos < n && p[(*pos)++] != '\n') {}
+            break;
+        }
+        c = p[(*pos)++];
+    }
+    return len == 0 || first == 0;
+}
+
 /* Debian's stb_image 2.27 loops forever on a run-length count of 0, which is also what it
  * reads past the end of a truncated file (CVE-2021-42715, fixed upstream after 2.27). This
  * walks the scanlines the way stbi__hdr_load does and returns the offset of the first zero
  * count, or 0 when the data is safe to hand to stb (stb reports any other corruption). */
 static size_t hdr_zero_run_at(const unsigned char *p, size_t n, int width, int height)
 {
+    /* The header as stb parses it: the magic token, tokens up to an empty one, then the
+     * resolution line (fuzzing found a header ended by a NUL line that an earlier,
+     * line-based version of this walk missed, so stb hung). */
     size_t pos = 0;
-    /* Header lines end at an empty line; the resolution line follows. */
-    for (int empty = 0, lines = 0; !empty || lines < 1;) {
-        size_t start = pos;
-        while (pos < n && p[pos] != '\n') pos++;
-        if (pos >= n) return 0; /* stb fails on the header */
-        if (empty) lines++;
-        else empty = pos == start;
-        pos++;
-    }
+    hdr_token_empty(p, n, &pos);
+    while (pos < n && !hdr_token_empty(p, n, &pos)) {}
+    hdr_token_empty(p, n, &pos);
     if (width < 8 || width >= 32768) return 0; /* stb reads these flat, without runs */
 #define NEXT() (pos < n ? p[pos++] : (pos++, 0))
     for (int j = 0; j < height; j++) {
@@ -198,6 +214,21 @@ static rs_image *ldr_read_mem(const void *data, size_t size, const char *name, c
 
 /* ---------------------------------------------------------------- dispatch */
 
+/* stb_image 2.27 grows its IDAT buffer to a chunk's declared length before it reads the
+ * chunk, so a 100-byte PNG that claims a 1 GB chunk makes it allocate 1 GB (found by
+ * fuzzing). Returns the offset of the first chunk whose length runs past the data, else 0. */
+static size_t png_chunk_past_end_at(const unsigned char *p, size_t n)
+{
+    for (size_t pos = 8; pos + 8 <= n;) {
+        size_t len = (size_t)p[pos] << 24 | (size_t)p[pos + 1] << 16 | (size_t)p[pos + 2] << 8 |
+                     p[pos + 3];
+        if (len > n - pos - 8 || n - pos - 8 - len < 4) return pos; /* data and CRC must fit */
+        if (memcmp(p + pos + 4, "IEND", 4) == 0) break;
+        pos += 12 + len;
+    }
+    return 0;
+}
+
 rs_image *rs_image_read_mem(const void *data, size_t size, const char *name, rs_err *err)
 {
     static const unsigned char exr_magic[4] = {0x76, 0x2f, 0x31, 0x01};
@@ -219,8 +250,15 @@ rs_image *rs_image_read_mem(const void *data, size_t size, const char *name, rs_
     if ((size >= 10 && memcmp(p, "#?RADIANCE", 10) == 0) ||
         (size >= 6 && memcmp(p, "#?RGBE", 6) == 0))
         return hdr_read_mem(data, size, name, err);
-    if (size >= 8 && memcmp(p, png_magic, 8) == 0)
+    if (size >= 8 && memcmp(p, png_magic, 8) == 0) {
+        size_t cut = png_chunk_past_end_at(p, size);
+        if (cut) {
+            rs_err_set(err, RS_ERR_INPUT, name, 0, "PNG: chunk at byte %zu runs past the end of "
+                       "the %zu-byte file: truncated or corrupt", cut, size);
+            return NULL;
+        }
         return ldr_read_mem(data, size, name, "PNG", err);
+    }
     if (size >= 3 && p[0] == 0xff && p[1] == 0xd8 && p[2] == 0xff)
         return ldr_read_mem(data, size, name, "JPEG", err);
     char first[40] = "";

@@ -433,6 +433,30 @@ static void test_hdr_nul_header_zero_run(void **state)
     alarm(0);
 }
 
+/* Found by fuzzing (tests/fuzz/corpus/image/oom-png-huge-chunk.png): a PNG chunk that claims
+ * 1 GB in a 150-byte file made stb allocate that much before reading it; now refused by size. */
+static void test_png_chunk_past_end(void **state)
+{
+    const char *src = getenv("RHOSCAN_SOURCE_DIR");
+    if (!src) skip();
+    char path[4096];
+    snprintf(path, sizeof path, "%s/tests/fuzz/corpus/image/oom-png-huge-chunk.png", src);
+    rs_err err = {0};
+    assert_null(rs_image_read(path, &err));
+    assert_err_mentions(&err, path, "runs past the end");
+    /* A good PNG cut inside its last data chunk fails the same way. */
+    rs_image *img = rs_image_new(5, 4, 3);
+    for (size_t i = 0; i < 5 * 4 * 3; i++) img->data[i] = (float)(i % 7) / 7.0f;
+    const char *png = rs_test_path(tmp, "cut.png");
+    assert_int_equal(rs_image_write_png(img, png, 1.0f, &err), 0);
+    rs_image_free(img);
+    size_t n;
+    unsigned char *good = slurp(png, &n);
+    assert_null(rs_image_read_mem(good, n - 13, "cut.png", &err)); /* IEND (12) and a CRC byte */
+    assert_err_mentions(&err, "cut.png", "runs past the end");
+    free(good);
+}
+
 static void test_png_linearised(void **state)
 {
     unsigned char rgb[2 * 2 * 3], grey[3 * 1 * 2];
@@ -687,6 +711,7 @@ int main(void)
         cmocka_unit_test(test_exr_write_failure),
         cmocka_unit_test(test_hdr_from_memory),
         cmocka_unit_test(test_hdr_nul_header_zero_run),
+        cmocka_unit_test(test_png_chunk_past_end),
         cmocka_unit_test(test_png_linearised),
         cmocka_unit_test(test_jpeg_and_stb_guards),
         cmocka_unit_test(test_png_preview_round_trip),
