@@ -62,6 +62,10 @@ const rs_cfg_key rs_cfg_keys[] = {
      "bright pixels are sampled explicitly up to the solid angle of a cone of this half-angle"},
     {"irradiance", "seed", RS_CFG_INT, "1", 0, 2147483647, NULL, "", "irradiance",
      "seed of the sample sequences"},
+    {"irradiance", "skip_unseen", RS_CFG_BOOL, "true", 0, 0, NULL, "", "irradiance",
+     "gather only the facets a camera sees and, transitively, those their rays hit (the rest light nothing seen)"},
+    {"irradiance", "sun_target_error", RS_CFG_REAL, "0", 0, 1, NULL, "", "irradiance",
+     "> 0: double a facet's sun rays (up to 16 x sun_samples) until their standard error is below this share of E_sky"},
 
     {"reflectance", "method", RS_CFG_ENUM, "interreflection", 0, 0, "interreflection|direct|paper", "",
      "reflectance", "interreflection: rho = pi L / (E_sky + G); direct: pi L / E_sky; paper: dense K"},

@@ -19,6 +19,7 @@ typedef struct rs_facet_gather {
     double esky_lum, filled_lum; /* luminance of E_sky, and of its filled-in part */
     rs_kentry *entries;        /* K row, sorted by col; caller frees */
     uint32_t nentries;
+    uint32_t rays;             /* rays cast for this facet */
 } rs_facet_gather;
 
 typedef struct rs_gather_ctx {
@@ -30,6 +31,8 @@ typedef struct rs_gather_ctx {
     int sky_samples;           /* rays drawn from the sky map (all but the sun set) */
     int sun_samples;           /* rays toward the sun set */
     uint32_t seed;
+    double sun_target_error;   /* > 0: adaptive sun rays (up to 16 x sun_samples) until their
+                                  standard error is below this share of E_sky; 0: off */
 } rs_gather_ctx;
 
 /* Scratch for one thread; rs_gather_scratch_new(max(samples, sun_samples)). */
@@ -37,7 +40,32 @@ typedef struct rs_gather_scratch rs_gather_scratch;
 rs_gather_scratch *rs_gather_scratch_new(size_t n);
 void rs_gather_scratch_free(rs_gather_scratch *s);
 
+/* The pixel rs_skyenv_pick (sun = 0) or rs_skyenv_pick_sun (sun = 1) returns for x in [0, 1),
+ * found through a search guide cached in the scratch (built on first use; a scratch serves one
+ * sky map for its life): the same pixel with one or two memory accesses instead of a binary
+ * search's twenty over a map of millions of pixels. */
+size_t rs_gather_pick(rs_gather_scratch *s, const rs_skyenv *env, int sun, double x);
+
 /* Gathers facet f into *out (zeroed first). Degenerate facets get nothing. -1: out of memory. */
 int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs_facet_gather *out);
+
+typedef struct rs_gather_stats {
+    size_t gathered;           /* facets gathered */
+    int waves;                 /* rounds of the closure (1 when every facet is needed) */
+    double rays;               /* rays cast */
+} rs_gather_stats;
+
+/* Gathers every facet into fg[nf] (zeroed first) on all OpenMP threads, in the spatial (Morton)
+ * order of the facets' centroids so that consecutive rays traverse the same part of the BVH.
+ * needed: NULL gathers every facet. Otherwise only the facets with needed[f] != 0 (the ones a
+ * camera sees) and, wave after wave, every facet that the rays of a gathered facet hit, until no
+ * new one is reached: the closure of the light paths that end at a needed facet. Every K row of
+ * a gathered facet then points only at gathered facets, and its E_sky and row are the same as in
+ * a full gather; the facets left out (no camera sees them and they light nothing that matters)
+ * keep a zeroed fg[f]. gathered (may be NULL): nf flags. prog may be NULL.
+ * Returns 0, or -1 when out of memory. The result does not depend on the thread count. */
+struct rs_progress;
+int rs_gather_run(const rs_gather_ctx *g, size_t nf, const uint8_t *needed, rs_facet_gather *fg, uint8_t *gathered,
+                  struct rs_progress *prog, rs_gather_stats *stats);
 
 #endif

@@ -146,34 +146,26 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     if (!(scene = rs_scene_new(mesh, err))) goto out;
     rs_report_time(rep, "bvh", rs_now() - t0);
     rs_gather_ctx g = {scene, &env, &cap, ids->data, (int)rs_config_int(cfg, "irradiance", "samples"),
-                    (int)rs_config_int(cfg, "irradiance", "sky_samples"), sun_samples, (uint32_t)rs_config_int(cfg, "irradiance", "seed")};
+                    (int)rs_config_int(cfg, "irradiance", "sky_samples"), sun_samples, (uint32_t)rs_config_int(cfg, "irradiance", "seed"),
+                    rs_config_real(cfg, "irradiance", "sun_target_error")};
     fg = calloc(nf, sizeof *fg);
     if (!fg) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu facets", nf);
         goto out;
     }
-    int failed = 0;
-    size_t scratch = (size_t)g.samples;
-    if ((size_t)g.sky_samples > scratch) scratch = (size_t)g.sky_samples;
-    if ((size_t)g.sun_samples > scratch) scratch = (size_t)g.sun_samples;
+    /* [irradiance] skip_unseen: only what a camera sees and what lights it (rs_gather_run). */
+    uint8_t *needed = rs_config_bool(cfg, "irradiance", "skip_unseen") ? calloc(nf, 1) : NULL;
+    if (needed) {
+        for (size_t k = 0; k < (size_t)ids->width * ids->height; k++)
+            if (ids->data[k] >= 0 && ids->data[k] < (float)nf) needed[(size_t)ids->data[k]] = 1;
+        for (size_t f = 0; f < nf; f++) needed[f] |= observed[f];
+    }
+    rs_gather_stats gs;
     t0 = rs_now();
     rs_progress *prog = rs_progress_start("irradiance: gather", nf);
-#pragma omp parallel
-    {
-        rs_gather_scratch *s = rs_gather_scratch_new(scratch);
-        int mine_failed = !s;
-#pragma omp for schedule(dynamic, 16)
-        for (size_t f = 0; f < nf; f++) {
-            if (mine_failed || failed) continue;
-            if (rs_gather_facet(&g, (uint32_t)f, s, &fg[f]) != 0) mine_failed = 1;
-            if ((f & 255) == 255) rs_progress_add(prog, 256);
-        }
-        if (mine_failed) {
-#pragma omp atomic write
-            failed = 1;
-        }
-        rs_gather_scratch_free(s);
-    }
+    int failed = (rs_config_bool(cfg, "irradiance", "skip_unseen") && !needed) ||
+                 rs_gather_run(&g, nf, needed, fg, NULL, prog, &gs) != 0;
+    free(needed);
     rs_progress_end(prog);
     double gather_s = rs_now() - t0;
     rs_report_time(rep, "gather", gather_s);
@@ -181,7 +173,11 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory during the gather");
         goto out;
     }
-    double rays = (double)nf * (g.samples + (env.cdf ? g.sky_samples : 0) + (env.sun_cdf ? g.sun_samples : 0));
+    if (gs.gathered < nf)
+        rs_report_skip(rep, "gather of unseen facets", "%zu facets that no camera sees light no facet it sees "
+                       "(closure of the light paths in %d waves)", nf - gs.gathered, gs.waves);
+    rs_json_set_int(rep->metrics, "facets_gathered", (long long)gs.gathered);
+    double rays = gs.rays;
     rs_json_set_num(rep->metrics, "rays", rays);
     rs_json_set_num(rep->metrics, "rays_per_second", gather_s > 0 ? rays / gather_s : 0);
     rs_json_set_int(rep->metrics, "sky_pixels", (long long)env.sky_pixels);
