@@ -42,6 +42,8 @@ static const bench_row SWEEP[] = {
     {"scale_adaptive", 64, 64, 16, "interreflection", "irradiance.sun_target_error=0.01"},
     {"scale_all_facets", 64, 64, 16, "interreflection", "irradiance.skip_unseen=false"},
     {"default_all_facets", 256, 512, 64, "interreflection", "irradiance.skip_unseen=false"},
+    {"scale_trace_convex", 64, 64, 16, "interreflection", "irradiance.skip_convex=false"},
+    {"default_trace_convex", 256, 512, 64, "interreflection", "irradiance.skip_convex=false"},
     {"sun_set_forced", 256, 512, 64, "interreflection", "irradiance.sun_threshold=1.05"},
     {"no_sun_rays", 256, 512, 0, "interreflection", ""},
     {"cosine_only", 256, 0, 0, "interreflection", ""},
@@ -49,8 +51,8 @@ static const bench_row SWEEP[] = {
     {"paper", 256, 512, 64, "paper", ""},
 };
 static const char *const FULL_ROWS = "s16,s32,s64,s128,default,s1024,scale,scale_adaptive,scale_all_facets,"
-                                     "default_all_facets,no_sun_rays,cosine_only,direct,paper";
-static const char *const SCALE_ROWS = "scale,scale_adaptive,scale_all_facets";
+                                     "default_all_facets,default_trace_convex,no_sun_rays,cosine_only,direct,paper";
+static const char *const SCALE_ROWS = "scale,scale_adaptive,scale_all_facets,scale_trace_convex";
 
 typedef struct {
     char bindir[PATH_MAX], work[PATH_MAX], csv[PATH_MAX + 256];

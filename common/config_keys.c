@@ -66,6 +66,8 @@ const rs_cfg_key rs_cfg_keys[] = {
      "gather only the facets a camera sees and, transitively, those their rays hit (the rest light nothing seen)"},
     {"irradiance", "sun_target_error", RS_CFG_REAL, "0", 0, 1, NULL, "", "irradiance",
      "> 0: double a facet's sun rays (up to 16 x sun_samples) until their standard error is below this share of E_sky"},
+    {"irradiance", "skip_convex", RS_CFG_BOOL, "true", 0, 0, NULL, "", "irradiance",
+     "facets with the whole model below their plane (bounding-box test) trace no ray: they see only sky"},
 
     {"reflectance", "method", RS_CFG_ENUM, "interreflection", 0, 0, "interreflection|direct|paper", "",
      "reflectance", "interreflection: rho = pi L / (E_sky + G); direct: pi L / E_sky; paper: dense K"},

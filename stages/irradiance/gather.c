@@ -26,6 +26,8 @@ typedef struct {
 
 struct rs_gather_scratch {
     sky_guide sky, sun;        /* cached on first use: a scratch serves one sky map for its life */
+    const rs_mesh *box_mesh;   /* the mesh whose bounding box lo/hi holds (NULL: not computed) */
+    float lo[3], hi[3];
     rs_ray *rays;
     rs_hit *hits;
     hit_ref *refs;
@@ -102,6 +104,31 @@ size_t rs_gather_pick(rs_gather_scratch *s, const rs_skyenv *env, int sun, doubl
     return sun ? guide_pick(&s->sun, env->sun_cdf, npx, x) : guide_pick(&s->sky, env->cdf, npx, x);
 }
 
+/* 1 when nothing of the model lies above facet f's plane by more than half the ray offset:
+ * every ray from f then escapes (origins sit one offset above the plane, directions point away
+ * from it), so its rays need not be traced. Tested on the corners of the model's bounding box
+ * (conservative and O(1) per facet): it catches the top of the highest roofs, not every
+ * convex facet. */
+static int sees_nothing(const rs_gather_ctx *g, rs_gather_scratch *s, rs_v3 n, rs_v3 a)
+{
+    const rs_mesh *m = rs_scene_mesh(g->scene);
+    if (s->box_mesh != m) {
+        for (int k = 0; k < 3; k++) s->lo[k] = INFINITY, s->hi[k] = -INFINITY;
+        for (size_t v = 0; v < m->nverts; v++)
+            for (int k = 0; k < 3; k++) {
+                s->lo[k] = fminf(s->lo[k], m->verts[3 * v + k]);
+                s->hi[k] = fmaxf(s->hi[k], m->verts[3 * v + k]);
+            }
+        s->box_mesh = m;
+    }
+    double eps = 0.5 * rs_scene_offset(g->scene, rs_v3_make(0, 0, 0)), top = -INFINITY;
+    for (int k = 0; k < 8; k++) {
+        rs_v3 corner = rs_v3_make(k & 1 ? s->hi[0] : s->lo[0], k & 2 ? s->hi[1] : s->lo[1], k & 4 ? s->hi[2] : s->lo[2]);
+        top = fmax(top, rs_v3_dot(n, rs_v3_sub(corner, a)));
+    }
+    return top <= eps;
+}
+
 static int cmp_hit(const void *a, const void *b)
 {
     const hit_ref *x = a, *y = b;
@@ -160,7 +187,11 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
         rays[k].tnear = 0;
         rays[k].tfar = INFINITY;
     }
-    rs_scene_intersect(g->scene, rays, hits, (size_t)N);
+    out->sees_nothing = (uint8_t)(g->skip_convex && sees_nothing(g, s, n, a));
+    if (out->sees_nothing)                   /* the answer Embree would give, without asking */
+        for (int k = 0; k < N; k++) hits[k].face = RS_NO_HIT;
+    else
+        rs_scene_intersect(g->scene, rays, hits, (size_t)N);
     const rs_skyenv *env = g->env;
     /* The sky is split in two. The sun set (small, very bright) gets Ns rays of its own, chosen
      * by power. The rest is sampled two ways combined by multiple importance sampling (Veach
@@ -199,7 +230,8 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
     out->rays = (uint32_t)N;
     for (int pass = 0; pass < 2; pass++) {
         int M = pass ? Ns : Ne, done = 0, goal = M, adaptive = pass && Ns && g->sun_target_error > 0;
-        rs_facet_gather acc = {{0, 0, 0}, {0, 0, 0}, 0, 0, NULL, 0, 0};
+        rs_facet_gather acc;
+        memset(&acc, 0, sizeof acc);
         rs_facet_gather *dst = adaptive ? &acc : out;
         double div = adaptive ? 1 : Ns, sum = 0, sum_sq = 0;
         while (done < goal) {
@@ -221,7 +253,8 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
                 rays[i].tfar = rs_v3_dot(d, n) > 0 ? INFINITY : 0;   /* below the horizon: no ray */
                 s->pixels[i] = (uint32_t)pix;
             }
-            if (B) rs_scene_occluded(g->scene, rays, occl, (size_t)B);
+            if (B && out->sees_nothing) memset(occl, 0, (size_t)B);
+            else if (B) rs_scene_occluded(g->scene, rays, occl, (size_t)B);
             for (int i = 0; i < B; i++) {
                 double cosn = rs_v3_dot(rays[i].dir, n);
                 if (cosn <= 0 || occl[i]) continue;
@@ -376,7 +409,10 @@ int rs_gather_run(const rs_gather_ctx *g, size_t nf, const uint8_t *needed, rs_f
             for (uint32_t q = 0; q < fg[list[k]].nentries; q++)
                 if (!state[fg[list[k]].entries[q].col]) state[fg[list[k]].entries[q].col] = 1;
     }
-    for (size_t f = 0; f < nf; f++) stats->rays += fg[f].rays;
+    for (size_t f = 0; f < nf; f++) {
+        stats->rays += fg[f].sees_nothing ? 0 : fg[f].rays;
+        stats->sees_nothing += fg[f].sees_nothing;
+    }
     if (gathered)
         for (size_t f = 0; f < nf; f++) gathered[f] = state[f] == 2;
     rc = 0;

@@ -19,7 +19,8 @@ typedef struct rs_facet_gather {
     double esky_lum, filled_lum; /* luminance of E_sky, and of its filled-in part */
     rs_kentry *entries;        /* K row, sorted by col; caller frees */
     uint32_t nentries;
-    uint32_t rays;             /* rays cast for this facet */
+    uint32_t rays;             /* rays of this facet */
+    uint8_t sees_nothing;      /* the model lies below its plane: its rays were not traced */
 } rs_facet_gather;
 
 typedef struct rs_gather_ctx {
@@ -33,6 +34,7 @@ typedef struct rs_gather_ctx {
     uint32_t seed;
     double sun_target_error;   /* > 0: adaptive sun rays (up to 16 x sun_samples) until their
                                   standard error is below this share of E_sky; 0: off */
+    int skip_convex;           /* facets with the whole model below their plane trace no ray */
 } rs_gather_ctx;
 
 /* Scratch for one thread; rs_gather_scratch_new(max(samples, sun_samples)). */
@@ -52,7 +54,8 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
 typedef struct rs_gather_stats {
     size_t gathered;           /* facets gathered */
     int waves;                 /* rounds of the closure (1 when every facet is needed) */
-    double rays;               /* rays cast */
+    double rays;               /* rays traced */
+    size_t sees_nothing;       /* facets whose rays needed no tracing (skip_convex) */
 } rs_gather_stats;
 
 /* Gathers every facet into fg[nf] (zeroed first) on all OpenMP threads, in the spatial (Morton)

@@ -1,7 +1,7 @@
 /* The gather's speed-ups must not change what it computes: the guided sky pick equals the
  * binary search, rs_gather_run equals facet-by-facet gathers whatever the thread count, the
- * closure of skip_unseen keeps every row it needs, and adaptive sun rays spend rays where a
- * shadow edge is and nowhere else. */
+ * closure of skip_unseen keeps every row it needs, skip_convex changes no number, and adaptive
+ * sun rays spend rays where a shadow edge is and nowhere else. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -91,7 +91,7 @@ static void test_run_threads_and_closure(void **state)
     rs_skyenv env;
     random_sky(256, &cap, &env);
     size_t nf = m->nfaces;
-    rs_gather_ctx g = {scene, &env, NULL, NULL, 64, 64, 16, 7, 0};
+    rs_gather_ctx g = {scene, &env, NULL, NULL, 64, 64, 16, 7, 0, 1};
     rs_facet_gather *one = calloc(nf, sizeof *one), *two = calloc(nf, sizeof *two), *part = calloc(nf, sizeof *part);
     rs_gather_stats st;
 #ifdef _OPENMP
@@ -160,7 +160,7 @@ static void test_sun_without_sun_rays(void **state)
     rs_skyenv env;
     random_sky(128, &cap, &env);
     rs_gather_scratch *s = rs_gather_scratch_new(1 << 18);
-    rs_gather_ctx with = {scene, &env, NULL, NULL, 256, 256, 256, 3, 0}, without = with;
+    rs_gather_ctx with = {scene, &env, NULL, NULL, 256, 256, 256, 3, 0, 1}, without = with;
     without.sun_samples = 0;
     without.samples = 1 << 18;                         /* enough cosine rays to find the sun */
     rs_facet_gather a, b;
@@ -191,7 +191,7 @@ static void test_adaptive_sun(void **state)
     rs_skyenv env;
     random_sky(256, &cap, &env);
     rs_gather_scratch *s = rs_gather_scratch_new(1024);
-    rs_gather_ctx base = {scene, &env, NULL, NULL, 64, 64, 16, 5, 0}, adapt = base, ref = base;
+    rs_gather_ctx base = {scene, &env, NULL, NULL, 64, 64, 16, 5, 0, 1}, adapt = base, ref = base;
     adapt.sun_target_error = 0.01;
     ref.sun_samples = 256;
     int lit_only = 0, extra = 0;
@@ -219,6 +219,49 @@ static void test_adaptive_sun(void **state)
     rs_mesh_free(m);
 }
 
+/* skip_convex: a box on a wide floor. The box's top sees nothing (the model lies below its
+ * plane), nor does its bottom; its sides see the floor; skipping the tracing changes no number. */
+static void test_convex_skip(void **state)
+{
+    (void)state;
+    rs_meshgen mg = rs_meshgen_new(400, 400);
+    rs_meshgen_rect(&mg, rs_v3_make(-5, -5, 0), rs_v3_make(10, 0, 0), rs_v3_make(0, 10, 0), 4, 4);
+    size_t box = mg.nf;
+    rs_meshgen_box(&mg, rs_v3_make(-1, -1, 0), rs_v3_make(1, 1, 2), 2, 0);
+    rs_mesh *m = rs_meshgen_done(&mg);
+    rs_err err;
+    rs_scene *scene = rs_scene_new(m, &err);
+    rs_capture cap;
+    rs_skyenv env;
+    random_sky(128, &cap, &env);
+    rs_gather_scratch *s = rs_gather_scratch_new(64);
+    rs_gather_ctx on = {scene, &env, NULL, NULL, 64, 64, 16, 9, 0, 1}, off = on;
+    off.skip_convex = 0;
+    size_t skipped = 0;
+    for (uint32_t f = 0; f < m->nfaces; f++) {
+        rs_facet_gather a, b;
+        assert_int_equal(rs_gather_facet(&on, f, s, &a), 0);
+        assert_int_equal(rs_gather_facet(&off, f, s, &b), 0);
+        same_rows(&a, &b);
+        assert_false(b.sees_nothing);
+        rs_v3 c, n;
+        double area;
+        rs_mesh_face(m, f, &c, &n, &area);
+        /* the box's top (z = 2, facing up) and bottom (z = 0, facing down) see nothing; floor
+         * and box sides see each other */
+        int none = f >= box && ((n.z > 0.5 && c.z > 1.9) || n.z < -0.5);
+        assert_int_equal(a.sees_nothing, none);
+        skipped += a.sees_nothing;
+        free(a.entries), free(b.entries);
+    }
+    assert_int_equal(skipped, 16);     /* top and bottom: 2 x 2 cells of two triangles each */
+    rs_gather_scratch_free(s);
+    rs_skyenv_release(&env);
+    rs_capture_release(&cap);
+    rs_scene_free(scene);
+    rs_mesh_free(m);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -226,6 +269,7 @@ int main(void)
         cmocka_unit_test(test_run_threads_and_closure),
         cmocka_unit_test(test_sun_without_sun_rays),
         cmocka_unit_test(test_adaptive_sun),
+        cmocka_unit_test(test_convex_skip),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
