@@ -9,7 +9,7 @@ const rs_stage_def rs_stage_table[] = {
      "triangulate the scan grids and simplify to the facet size (or take [mesh] input_mesh)"},
     {"observe", rs_observe_run, "observe capture", "mesh.ply", "observe.ply facet_id.exr",
      "which facet each panorama pixel sees, and each facet's observed radiance"},
-    {"irradiance", rs_irradiance_run, "irradiance capture", "mesh.ply observe.ply facet_id.exr",
+    {"irradiance", rs_irradiance_run, "irradiance capture sky", "mesh.ply observe.ply facet_id.exr",
      "irradiance.ply transport.ply", "sky irradiance and interreflection gather per facet"},
     {"reflectance", rs_reflectance_run, "reflectance", "mesh.ply observe.ply irradiance.ply transport.ply",
      "albedo.ply", "albedo per facet: interreflection, direct or paper"},

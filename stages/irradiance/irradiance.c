@@ -4,9 +4,12 @@
  * with cosine-weighted Owen-scrambled Sobol directions from Sobol points spread over the facet,
  * plus shadow rays toward the bright sky pixels (the sun), which cosine rays would miss.
  * Where the camera sees a hit point, G reads the panorama there (sub-facet detail); elsewhere
- * it goes through K and the hit facet's mean radiance. Writes irradiance.ply (mesh + E_sky, G,
- * G from panorama readings, sky_filled) and transport.ply (the sparse K: per (i, j) the total
+ * it goes through K and the hit facet's mean radiance. The sky map takes [sky] panorama where it
+ * sees sky, the capture's sky next, and fills the rest ([sky] fill, skyfill.h). Writes
+ * irradiance.ply (mesh + E_sky, G, G from panorama readings, sky_filled, irradiance_sky_sigma)
+ * and transport.ply (the sparse K: per (i, j) the total
  * weight and the weight not read from the panorama). */
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include "capture.h"
@@ -16,21 +19,24 @@
 #include "scene.h"
 #include "gather.h"
 #include "skyenv.h"
+#include "solar.h"
 #include "stages.h"
 
 static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_facet_gather *fg,
-                         const double *radiance, const uint8_t *observed, rs_report *rep, rs_err *err)
+                         const double *radiance, const uint8_t *observed, double fill_sigma, rs_report *rep,
+                         rs_err *err)
 {
     size_t nf = mesh->nfaces, ne = 0;
     for (size_t f = 0; f < nf; f++) ne += fg[f].nentries;
     double *esky = malloc(3 * nf * sizeof *esky), *g = malloc(3 * nf * sizeof *g),
-           *gseen = malloc(3 * nf * sizeof *gseen), *filled = malloc(nf * sizeof *filled);
+           *gseen = malloc(3 * nf * sizeof *gseen), *filled = malloc(nf * sizeof *filled),
+           *sigma = malloc(nf * sizeof *sigma);
     double *row = malloc((ne ? ne : 1) * sizeof *row), *col = malloc((ne ? ne : 1) * sizeof *col),
            *kt = malloc((ne ? ne : 1) * sizeof *kt), *ku = malloc((ne ? ne : 1) * sizeof *ku);
     rs_ply *ply = rs_ply_new(), *tp = rs_ply_new();
     int rc = -1;
     char path[4096];
-    if (!esky || !g || !gseen || !filled || !row || !col || !kt || !ku || !ply || !tp) {
+    if (!esky || !g || !gseen || !filled || !sigma || !row || !col || !kt || !ku || !ply || !tp) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory writing the irradiance outputs");
         goto out;
     }
@@ -42,6 +48,9 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
             g[3 * f + ch] = fg[f].gseen[ch];
         }
         filled[f] = fg[f].esky_lum > 0 ? fg[f].filled_lum / fg[f].esky_lum : 0;
+        /* The fill's error is a smooth bias over neighbouring directions, not noise that
+         * averages out: the filled light is uncertain by fill_sigma as a whole. */
+        sigma[f] = fill_sigma * fg[f].filled_lum;
         for (uint32_t q = 0; q < fg[f].nentries; q++, e++) {
             const rs_kentry *en = &fg[f].entries[q];
             row[e] = (double)f;
@@ -56,12 +65,15 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
     if (!faces || rs_faceprop_add_rgb(faces, "irradiance_sky", esky) != 0 ||
         rs_faceprop_add_rgb(faces, "irradiance_inter", g) != 0 ||
         rs_faceprop_add_rgb(faces, "irradiance_inter_seen", gseen) != 0 ||
-        !rs_ply_add_scalar(faces, "sky_filled", RS_PLY_FLOAT32, filled)) {
+        !rs_ply_add_scalar(faces, "sky_filled", RS_PLY_FLOAT32, filled) ||
+        !rs_ply_add_scalar(faces, "irradiance_sky_sigma", RS_PLY_FLOAT32, sigma)) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory building irradiance.ply");
         goto out;
     }
     rs_ply_add_comment(ply, "rhoscan %s irradiance: E_sky and G (W m^-2 per unit radiance scale); "
                             "irradiance_inter counts observed facets only", RHOSCAN_VERSION);
+    rs_ply_add_comment(ply, "sky_filled: luminance share of E_sky from filled-in directions; irradiance_sky_sigma: "
+                            "standard uncertainty of E_sky's luminance = %.4g x its filled part", fill_sigma);
     if (rs_ply_write(ply, rs_work_path(cfg, "irradiance.ply", path, sizeof path), 1, err) != 0) goto out;
 
     rs_ply_element *tr = rs_ply_add_element(tp, "transport", ne);
@@ -83,6 +95,7 @@ out:
     free(g);
     free(gseen);
     free(filled);
+    free(sigma);
     free(row);
     free(col);
     free(kt);
@@ -90,12 +103,59 @@ out:
     return rc;
 }
 
+/* [sky] keys into the fill options: the method, and the sun when the config fixes it (an
+ * explicit direction first, else date, time and place). */
+static int sky_fill_options(const rs_config *cfg, rs_skyfill_opts *o, rs_err *err)
+{
+    memset(o, 0, sizeof *o);
+    o->method = strcmp(rs_config_string(cfg, "sky", "fill"), "model") == 0 ? RS_SKYFILL_MODEL : RS_SKYFILL_ROW;
+    o->sun_mask_rad = rs_config_real(cfg, "sky", "sun_mask_deg") * M_PI / 180;
+    o->sh_order = (int)rs_config_int(cfg, "sky", "sh_order");
+    o->sh_ridge = rs_config_real(cfg, "sky", "sh_ridge");
+    o->ground_albedo = rs_config_real(cfg, "sky", "ground_albedo");
+    o->cross_validate = 1;
+    int has_az = rs_config_has(cfg, "sky", "sun_azimuth_deg"), has_el = rs_config_has(cfg, "sky", "sun_elevation_deg");
+    if (has_az != has_el)
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0, "[sky] sun_%s_deg is set without sun_%s_deg: "
+                          "expected both or neither", has_az ? "azimuth" : "elevation", has_az ? "elevation" : "azimuth");
+    if (has_az) {
+        double az = rs_config_real(cfg, "sky", "sun_azimuth_deg") * M_PI / 180;
+        double el = rs_config_real(cfg, "sky", "sun_elevation_deg") * M_PI / 180;
+        o->sun_given = 1;
+        o->sun_dir = rs_v3_make(cos(el) * cos(az), cos(el) * sin(az), sin(el));
+        return 0;
+    }
+    const char *when = rs_config_string(cfg, "sky", "datetime");
+    if (!when) return 0;
+    if (!rs_config_has(cfg, "sky", "latitude_deg") || !rs_config_has(cfg, "sky", "longitude_deg"))
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0, "[sky] datetime is set without latitude_deg "
+                          "and longitude_deg: expected the site's position for the solar position");
+    double jd, az, el;
+    if (rs_solar_parse_datetime(when, &jd, err) != 0) {
+        snprintf(err->file, sizeof err->file, "%s", rs_config_file(cfg));
+        return -1;
+    }
+    rs_solar_position(jd, rs_config_real(cfg, "sky", "latitude_deg"), rs_config_real(cfg, "sky", "longitude_deg"),
+                      &az, &el);
+    o->sun_given = 1;
+    o->sun_dir = rs_solar_world_dir(az, el, rs_config_real(cfg, "sky", "north_deg"));
+    rs_log_info("irradiance: sun at azimuth %.2f, elevation %.2f degrees (NOAA solar position for %s)", az, el, when);
+    return 0;
+}
+
+static const char *sun_source_name(rs_sun_source s)
+{
+    return s == RS_SUN_CONFIG ? "config" : (s == RS_SUN_PIXELS ? "sun pixels" : "searched");
+}
+
 int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
 {
     char path[4096];
     int rc = -1;
-    rs_capture cap = {0};
+    rs_capture cap = {0}, sky = {0};
     rs_skyenv env = {0};
+    rs_skyenv_info info;
+    uint8_t *sky_mask = NULL;
     rs_scene *scene = NULL;
     rs_image *ids = NULL;
     rs_ply *obs = NULL;
@@ -128,26 +188,50 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     }
     int sun_samples = (int)rs_config_int(cfg, "irradiance", "sun_samples");
     double t0 = rs_now();
+    if (!(scene = rs_scene_new(mesh, err))) goto out;
+    rs_report_time(rep, "bvh", rs_now() - t0);
+    t0 = rs_now();
     double cone = rs_config_real(cfg, "irradiance", "sun_max_cone_deg") * M_PI / 180;
-    if (rs_skyenv_build(&cap, ids->data, rs_config_real(cfg, "irradiance", "sun_threshold"),
-                        2 * M_PI * (1 - cos(cone)), sun_samples > 0 || rs_config_int(cfg, "irradiance", "sky_samples") > 0,
-                        &env, err) != 0)
-        goto out;
+    rs_skyenv_opts so;
+    memset(&so, 0, sizeof so);
+    so.sun_threshold = rs_config_real(cfg, "irradiance", "sun_threshold");
+    so.max_sr = 2 * M_PI * (1 - cos(cone));
+    so.explicit_sun = sun_samples > 0 || rs_config_int(cfg, "irradiance", "sky_samples") > 0;
+    if (sky_fill_options(cfg, &so.fill, err) != 0) goto out;
+    if (rs_config_has(cfg, "sky", "panorama")) {
+        if (rs_capture_load(cfg, "sky", &sky, err) != 0) goto out;
+        if (!(sky_mask = malloc((size_t)sky.pano->width * sky.pano->height))) {
+            rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky panorama's mask");
+            goto out;
+        }
+        rs_skyenv_sky_mask(scene, &sky, sky_mask);
+        so.sky = &sky;
+        so.sky_mask = sky_mask;
+    }
+    if (rs_skyenv_build_opts(&cap, ids->data, &so, &env, &info, err) != 0) goto out;
     rs_report_time(rep, "sky_map", rs_now() - t0);
-    rs_log_info("irradiance: sky %zu pixels (median luminance %.4g), %zu filled, %zu bright kept out of the fill",
-                env.sky_pixels, env.sky_median, env.filled_pixels, env.bright_pixels);
+    rs_log_info("irradiance: sky %zu pixels (median luminance %.4g), %zu filled (%s), %zu bright kept out of the fill",
+                env.sky_pixels, env.sky_median, env.filled_pixels, rs_config_string(cfg, "sky", "fill"),
+                env.bright_pixels);
+    if (sky.pano)
+        rs_log_info("irradiance: sky panorama %s gave %zu map pixels; exposure factor %.4g %.4g %.4g from %.3g sr "
+                    "of shared sky", sky.path, info.sky_pano_pixels, info.sky_pano_scale[0], info.sky_pano_scale[1],
+                    info.sky_pano_scale[2], info.sky_overlap_sr);
+    if (info.fill.cv_folds)
+        rs_log_info("irradiance: held-out sky blocks (%d): relative error of their light filled by rows %.3f, by the "
+                    "model %.3f; sun %s", info.fill.cv_folds, info.fill.cv_rel_row, info.fill.cv_rel_model,
+                    sun_source_name(info.fill.sun_source));
+    if (so.fill.method == RS_SKYFILL_MODEL && !info.fill.fit_samples)
+        rs_log_warn("irradiance: too little visible sky to fit the sky model: filled by rows");
     if (!sun_samples)
         rs_report_skip(rep, "sun sampling", "[irradiance] sun_samples = 0: cosine-weighted rays only");
     else if (!env.sun_cdf)
         rs_report_skip(rep, "sun sampling", "no sky pixel is brighter than %g x the median sky",
                        rs_config_real(cfg, "irradiance", "sun_threshold"));
 
-    t0 = rs_now();
-    if (!(scene = rs_scene_new(mesh, err))) goto out;
-    rs_report_time(rep, "bvh", rs_now() - t0);
     rs_gather_ctx g = {scene, &env, &cap, ids->data, (int)rs_config_int(cfg, "irradiance", "samples"),
                     (int)rs_config_int(cfg, "irradiance", "sky_samples"), sun_samples, (uint32_t)rs_config_int(cfg, "irradiance", "seed"),
-                    rs_config_real(cfg, "irradiance", "sun_target_error"), rs_config_bool(cfg, "irradiance", "skip_convex")};
+                    rs_config_real(cfg, "irradiance", "sun_target_error")};
     fg = calloc(nf, sizeof *fg);
     if (!fg) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu facets", nf);
@@ -176,11 +260,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     if (gs.gathered < nf)
         rs_report_skip(rep, "gather of unseen facets", "%zu facets that no camera sees light no facet it sees "
                        "(closure of the light paths in %d waves)", nf - gs.gathered, gs.waves);
-    if (gs.sees_nothing)
-        rs_report_skip(rep, "tracing of convex facets", "%zu facets have the whole model below their plane: "
-                       "their rays escape without tracing", gs.sees_nothing);
     rs_json_set_int(rep->metrics, "facets_gathered", (long long)gs.gathered);
-    rs_json_set_int(rep->metrics, "facets_seeing_nothing", (long long)gs.sees_nothing);
     double rays = gs.rays;
     rs_json_set_num(rep->metrics, "rays", rays);
     rs_json_set_num(rep->metrics, "rays_per_second", gather_s > 0 ? rays / gather_s : 0);
@@ -189,6 +269,27 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_int(rep->metrics, "bright_pixels", (long long)env.bright_pixels);
     rs_json_set_num(rep->metrics, "bright_solid_angle_sr", env.bright_sr);
     rs_json_set_num(rep->metrics, "sky_median_luminance", env.sky_median);
+    rs_json_set_str(rep->metrics, "sky_fill", rs_config_string(cfg, "sky", "fill"));
+    rs_json_set_num(rep->metrics, "sky_fill_sigma", env.fill_sigma);
+    rs_json_set_num(rep->metrics, "sky_cv_rel_row", info.fill.cv_rel_row);
+    rs_json_set_num(rep->metrics, "sky_cv_rel_model", info.fill.cv_rel_model);
+    rs_json_set_int(rep->metrics, "sky_cv_blocks", info.fill.cv_folds);
+    rs_json_set_str(rep->metrics, "sun_source", sun_source_name(info.fill.sun_source));
+    rs_json *sd = rs_json_set_arr(rep->metrics, "sun_direction");
+    rs_json_push_num(sd, info.fill.sun_dir.x);
+    rs_json_push_num(sd, info.fill.sun_dir.y);
+    rs_json_push_num(sd, info.fill.sun_dir.z);
+    if (so.fill.method == RS_SKYFILL_MODEL) {
+        rs_json_set_int(rep->metrics, "sky_model_sh_order", info.fill.model.sh_order);
+        rs_json_set_num(rep->metrics, "sky_model_fit_rms_log", info.fill.model.fit_rms_log);
+        rs_json_set_int(rep->metrics, "sky_ground_from_albedo", info.fill.ground_from_albedo);
+    }
+    if (sky.pano) {
+        rs_json_set_int(rep->metrics, "sky_panorama_pixels", (long long)info.sky_pano_pixels);
+        rs_json_set_num(rep->metrics, "sky_panorama_overlap_sr", info.sky_overlap_sr);
+        rs_json *sc = rs_json_set_arr(rep->metrics, "sky_panorama_exposure");
+        for (int ch = 0; ch < 3; ch++) rs_json_push_num(sc, info.sky_pano_scale[ch]);
+    }
     double fl = 0, el = 0;
     for (size_t f = 0; f < nf; f++) {
         rs_v3 c, n;
@@ -198,7 +299,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         el += a * fg[f].esky_lum;
     }
     rs_json_set_num(rep->metrics, "sky_filled_share", el > 0 ? fl / el : 0);
-    rc = write_outputs(cfg, mesh, fg, radiance, observed, rep, err);
+    rc = write_outputs(cfg, mesh, fg, radiance, observed, env.fill_sigma, rep, err);
 out:
     if (fg)
         for (size_t f = 0; f < nf; f++) free(fg[f].entries);
@@ -211,6 +312,8 @@ out:
     rs_skyenv_release(&env);
     rs_scene_free(scene);
     rs_capture_release(&cap);
+    rs_capture_release(&sky);
+    free(sky_mask);
     rs_mesh_free(mesh);
     return rc;
 }

@@ -31,36 +31,6 @@ static int cmp_double(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* Fills the pixels of one row whose src flag is 0 by interpolating in azimuth between the
- * nearest pixels with src set; returns 0 when the row has no source pixel. */
-static int fill_row(float *row, const uint8_t *src, int w)
-{
-    int first = -1;
-    for (int c = 0; c < w; c++)
-        if (src[c]) {
-            first = c;
-            break;
-        }
-    if (first < 0) return 0;
-    /* Walk the ring from the first source pixel; between consecutive sources a and b
-     * (b may wrap past the end) interpolate linearly. */
-    int a = first;
-    for (int step = 1; step <= w; step++) {
-        int b = (first + step) % w;
-        if (!src[b] && step < w) continue;
-        int gap = (b - a + w) % w;
-        if (gap == 0) gap = w;
-        for (int k = 1; k < gap; k++) {
-            int c = (a + k) % w;
-            double t = (double)k / gap;
-            for (int ch = 0; ch < 3; ch++)
-                row[3 * c + ch] = (float)((1 - t) * row[3 * a + ch] + t * row[3 * b + ch]);
-        }
-        a = b;
-    }
-    return 1;
-}
-
 /* Cumulative distribution over the pixels selected by want(k) (1: sun set, 0: the rest),
  * proportional to luminance times solid angle. Returns the total, 0 when nothing has power. */
 static double build_cdf(const rs_skyenv *env, double *cdf, int sun)
@@ -89,9 +59,7 @@ static int build_distributions(rs_skyenv *env)
     env->total_power = build_cdf(env, env->cdf, 0);
     env->sun_power = build_cdf(env, env->sun_cdf, 1);
     if (!(env->total_power > 0)) {
-        free(env->sun);
-    free(env->cdf);
-    free(env->sun_cdf);
+        free(env->cdf);
         env->cdf = NULL;
         env->total_power = 0;
     }
@@ -103,9 +71,121 @@ static int build_distributions(rs_skyenv *env)
     return 0;
 }
 
+/* Median of x[0..n) (reordered). */
+static double median(double *x, size_t n)
+{
+    if (!n) return 0;
+    qsort(x, n, sizeof *x, cmp_double);
+    return x[n / 2];
+}
+
+/* Puts the sky panorama's sky into the map (frame and size of env): each sky pixel is spread
+ * onto the map pixel holding its direction (area-weighted mean, so a small sun keeps its
+ * power), and map pixels that got nothing take the sky pixel under their centre. Then the
+ * exposure factor from the overlap with the capture's own sky, and the values, flagged in meas.
+ * cap_meas: the capture's measured sky. Returns 0, -1 out of memory. */
+static int merge_sky_pano(rs_skyenv *env, const uint8_t *cap_meas, double bright_lum, const rs_skyenv_opts *o,
+                          uint8_t *meas, rs_skyenv_info *info)
+{
+    const rs_capture *sky = o->sky;
+    int w = env->width, h = env->height, sw = sky->pano->width, sh = sky->pano->height;
+    size_t npx = (size_t)w * h, nsky = (size_t)sw * sh;
+    double *acc = calloc(4 * npx, sizeof *acc);
+    double *ratio = malloc(3 * npx * sizeof *ratio);
+    if (!acc || !ratio) {
+        free(acc);
+        free(ratio);
+        return -1;
+    }
+    for (size_t j = 0; j < nsky; j++) {
+        if (!o->sky_mask[j]) continue;
+        int r = (int)(j / (size_t)sw), c, rr;
+        rs_v3 d = rs_pose_dir_to_world(&sky->pose, rs_pano_pixel_dir(sw, sh, (int)(j % (size_t)sw), r));
+        rs_pano_world_to_pixel(&env->pose, w, h, d, &c, &rr);
+        size_t k = (size_t)rr * w + c;
+        double om = rs_pano_pixel_solid_angle(sw, sh, r);
+        for (int ch = 0; ch < 3; ch++) acc[4 * k + ch] += om * sky->pano->data[3 * j + ch];
+        acc[4 * k + 3] += om;
+    }
+    for (size_t k = 0; k < npx; k++) {
+        if (acc[4 * k + 3] > 0) continue;
+        int c, r;
+        rs_v3 d = rs_pose_dir_to_world(&env->pose, rs_pano_pixel_dir(w, h, (int)(k % (size_t)w), (int)(k / (size_t)w)));
+        rs_pano_world_to_pixel(&sky->pose, sw, sh, d, &c, &r);
+        size_t j = (size_t)r * sw + c;
+        if (!o->sky_mask[j]) continue;
+        for (int ch = 0; ch < 3; ch++) acc[4 * k + ch] = sky->pano->data[3 * j + ch];
+        acc[4 * k + 3] = 1;
+    }
+    /* Exposure: per channel, the median ratio over directions both saw as sky, bright ones out. */
+    size_t nov = 0;
+    double overlap_sr = 0;
+    for (size_t k = 0; k < npx; k++) {
+        if (!(acc[4 * k + 3] > 0) || !cap_meas[k]) continue;
+        float v[3];
+        for (int ch = 0; ch < 3; ch++) v[ch] = (float)(acc[4 * k + ch] / acc[4 * k + 3]);
+        const float *p = env->radiance + 3 * k;
+        if (luminance(p) > bright_lum || luminance(v) > bright_lum || !(v[0] > 0 && v[1] > 0 && v[2] > 0)) continue;
+        for (int ch = 0; ch < 3; ch++) ratio[ch * npx + nov] = p[ch] / v[ch];
+        nov++;
+        overlap_sr += rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w));
+    }
+    for (int ch = 0; ch < 3; ch++) info->sky_pano_scale[ch] = overlap_sr >= 0.01 ? median(ratio + ch * npx, nov) : 1;
+    info->sky_overlap_sr = overlap_sr;
+    for (size_t k = 0; k < npx; k++) {
+        if (!(acc[4 * k + 3] > 0)) continue;
+        for (int ch = 0; ch < 3; ch++)
+            env->radiance[3 * k + ch] = (float)(info->sky_pano_scale[ch] * acc[4 * k + ch] / acc[4 * k + 3]);
+        meas[k] = 1;
+        info->sky_pano_pixels++;
+    }
+    free(acc);
+    free(ratio);
+    return 0;
+}
+
+void rs_skyenv_sky_mask(const rs_scene *scene, const rs_capture *sky, uint8_t *mask)
+{
+    int w = sky->pano->width, h = sky->pano->height;
+#pragma omp parallel for schedule(dynamic, 4)
+    for (int r = 0; r < h; r++) {
+        rs_ray ray[1024];
+        rs_hit hit[1024];
+        for (int c0 = 0; c0 < w; c0 += 1024) {
+            int n = w - c0 < 1024 ? w - c0 : 1024;
+            for (int i = 0; i < n; i++) {
+                ray[i].org = sky->pose.position;
+                ray[i].dir = rs_pose_dir_to_world(&sky->pose, rs_pano_pixel_dir(w, h, c0 + i, r));
+                ray[i].tnear = 0;
+                ray[i].tfar = INFINITY;
+            }
+            rs_scene_intersect(scene, ray, hit, (size_t)n);
+            for (int i = 0; i < n; i++) {
+                size_t k = (size_t)r * w + c0 + i;
+                mask[k] = (uint8_t)(hit[i].face == RS_NO_HIT && rs_capture_pixel_ok(sky->pano->data + 3 * k));
+            }
+        }
+    }
+}
+
 int rs_skyenv_build(const rs_capture *cap, const float *facet_id, double sun_threshold, double max_sr,
                     int explicit, rs_skyenv *env, rs_err *err)
 {
+    rs_skyenv_opts o;
+    memset(&o, 0, sizeof o);
+    o.sun_threshold = sun_threshold;
+    o.max_sr = max_sr;
+    o.explicit_sun = explicit;
+    o.fill.method = RS_SKYFILL_ROW;
+    return rs_skyenv_build_opts(cap, facet_id, &o, env, NULL, err);
+}
+
+int rs_skyenv_build_opts(const rs_capture *cap, const float *facet_id, const rs_skyenv_opts *o,
+                         rs_skyenv *env, rs_skyenv_info *info, rs_err *err)
+{
+    rs_skyenv_info scratch;
+    if (!info) info = &scratch;
+    memset(info, 0, sizeof *info);
     memset(env, 0, sizeof *env);
     int w = cap->pano->width, h = cap->pano->height;
     size_t npx = (size_t)w * h;
@@ -115,53 +195,50 @@ int rs_skyenv_build(const rs_capture *cap, const float *facet_id, double sun_thr
     env->radiance = malloc(3 * npx * sizeof *env->radiance);
     env->filled = calloc(npx, 1);
     env->sun = calloc(npx, 1);
-    uint8_t *src = calloc(npx, 1);        /* measured, not bright: feeds the fill */
+    uint8_t *meas = calloc(npx, 1), *cap_meas = calloc(npx, 1);   /* measured sky (incl. bright) */
+    uint8_t *src = calloc(npx, 1);                                /* measured, not bright: sources */
     double *lum = malloc(npx * sizeof *lum);
-    if (!env->radiance || !env->filled || !env->sun || !src || !lum) {
-        free(src);
-        free(lum);
-        rs_skyenv_release(env);
-        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky map");
+    uint32_t *order = malloc(npx * sizeof *order);
+    double *key = malloc(npx * sizeof *key);
+    int rc = -1;
+    if (!env->radiance || !env->filled || !env->sun || !meas || !cap_meas || !src || !lum || !order || !key) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky map");
+        goto out;
     }
-    /* Measured sky: no facet under the pixel and a usable value. */
-    size_t nsky = 0;
-    for (size_t k = 0; k < npx; k++) {
-        const float *px = cap->pano->data + 3 * k;
-        if (facet_id[k] < 0 && rs_capture_pixel_ok(px)) {
-            src[k] = 1;
-            lum[nsky++] = luminance(px);
-        }
-    }
-    if (nsky == 0) {
-        free(src);
-        free(lum);
-        rs_skyenv_release(env);
-        return rs_err_set(err, RS_ERR_INPUT, cap->path, 0,
-                          "no sky pixels: every camera ray hits the model (is the camera inside it?)");
-    }
-    qsort(lum, nsky, sizeof *lum, cmp_double);
-    env->sky_median = lum[nsky / 2];
-    env->sky_pixels = nsky;
-    free(lum);
-    /* A black median sky (night, masked input) would make every pixel bright. */
-    double threshold = sun_threshold * (env->sky_median > 0 ? env->sky_median : 1e-30);
-
+    /* The capture's sky: no facet under the pixel and a usable value. */
     memcpy(env->radiance, cap->pano->data, 3 * npx * sizeof *env->radiance);
+    size_t ncap = 0;
+    for (size_t k = 0; k < npx; k++)
+        if (facet_id[k] < 0 && rs_capture_pixel_ok(cap->pano->data + 3 * k)) {
+            meas[k] = cap_meas[k] = 1;
+            lum[ncap++] = luminance(cap->pano->data + 3 * k);
+        }
+    double cap_median = median(lum, ncap);
+    if (o->sky && merge_sky_pano(env, cap_meas, o->sun_threshold * (cap_median > 0 ? cap_median : 1e-30), o, meas,
+                                 info) != 0) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory merging the sky panorama");
+        goto out;
+    }
+    size_t nsky = 0;
+    for (size_t k = 0; k < npx; k++)
+        if (meas[k]) lum[nsky++] = luminance(env->radiance + 3 * k);
+    if (nsky == 0) {
+        rs_err_set(err, RS_ERR_INPUT, cap->path, 0,
+                   "no sky pixels: every camera ray hits the model (is the camera inside it?)");
+        goto out;
+    }
+    env->sky_median = median(lum, nsky);
+    env->sky_pixels = nsky;
+    /* A black median sky (night, masked input) would make every pixel bright. */
+    double threshold = o->sun_threshold * (env->sky_median > 0 ? env->sky_median : 1e-30);
+
     /* Bright pixels (the sun and its nearest glow): above the threshold, brightest first, until
      * they cover max_sr. They keep their value in the map, but never feed the fill: spreading a
      * low sun along its row would light the whole horizon with it. */
     size_t nbright = 0;
-    uint32_t *order = malloc(nsky * sizeof *order);
-    double *key = malloc(npx * sizeof *key);
-    if (!order || !key) {
-        free(order);
-        free(key);
-        free(src);
-        rs_skyenv_release(env);
-        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky map");
-    }
     for (size_t k = 0; k < npx; k++) {
-        key[k] = src[k] ? luminance(cap->pano->data + 3 * k) : -1;
+        key[k] = meas[k] ? luminance(env->radiance + 3 * k) : -1;
+        src[k] = meas[k];
         if (key[k] > threshold) order[nbright++] = (uint32_t)k;
     }
     sort_by_key_desc(order, nbright, key);
@@ -169,7 +246,7 @@ int rs_skyenv_build(const rs_capture *cap, const float *facet_id, double sun_thr
     size_t keep = 0;
     while (keep < nbright) {
         double om = rs_pano_pixel_solid_angle(w, h, (int)(order[keep] / (uint32_t)w));
-        if (omega_sum + om > max_sr) break;
+        if (omega_sum + om > o->max_sr) break;
         omega_sum += om;
         src[order[keep]] = 0;
         env->sun[order[keep]] = 1;
@@ -177,58 +254,31 @@ int rs_skyenv_build(const rs_capture *cap, const float *facet_id, double sun_thr
     }
     env->bright_pixels = keep;
     env->bright_sr = omega_sum;
-    free(key);
-    free(order);
-
-    /* Hidden, invalid or bright-but-not-explicit pixels that are not measured sky get filled. */
-    int *has = calloc((size_t)h, sizeof *has);
-    if (!has) {
-        free(src);
-        rs_skyenv_release(env);
-        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
-    }
-    for (int r = 0; r < h; r++) {
-        float *row = env->radiance + 3 * (size_t)r * w;
-        const uint8_t *s = src + (size_t)r * w;
-        for (int c = 0; c < w; c++) {
-            size_t k = (size_t)r * w + c;
-            int keep = s[c] || (facet_id[k] < 0 && rs_capture_pixel_ok(cap->pano->data + 3 * k));
-            if (!keep) {
-                env->filled[k] = 1;
-                env->filled_pixels++;
-            }
+    for (size_t k = 0; k < npx; k++)
+        if (!meas[k]) {
+            env->filled[k] = 1;
+            env->filled_pixels++;
         }
-        /* Interpolate into filled pixels only: bright pixels keep their value (or 0). */
-        float *tmp = malloc(3 * (size_t)w * sizeof *tmp);
-        if (!tmp) continue;
-        memcpy(tmp, row, 3 * (size_t)w * sizeof *tmp);
-        has[r] = fill_row(tmp, s, w);
-        for (int c = 0; c < w; c++)
-            if (env->filled[(size_t)r * w + c]) memcpy(row + 3 * c, tmp + 3 * c, 3 * sizeof *tmp);
-        free(tmp);
+    if (rs_skyfill_run(w, h, &env->pose, env->radiance, src, env->filled, env->sun, &o->fill, &info->fill) != 0) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory filling the sky map");
+        goto out;
     }
-    /* Rows with no measured sky copy the filled values of the nearest row that has some. */
-    for (int r = 0; r < h; r++) {
-        if (has[r]) continue;
-        int best = -1;
-        for (int d = 1; d < h && best < 0; d++) {
-            if (r - d >= 0 && has[r - d]) best = r - d;
-            else if (r + d < h && has[r + d]) best = r + d;
-        }
-        if (best < 0) continue;   /* cannot happen: nsky > 0 */
-        float *row = env->radiance + 3 * (size_t)r * w;
-        const float *from = env->radiance + 3 * (size_t)best * w;
-        for (int c = 0; c < w; c++)
-            if (env->filled[(size_t)r * w + c]) memcpy(row + 3 * c, from + 3 * c, 3 * sizeof *row);
+    env->fill_sigma = info->fill.fill_sigma > 0 ? info->fill.fill_sigma : 0;
+    if (!o->explicit_sun) memset(env->sun, 0, npx);     /* everything by cosine rays */
+    if (o->explicit_sun && build_distributions(env) != 0) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky distribution");
+        goto out;
     }
-    free(has);
+    rc = 0;
+out:
+    free(meas);
+    free(cap_meas);
     free(src);
-    if (!explicit) memset(env->sun, 0, npx);     /* everything by cosine rays */
-    if (explicit && build_distributions(env) != 0) {
-        rs_skyenv_release(env);
-        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky distribution");
-    }
-    return 0;
+    free(lum);
+    free(order);
+    free(key);
+    if (rc != 0) rs_skyenv_release(env);
+    return rc;
 }
 
 void rs_skyenv_release(rs_skyenv *env)

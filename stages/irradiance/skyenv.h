@@ -1,12 +1,15 @@
 /* skyenv: the environment a facet sees, taken from the sky portion of the panorama (every
- * pixel whose camera ray misses the model), with the directions the model hides from the
- * camera filled in, and the bright pixels (the sun) split off for explicit sampling. */
+ * pixel whose camera ray misses the model) and of an optional sky-only panorama, with the
+ * directions no camera saw filled in (skyfill.h), and the bright pixels (the sun) split off
+ * for explicit sampling. */
 #ifndef RS_SKYENV_H
 #define RS_SKYENV_H
 
 #include <stddef.h>
 #include <stdint.h>
 #include "capture.h"
+#include "scene.h"
+#include "skyfill.h"
 
 typedef struct rs_skyenv {
     int width, height;
@@ -22,7 +25,27 @@ typedef struct rs_skyenv {
     double sky_median;         /* median luminance of the measured sky pixels */
     size_t sky_pixels, filled_pixels, bright_pixels;
     double bright_sr;          /* solid angle of the bright pixels */
+    double fill_sigma;         /* relative standard uncertainty of the light from filled pixels
+                                  (held-out error of the fill method); 0 when not measured */
 } rs_skyenv;
+
+/* What the map is built from and how it is completed. */
+typedef struct rs_skyenv_opts {
+    double sun_threshold;      /* see rs_skyenv_build */
+    double max_sr;
+    int explicit_sun;
+    rs_skyfill_opts fill;
+    const rs_capture *sky;     /* sky-only panorama ([sky] panorama) or NULL */
+    const uint8_t *sky_mask;   /* its pixels whose rays miss the model (rs_skyenv_sky_mask) */
+} rs_skyenv_opts;
+
+/* What rs_skyenv_build_opts found besides the map. */
+typedef struct rs_skyenv_info {
+    rs_skyfill_report fill;
+    size_t sky_pano_pixels;    /* map pixels taken from the sky panorama */
+    double sky_pano_scale[3];  /* exposure factor applied to the sky panorama (capture / sky) */
+    double sky_overlap_sr;     /* solid angle both saw as sky: where the factor comes from */
+} rs_skyenv_info;
 
 /* facet_id: the observe stage's image (W x H, -1 where no facet). sun_threshold: pixels
  * brighter than this multiple of the median sky luminance are lights, brightest first, up to a
@@ -34,6 +57,18 @@ typedef struct rs_skyenv {
  * side; rows with none copy the nearest row that has some. Bright pixels never feed the fill. */
 int rs_skyenv_build(const rs_capture *cap, const float *facet_id, double sun_threshold, double max_sr,
                     int explicit, rs_skyenv *env, rs_err *err);
+
+/* The same with a choice of fill (o->fill) and an optional sky-only panorama. The map keeps the
+ * capture's frame and size. Every direction the sky panorama sees as sky takes its value, times
+ * a per-channel exposure factor: the median ratio capture / sky panorama over the directions
+ * both see as sky (outside the bright pixels); 1 when they share less than 0.01 sr. The rest
+ * of the capture's sky comes next; what neither saw is filled. info may be NULL. */
+int rs_skyenv_build_opts(const rs_capture *cap, const float *facet_id, const rs_skyenv_opts *o,
+                         rs_skyenv *env, rs_skyenv_info *info, rs_err *err);
+
+/* mask[k] = 1 for each pixel of the sky panorama whose ray from its position misses the
+ * model (and whose value is usable). mask: width * height bytes, caller-owned. */
+void rs_skyenv_sky_mask(const rs_scene *scene, const rs_capture *sky, uint8_t *mask);
 void rs_skyenv_release(rs_skyenv *env);
 
 /* Pixel index of world direction d. */

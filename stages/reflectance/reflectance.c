@@ -6,7 +6,11 @@
  * Facets the camera does not see still light their neighbours: their radiance is modelled as
  * rho_fill (E_sky + G) / pi, rho_fill being [reflectance] unobserved_albedo or the
  * area-weighted mean albedo of the estimable facets, solved together by fixed-point iteration.
- * Writes albedo.ply with the face properties of DESIGN.md section 2. */
+ * Writes albedo.ply with the face properties of DESIGN.md section 2, plus the sky completion's
+ * share (sky_filled), E_sky's uncertainty (irradiance_sky_sigma) and the albedo uncertainty it
+ * leads to: albedo_sigma_rel = sqrt(floor^2 + (irradiance_sky_sigma / E)^2), E = E_sky + G in
+ * luminance, floor = [reflectance] albedo_sigma_floor (the error left with a fully measured
+ * sky); albedo_sigma = albedo_sigma_rel times the facet's mean albedo over the channels. */
 #include <stdlib.h>
 #include <string.h>
 #include "faceprop.h"
@@ -19,6 +23,8 @@
 typedef struct {
     size_t nf;
     const double *area, *L, *esky, *gseen;
+    const double *sky_filled, *esky_sigma;   /* from irradiance.ply */
+    double sigma_floor;
     const uint8_t *observed;
     const rs_transport *K;     /* gather kernel (interreflection) */
     const float *dense;        /* paper kernel, m * m (paper) */
@@ -155,6 +161,17 @@ static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in
         rs_faceprop_add_rgb(faces, "irradiance_sky", in->esky) != 0 ||
         rs_faceprop_add_rgb(faces, "irradiance_inter", out->G) != 0)
         goto oom;
+    if (!rs_ply_add_scalar(faces, "sky_filled", RS_PLY_FLOAT32, in->sky_filled) ||
+        !rs_ply_add_scalar(faces, "irradiance_sky_sigma", RS_PLY_FLOAT32, in->esky_sigma))
+        goto oom;
+    /* Relative uncertainty: the sky fill's (through E) and the floor, for estimable facets. */
+    for (size_t i = 0; i < nf; i++) {
+        double E = lum3(in->esky + 3 * i) + lum3(out->G + 3 * i), r = in->esky_sigma[i] / E;
+        tmp[i] = out->estimable[i] && E > 0 ? sqrt(in->sigma_floor * in->sigma_floor + r * r) : 0;
+    }
+    if (!rs_ply_add_scalar(faces, "albedo_sigma_rel", RS_PLY_FLOAT32, tmp)) goto oom;
+    for (size_t i = 0; i < nf; i++) tmp[i] *= (alb[3 * i] + alb[3 * i + 1] + alb[3 * i + 2]) / 3;
+    if (!rs_ply_add_scalar(faces, "albedo_sigma", RS_PLY_FLOAT32, tmp)) goto oom;
     for (size_t i = 0; i < nf; i++) tmp[i] = in->observed[i];
     if (!rs_ply_add_scalar(faces, "observed", RS_PLY_UINT8, tmp)) goto oom;
     for (size_t i = 0; i < nf; i++) tmp[i] = out->estimable[i];
@@ -193,7 +210,7 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_mesh *mesh = rs_mesh_read(rs_work_path(cfg, "mesh.ply", path, sizeof path), NULL, err);
     if (!mesh) return -1;
     size_t nf = mesh->nfaces;
-    double *buf = calloc(20 * nf + 1, sizeof *buf);
+    double *buf = calloc(22 * nf + 1, sizeof *buf);
     uint8_t *flags = calloc(2 * nf + 1, 1);
     if (!buf || !flags) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu facets", nf);
@@ -214,7 +231,9 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     for (size_t f = 0; f < nf; f++) flags[f] = obsd[f] > 0;
     const char *ip = rs_work_path(cfg, "irradiance.ply", path, sizeof path);
     if (!(irr = rs_ply_read(ip, err)) || rs_faceprop_get_rgb(irr, ip, "irradiance_sky", nf, esky, err) != 0 ||
-        rs_faceprop_get_rgb(irr, ip, "irradiance_inter_seen", nf, gseen, err) != 0)
+        rs_faceprop_get_rgb(irr, ip, "irradiance_inter_seen", nf, gseen, err) != 0 ||
+        rs_faceprop_get(irr, ip, "sky_filled", nf, buf + 20 * nf, err) != 0 ||
+        rs_faceprop_get(irr, ip, "irradiance_sky_sigma", nf, buf + 21 * nf, err) != 0)
         goto out;
     double t0 = rs_now();
     if (m == 0) {
@@ -235,7 +254,8 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         rs_report_skip(rep, "interreflection", "method = direct ignores light from other facets");
     }
     rs_report_time(rep, "kernel", rs_now() - t0);
-    refl_in in = {nf, area, L, esky, gseen, flags, K, dense, m,
+    refl_in in = {nf, area, L, esky, gseen, buf + 20 * nf, buf + 21 * nf,
+                  rs_config_real(cfg, "reflectance", "albedo_sigma_floor"), flags, K, dense, m,
                   rs_config_real(cfg, "reflectance", "min_irradiance"),
                   rs_config_has(cfg, "reflectance", "unobserved_albedo"), 0};
     if (in.fill_given) in.fill_given_value = rs_config_real(cfg, "reflectance", "unobserved_albedo");

@@ -1,0 +1,326 @@
+/* skyfill: filling the unmeasured directions of a sky map (see skyfill.h): row interpolation,
+ * or a Perez + harmonics model above the horizon and the visible ground below it, with
+ * held-out blocks of measured sky to measure each method's error. */
+#include "skyfill.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#define CV_SECTORS 8           /* held-out azimuth sectors, plus one band of the lowest sky */
+#define CV_LOW_SHARE 0.2       /* the low band: this share of the measured sky's solid angle */
+#define CV_MIN_SR 0.01         /* a held-out block needs this much measured sky to count */
+#define FIT_CELLS_W 128        /* the model is fitted on a grid of at most 128 x 64 cells */
+
+static double lum(const float *rgb) { return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]; }
+
+static rs_v3 pixel_world(int w, int h, const rs_pose *pose, size_t k)
+{
+    return rs_pose_dir_to_world(pose, rs_pano_pixel_dir(w, h, (int)(k % (size_t)w), (int)(k / (size_t)w)));
+}
+
+/* Interpolates one row's fill pixels in azimuth between the nearest source pixels (wrapping);
+ * returns 0 when the row has no source pixel. */
+static int fill_row(float *row, const uint8_t *src, const uint8_t *fill, int w)
+{
+    int first = -1;
+    for (int c = 0; c < w && first < 0; c++)
+        if (src[c]) first = c;
+    if (first < 0) return 0;
+    int a = first;
+    for (int step = 1; step <= w; step++) {
+        int b = (first + step) % w;
+        if (!src[b] && step < w) continue;
+        int gap = (b - a + w) % w;
+        if (gap == 0) gap = w;
+        for (int k = 1; k < gap; k++) {
+            int c = (a + k) % w;
+            if (!fill[c]) continue;
+            double t = (double)k / gap;
+            for (int ch = 0; ch < 3; ch++)
+                row[3 * c + ch] = (float)((1 - t) * row[3 * a + ch] + t * row[3 * b + ch]);
+        }
+        a = b;
+    }
+    return 1;
+}
+
+/* The row method over the whole map. -1: out of memory. */
+static int row_fill(int w, int h, float *rad, const uint8_t *src, const uint8_t *fill)
+{
+    int *has = calloc((size_t)h, sizeof *has);
+    if (!has) return -1;
+    for (int r = 0; r < h; r++)
+        has[r] = fill_row(rad + 3 * (size_t)r * w, src + (size_t)r * w, fill + (size_t)r * w, w);
+    for (int r = 0; r < h; r++) {
+        if (has[r]) continue;
+        int best = -1;
+        for (int d = 1; d < h && best < 0; d++) {
+            if (r - d >= 0 && has[r - d]) best = r - d;
+            else if (r + d < h && has[r + d]) best = r + d;
+        }
+        if (best < 0) break;             /* no source anywhere: nothing to copy */
+        for (int c = 0; c < w; c++)
+            if (fill[(size_t)r * w + c])
+                memcpy(rad + 3 * ((size_t)r * w + c), rad + 3 * ((size_t)best * w + c), 3 * sizeof *rad);
+    }
+    free(has);
+    return 0;
+}
+
+/* Fitting samples: source pixels above the horizon, farther than mask_rad from the sun (when
+ * sun is not NULL), not excluded, averaged over cells of f x f pixels. Returns the count. */
+static size_t build_samples(int w, int h, const rs_pose *pose, const float *rad, const uint8_t *src,
+                            const uint8_t *exclude, const rs_v3 *sun, double mask_rad, rs_skysample *out)
+{
+    int f = (w + FIT_CELLS_W - 1) / FIT_CELLS_W, cw = (w + f - 1) / f, chh = (h + f - 1) / f;
+    size_t n = 0;
+    double cos_mask = cos(mask_rad);
+    for (int cr = 0; cr < chh; cr++)
+        for (int cc = 0; cc < cw; cc++) {
+            double sw = 0, srgb[3] = {0, 0, 0};
+            rs_v3 sd = rs_v3_make(0, 0, 0);
+            for (int r = cr * f; r < (cr + 1) * f && r < h; r++) {
+                double om = rs_pano_pixel_solid_angle(w, h, r);
+                for (int c = cc * f; c < (cc + 1) * f && c < w; c++) {
+                    size_t k = (size_t)r * w + c;
+                    if (!src[k] || (exclude && exclude[k])) continue;
+                    rs_v3 d = pixel_world(w, h, pose, k);
+                    if (d.z <= 0 || (sun && rs_v3_dot(d, *sun) > cos_mask)) continue;
+                    sw += om;
+                    sd = rs_v3_add(sd, rs_v3_scale(d, om));
+                    for (int ch = 0; ch < 3; ch++) srgb[ch] += om * rad[3 * k + ch];
+                }
+            }
+            if (!(sw > 0)) continue;
+            out[n].dir = rs_v3_norm(sd);
+            if (out[n].dir.z <= 0) continue;
+            for (int ch = 0; ch < 3; ch++) out[n].rgb[ch] = srgb[ch] / sw;
+            out[n].weight = sw;
+            n++;
+        }
+    return n;
+}
+
+/* Model values for the fill pixels above the horizon. */
+static void model_fill_sky(int w, int h, const rs_pose *pose, float *rad, const uint8_t *fill, const rs_skymodel *m)
+{
+    size_t npx = (size_t)w * h;
+#pragma omp parallel for schedule(static)
+    for (size_t k = 0; k < npx; k++) {
+        if (!fill[k]) continue;
+        rs_v3 d = pixel_world(w, h, pose, k);
+        if (d.z <= 0) continue;
+        double rgb[3];
+        rs_skymodel_eval(m, d, rgb);
+        for (int ch = 0; ch < 3; ch++) rad[3 * k + ch] = (float)rgb[ch];
+    }
+}
+
+/* Fill pixels below the horizon: the mean source radiance of their world elevation band, else
+ * the nearest band with sources, else ground_albedo * E_horizontal / pi. */
+static int ground_fill(int w, int h, const rs_pose *pose, float *rad, const uint8_t *src, const uint8_t *fill,
+                       double albedo, rs_skyfill_report *rep)
+{
+    int nb = h / 2 > 0 ? h / 2 : 1;
+    double *acc = calloc(4 * (size_t)nb, sizeof *acc);
+    if (!acc) return -1;
+    size_t npx = (size_t)w * h;
+    double eh = 0;
+    for (size_t k = 0; k < npx; k++) {
+        rs_v3 d = pixel_world(w, h, pose, k);
+        double om = rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w));
+        if (d.z > 0) {
+            eh += lum(rad + 3 * k) * d.z * om;
+            continue;
+        }
+        if (!src[k]) continue;
+        int b = (int)(asin(fmin(1, -d.z)) / (M_PI / 2) * nb);
+        b = b >= nb ? nb - 1 : b;
+        for (int ch = 0; ch < 3; ch++) acc[4 * b + ch] += om * rad[3 * k + ch];
+        acc[4 * b + 3] += om;
+    }
+    double ground[3];
+    for (int ch = 0; ch < 3; ch++) ground[ch] = albedo * eh / M_PI;
+    rep->ground_from_albedo = 1;
+    for (int b = 0; b < nb; b++)
+        if (acc[4 * b + 3] > 0) rep->ground_from_albedo = 0;
+    for (int ch = 0; ch < 3; ch++) rep->ground_rgb[ch] = rep->ground_from_albedo ? ground[ch] : 0;
+    for (size_t k = 0; k < npx; k++) {
+        if (!fill[k]) continue;
+        rs_v3 d = pixel_world(w, h, pose, k);
+        if (d.z > 0) continue;
+        const double *L = ground;
+        double mean[3];
+        if (!rep->ground_from_albedo) {
+            int b = (int)(asin(fmin(1, -d.z)) / (M_PI / 2) * nb), best = -1;
+            b = b >= nb ? nb - 1 : b;
+            for (int dd = 0; dd < nb && best < 0; dd++) {
+                if (b - dd >= 0 && acc[4 * (b - dd) + 3] > 0) best = b - dd;
+                else if (b + dd < nb && acc[4 * (b + dd) + 3] > 0) best = b + dd;
+            }
+            for (int ch = 0; ch < 3; ch++) mean[ch] = acc[4 * best + ch] / acc[4 * best + 3];
+            L = mean;
+        }
+        for (int ch = 0; ch < 3; ch++) rad[3 * k + ch] = (float)L[ch];
+    }
+    free(acc);
+    return 0;
+}
+
+/* Held-out blocks: bit s (s < CV_SECTORS) for the world azimuth sector of a measured sky pixel
+ * above the horizon, bit CV_SECTORS for the lowest CV_LOW_SHARE of that sky by solid angle. */
+static void assign_folds(int w, int h, const rs_pose *pose, const uint8_t *src, const rs_v3 *sun, double mask_rad,
+                         uint16_t *fold)
+{
+    size_t npx = (size_t)w * h;
+    enum { NBIN = 900 };
+    double hist[NBIN] = {0}, total = 0, cos_mask = cos(mask_rad);
+    for (size_t k = 0; k < npx; k++) {
+        fold[k] = 0;
+        if (!src[k]) continue;
+        rs_v3 d = pixel_world(w, h, pose, k);
+        if (d.z <= 0 || rs_v3_dot(d, *sun) > cos_mask) continue;
+        int s = (int)((atan2(d.y, d.x) + M_PI) / (2 * M_PI) * CV_SECTORS);
+        fold[k] = (uint16_t)(1u << (s >= CV_SECTORS ? CV_SECTORS - 1 : s));
+        double om = rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w));
+        int b = (int)(asin(fmin(1, d.z)) / (M_PI / 2) * NBIN);
+        hist[b >= NBIN ? NBIN - 1 : b] += om;
+        total += om;
+    }
+    int cut = 0;
+    for (double acc = 0; cut < NBIN && acc + hist[cut] <= CV_LOW_SHARE * total; cut++) acc += hist[cut];
+    for (size_t k = 0; k < npx; k++) {
+        if (!fold[k]) continue;
+        rs_v3 d = pixel_world(w, h, pose, k);
+        int b = (int)(asin(fmin(1, d.z)) / (M_PI / 2) * NBIN);
+        if (b <= cut) fold[k] |= (uint16_t)(1u << CV_SECTORS);
+    }
+}
+
+/* Relative error of the integrated luminance of block f's pixels: predicted (pred) vs measured. */
+static double block_error(int w, int h, const float *meas, const float *pred, const uint16_t *fold, int f,
+                          double *sr)
+{
+    double sm = 0, sp = 0, om_sum = 0;
+    for (size_t k = 0; k < (size_t)w * h; k++) {
+        if (!(fold[k] >> f & 1)) continue;
+        double om = rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w));
+        sm += om * lum(meas + 3 * k);
+        sp += om * lum(pred + 3 * k);
+        om_sum += om;
+    }
+    *sr = om_sum;
+    return sm > 0 ? (sp - sm) / sm : 0;
+}
+
+/* Both methods' held-out errors, and the residual order the model does best with. */
+static int cross_validate(int w, int h, const rs_pose *pose, const float *rad, const uint8_t *src,
+                          const rs_skyfill_opts *o, rs_v3 sun, rs_skysample *samples, rs_skyfill_report *rep,
+                          int *best_order)
+{
+    size_t npx = (size_t)w * h;
+    uint16_t *fold = malloc(npx * sizeof *fold);
+    uint8_t *src_f = malloc(npx), *fill_f = malloc(npx);
+    float *tmp = malloc(3 * npx * sizeof *tmp);
+    if (!fold || !src_f || !fill_f || !tmp) {
+        free(fold);
+        free(src_f);
+        free(fill_f);
+        free(tmp);
+        return -1;
+    }
+    assign_folds(w, h, pose, src, &sun, o->sun_mask_rad, fold);
+    int norders = o->sh_order + 2;                  /* -1 .. sh_order */
+    double se_row = 0, se_model[RS_SKYMODEL_MAX_SH + 2] = {0};
+    int nf = 0;
+    for (int f = 0; f <= CV_SECTORS; f++) {
+        for (size_t k = 0; k < npx; k++) {
+            fill_f[k] = (uint8_t)(fold[k] >> f & 1);
+            src_f[k] = (uint8_t)(src[k] && !fill_f[k]);
+        }
+        double sr;
+        memcpy(tmp, rad, 3 * npx * sizeof *tmp);
+        if (row_fill(w, h, tmp, src_f, fill_f) != 0) break;
+        double e_row = block_error(w, h, rad, tmp, fold, f, &sr);
+        if (sr < CV_MIN_SR) continue;
+        rs_skymodel m;
+        size_t n = build_samples(w, h, pose, rad, src_f, NULL, &sun, o->sun_mask_rad, samples);
+        if (rs_skymodel_fit(samples, n, sun, -1, o->sh_ridge, &m) != 0) continue;
+        nf++;
+        se_row += e_row * e_row;
+        for (int q = 0; q < norders; q++) {
+            rs_skymodel_refit_sh(samples, n, q - 1, o->sh_ridge, &m);
+            memcpy(tmp, rad, 3 * npx * sizeof *tmp);
+            model_fill_sky(w, h, pose, tmp, fill_f, &m);
+            double e = block_error(w, h, rad, tmp, fold, f, &sr);
+            se_model[q] += e * e;
+        }
+    }
+    rep->cv_folds = nf;
+    if (nf > 0) {
+        rep->cv_rel_row = sqrt(se_row / nf);
+        int bq = 0;
+        for (int q = 1; q < norders; q++)
+            if (se_model[q] < se_model[bq]) bq = q;
+        rep->cv_rel_model = sqrt(se_model[bq] / nf);
+        *best_order = bq - 1;
+    }
+    free(fold);
+    free(src_f);
+    free(fill_f);
+    free(tmp);
+    return 0;
+}
+
+int rs_skyfill_run(int w, int h, const rs_pose *pose, float *rad, const uint8_t *src, const uint8_t *fill,
+                   const uint8_t *sun, const rs_skyfill_opts *o, rs_skyfill_report *rep)
+{
+    memset(rep, 0, sizeof *rep);
+    rep->cv_rel_row = rep->cv_rel_model = -1;
+    rep->model.sh_order = -1;
+    size_t npx = (size_t)w * h;
+    /* The sun: given, else the luminance-weighted centroid of the sun set, else searched. */
+    rs_v3 sun_dir = o->sun_dir;
+    rep->sun_source = RS_SUN_CONFIG;
+    if (!o->sun_given) {
+        rs_v3 acc = rs_v3_make(0, 0, 0);
+        for (size_t k = 0; sun && k < npx; k++)
+            if (sun[k])
+                acc = rs_v3_add(acc, rs_v3_scale(pixel_world(w, h, pose, k),
+                                                 lum(rad + 3 * k) * rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w))));
+        sun_dir = rs_v3_norm(acc);
+        rep->sun_source = RS_SUN_PIXELS;
+    }
+    int cell = (w + FIT_CELLS_W - 1) / FIT_CELLS_W;
+    rs_skysample *samples = malloc((size_t)((w + cell - 1) / cell) * ((h + cell - 1) / cell) * sizeof *samples);
+    if (!samples) return -1;
+    if (rs_v3_len(sun_dir) == 0) {
+        size_t n = build_samples(w, h, pose, rad, src, NULL, NULL, 0, samples);
+        sun_dir = rs_skymodel_find_sun(samples, n);
+        rep->sun_source = RS_SUN_SEARCH;
+    }
+    rep->sun_dir = sun_dir;
+    int order = o->sh_order;
+    if (o->cross_validate && cross_validate(w, h, pose, rad, src, o, sun_dir, samples, rep, &order) != 0) {
+        free(samples);
+        return -1;
+    }
+    int rc = 0;
+    if (o->method == RS_SKYFILL_MODEL) {
+        size_t n = build_samples(w, h, pose, rad, src, NULL, &sun_dir, o->sun_mask_rad, samples);
+        rep->fit_samples = n;
+        if (rs_skymodel_fit(samples, n, sun_dir, order, o->sh_ridge, &rep->model) == 0) {
+            model_fill_sky(w, h, pose, rad, fill, &rep->model);
+            rc = ground_fill(w, h, pose, rad, src, fill, o->ground_albedo, rep);
+        } else {
+            rc = row_fill(w, h, rad, src, fill);     /* too little sky to fit: rows at least */
+            rep->fit_samples = 0;
+        }
+        rep->fill_sigma = rep->fit_samples ? rep->cv_rel_model : rep->cv_rel_row;
+    } else {
+        rc = row_fill(w, h, rad, src, fill);
+        rep->fill_sigma = rep->cv_rel_row;
+    }
+    free(samples);
+    return rc;
+}

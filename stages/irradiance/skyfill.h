@@ -1,0 +1,52 @@
+/* skyfill: fills the directions of a sky map that no camera measured, by row interpolation or
+ * by a fitted sky model (skymodel.h) with the ground from the visible ground, and measures how
+ * well each method predicts held-out measured sky. Exports rs_skyfill_*. */
+#ifndef RS_SKYFILL_H
+#define RS_SKYFILL_H
+
+#include <stdint.h>
+#include "pano.h"
+#include "skymodel.h"
+
+typedef enum { RS_SKYFILL_ROW = 0, RS_SKYFILL_MODEL = 1 } rs_skyfill_method;
+
+typedef struct rs_skyfill_opts {
+    rs_skyfill_method method;
+    int sun_given;             /* 1: sun_dir is known (config); else from sun pixels or a search */
+    rs_v3 sun_dir;             /* unit, world */
+    double sun_mask_rad;       /* sky within this angle of the sun stays out of the model fit */
+    int sh_order;              /* highest residual order tried (-1: Perez alone) */
+    double sh_ridge;
+    double ground_albedo;      /* ground radiance = albedo E_horizontal / pi when no ground is seen */
+    int cross_validate;        /* 1: held-out errors of both methods (fill_sigma needs it) */
+} rs_skyfill_opts;
+
+typedef enum { RS_SUN_CONFIG, RS_SUN_PIXELS, RS_SUN_SEARCH } rs_sun_source;
+
+typedef struct rs_skyfill_report {
+    rs_v3 sun_dir;             /* used by the model (world, unit) */
+    rs_sun_source sun_source;
+    rs_skymodel model;         /* the final fit (method model) */
+    double cv_rel_row, cv_rel_model;   /* RMS over held-out blocks of the relative error of
+                                          their integrated luminance; -1 when not computed */
+    int cv_folds;              /* held-out blocks with enough sky */
+    double fill_sigma;         /* cv of the method used: relative uncertainty of filled light */
+    double ground_rgb[3];      /* radiance given to unseen ground with no ground row to copy */
+    int ground_from_albedo;    /* 1: no visible ground at all, ground_albedo was used */
+    size_t fit_samples;
+} rs_skyfill_report;
+
+/* radiance: 3 * w * h floats of a map in frame pose (rs_pano conventions), read and filled in
+ * place. src (w * h): 1 for measured sky usable as a source (not the sun set). fill: 1 for the
+ * pixels to fill. sun (w * h, may be NULL): the sun set, whose luminance-weighted centroid is
+ * the sun direction when the config gives none.
+ * Row: each pixel to fill takes the linear interpolation along its row (azimuth, wrapping) of
+ * the nearest source pixels on either side; rows with none copy the nearest row with some.
+ * Model: above the horizon the fitted Perez + harmonics model; below, the mean of the source
+ * pixels in the same world elevation band (the nearest band that has some), else
+ * ground_albedo * E_horizontal / pi from the completed sky. Returns 0, -1 out of memory. */
+int rs_skyfill_run(int w, int h, const rs_pose *pose, float *radiance, const uint8_t *src,
+                   const uint8_t *fill, const uint8_t *sun, const rs_skyfill_opts *o,
+                   rs_skyfill_report *rep);
+
+#endif

@@ -1,0 +1,167 @@
+#!/usr/bin/env python3
+"""Albedo error with each sky completion method on reference scenes: writes docs/SKY.md.
+
+usage: sky_compare.py --bin BUILD --shared SHARED --out docs/SKY.md --work DIR NAME=SCENE_DIR...
+
+Each SCENE_DIR is a tools/refscene output (pano.exr, env.exr, scan.ptx, truth.ply, truth.json).
+For every scene, rhoscan runs from the scan with [sky] fill = row, fill = model, and "true sky":
+env.exr (the sky alone, rendered from the camera with the model hidden) given as the [sky]
+panorama, placed 1 km above the camera so that only the model's ground hides any of it. The
+shared evaluator (SHARED/tools/eval_albedo.py) measures the area-weighted mean relative albedo
+error over interior facets, per part and overall. The per-facet uncertainty (albedo_sigma_rel) is
+checked against the per-facet actual error: the share of facets it covers at 1 and 2 sigma and
+the ratio of its median to the median actual error. Sky numbers come from irradiance.json.
+"""
+import argparse, json, os, subprocess, sys
+
+import numpy as np
+
+
+def run(cmd, log):
+    with open(log, 'a') as fh:
+        fh.write('$ ' + ' '.join(cmd) + '\n')
+        fh.flush()
+        r = subprocess.run(cmd, stdout=fh, stderr=fh)
+    if r.returncode != 0:
+        sys.exit('FAIL: %s exited %d (see %s)' % (cmd[0], r.returncode, log))
+
+
+def per_facet_error(shared, truth_ply, albedo_ply):
+    """Relative error (mean over channels) per observed, estimable facet, its sigma, its part."""
+    sys.path.insert(0, os.path.join(shared, 'tools'))
+    from plyio import read_ply, faces_of
+    from eval_albedo import tri_samples
+    from scipy.spatial import cKDTree
+    truth, res = read_ply(truth_ply), read_ply(albedo_ply)
+    TV = np.stack([truth['vertex'][c] for c in 'xyz'], 1)
+    TF = np.array(faces_of(truth))
+    talb = np.stack([truth['face'][c] for c in ('red', 'green', 'blue')], 1)
+    S, Sf = tri_samples(TV, TF, 0.05)
+    RV = np.stack([res['vertex'][c] for c in 'xyz'], 1)
+    RF = np.array(faces_of(res))
+    fp = res['face']
+    alb = np.stack([fp['albedo_' + c] for c in 'rgb'], 1)
+    P = RV[RF]
+    cen = P.mean(1)
+    d, k = cKDTree(S).query(cen)
+    sel = (d < 0.15) & (fp['observed'] > 0) & (fp['estimable'] > 0)
+    t = talb[Sf[k]]
+    rel = (np.abs(alb - t) / np.maximum(t, 1e-6)).mean(1)
+    area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
+    return rel[sel], fp['albedo_sigma_rel'][sel], fp['sky_filled'][sel], area[sel]
+
+
+METHOD = """## How the sky is completed (stages/irradiance: skyenv.c, skyfill.c, skymodel.c, solar.c)
+
+- Sources, in order: `[sky] panorama` wherever its rays miss the model (its exposure matched to the
+  capture by the per-channel median ratio over the sky both see, bright pixels left out), then the
+  capture's own sky pixels. Everything else is filled; `sky_filled` is the luminance share of each
+  facet's E_sky that came from filled directions.
+- The sun set (pixels above `[irradiance] sun_threshold` x the median sky, brightest first up to
+  `sun_max_cone_deg`) keeps its measured values and never feeds a fill.
+- `fill = row`: each hidden pixel interpolates along its panorama row between the nearest measured
+  pixels; rows with none copy the nearest row that has some (the earlier behaviour).
+- `fill = model`: the sun direction is `[sky] sun_azimuth_deg`/`sun_elevation_deg`, else the NOAA
+  solar position from `datetime`, `latitude_deg`, `longitude_deg`, `north_deg`, else the
+  luminance-weighted centroid of the sun set, else the direction whose clear-sky Perez distribution
+  explains the visible sky best. Per colour channel a Perez all-weather distribution (Perez, Seals,
+  Michalsky 1993) is fitted by Levenberg-Marquardt on the log radiance of the visible sky above the
+  horizon (averaged over cells of at most 128 x 64, sky within `sun_mask_deg` of the sun left out,
+  Huber weights so trees and roofs do not drag it), then real spherical harmonics of the log
+  residual up to `sh_order` with a ridge penalty `sh_ridge (l(l+1))^2`. Hidden directions above the
+  horizon take the model. Hidden directions below the horizon take the mean visible ground of the
+  same world elevation band (nearest band with any), and when no ground is visible at all
+  `ground_albedo` x E_horizontal / pi of the completed sky.
+- Uncertainty: the measured sky above the horizon is split into 8 azimuth sectors and the lowest 20 %
+  (by solid angle); each block is held out in turn and predicted by both methods from the rest. The
+  RMS relative error of a block's integrated luminance is the method's `fill_sigma`; the model's
+  harmonic order is the one with the smallest. `irradiance_sky_sigma = fill_sigma x` (filled part of
+  E_sky), taken as one correlated error (a fill is off smoothly, not pixel by pixel).
+  `albedo_sigma_rel = sqrt(albedo_sigma_floor^2 + (irradiance_sky_sigma / (E_sky + G))^2)` in
+  albedo.ply, with `albedo_sigma` the same times the mean albedo.
+"""
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument('--bin', required=True)
+    ap.add_argument('--shared', required=True)
+    ap.add_argument('--out', required=True)
+    ap.add_argument('--work', required=True)
+    ap.add_argument('scenes', nargs='+', help='NAME=SCENE_DIR')
+    a = ap.parse_args()
+    os.makedirs(a.work, exist_ok=True)
+    rows, unc = [], []
+    methods = [('row', ['--set', 'sky.fill=row']), ('model', ['--set', 'sky.fill=model'])]
+    for spec in a.scenes:
+        name, sdir = spec.split('=', 1)
+        truth = json.load(open(os.path.join(sdir, 'truth.json')))
+        R = truth['camera_rotation_local_to_world']
+        rot = ' '.join('%.17g' % (0 if abs(v) < 1e-12 else v) for row in R for v in row)
+        cam = truth['camera_position']
+        wdir = os.path.join(a.work, name)
+        os.makedirs(wdir, exist_ok=True)
+        cfg = os.path.join(wdir, 'scene.ini')
+        with open(cfg, 'w') as fh:
+            fh.write('[pipeline]\nworkdir = work\n[ingest]\nscan = %s\n[capture]\npanorama = %s\nposition = %s\n'
+                     'rotation = %s\n' % (os.path.join(sdir, 'scan.ptx'), os.path.join(sdir, 'pano.exr'),
+                                          ' '.join('%.17g' % v for v in cam), rot))
+        true_sky = ['--set', 'sky.fill=model', '--set', 'sky.panorama=' + os.path.join(sdir, 'env.exr'),
+                    '--set', 'sky.position=%.9g %.9g %.9g' % (cam[0], cam[1], cam[2] + 1000),
+                    '--set', 'sky.rotation=' + rot]
+        res = {}
+        for m, sets in methods + [('true sky', true_sky)]:
+            log = os.path.join(wdir, 'run.log')
+            run([os.path.join(a.bin, 'rhoscan'), 'run', cfg] + sets, log)
+            work = os.path.join(wdir, 'work')
+            ej = os.path.join(wdir, 'eval_%s.json' % m.replace(' ', '_'))
+            run([sys.executable, os.path.join(a.shared, 'tools', 'eval_albedo.py'), os.path.join(sdir, 'truth.ply'),
+                 os.path.join(work, 'albedo.ply'), '--json', ej], log)
+            ev = json.load(open(ej))
+            irr = json.load(open(os.path.join(work, 'irradiance.json')))
+            im = irr.get('metrics', irr)
+            rel, sig, filled, area = per_facet_error(a.shared, os.path.join(sdir, 'truth.ply'),
+                                                     os.path.join(work, 'albedo.ply'))
+            parts = {int(p): v['mean_rel'] for p, v in ev['parts'].items() if v}
+            res[m] = {'interior': ev['interior']['mean_rel'], 'worst': max(parts.values()), 'parts': parts,
+                      'filled': float((filled * area).sum() / area.sum()),
+                      'cv_row': im.get('sky_cv_rel_row'), 'cv_model': im.get('sky_cv_rel_model'),
+                      'cover1': float((rel <= sig).mean()), 'cover2': float((rel <= 2 * sig).mean()),
+                      'med_sig': float(np.median(sig)), 'med_err': float(np.median(rel))}
+            print('%s / %s: interior mean %.4f, worst part %.4f' % (name, m, res[m]['interior'], res[m]['worst']))
+        rows.append((name, sdir, res))
+    with open(a.out, 'w') as fh:
+        fh.write('# Sky completion: albedo error by fill method\n\n'
+                 'Generated by `tools/skycompare/sky_compare.py` (do not edit by hand). Each scene runs from its scan '
+                 'with `[sky] fill = row`, `fill = model`, and with the true sky: env.exr (the environment alone, '
+                 'rendered from the camera with the model hidden) as `[sky] panorama`. Errors are the shared '
+                 'evaluator\'s area-weighted mean relative albedo error over interior facets (`eval_albedo.py`); '
+                 '"worst part" is the largest per-part mean. "sky filled" is the area-weighted mean share of E_sky '
+                 'from filled-in directions. "held-out" is the relative error of the light of held-out blocks of '
+                 'visible sky predicted by each method (skyfill.c), which sets the fill uncertainty.\n\n')
+        fh.write('| scene | method | interior error | worst part | sky filled | held-out rows | held-out model |\n')
+        fh.write('| --- | --- | --- | --- | --- | --- | --- |\n')
+        for name, sdir, res in rows:
+            for m, r in res.items():
+                fh.write('| %s | %s | %.2f %% | %.2f %% | %.1f %% | %s | %s |\n' % (
+                    name, m, 100 * r['interior'], 100 * r['worst'], 100 * r['filled'],
+                    '%.3f' % r['cv_row'] if r['cv_row'] is not None and r['cv_row'] >= 0 else '-',
+                    '%.3f' % r['cv_model'] if r['cv_model'] is not None and r['cv_model'] >= 0 else '-'))
+        fh.write('\n## Uncertainty (albedo_sigma_rel) against the actual per-facet error\n\n'
+                 '| scene | method | covered at 1 sigma | covered at 2 sigma | median sigma | median error |\n'
+                 '| --- | --- | --- | --- | --- | --- |\n')
+        for name, sdir, res in rows:
+            for m, r in res.items():
+                fh.write('| %s | %s | %.0f %% | %.0f %% | %.2f %% | %.2f %% |\n' % (
+                    name, m, 100 * r['cover1'], 100 * r['cover2'], 100 * r['med_sig'], 100 * r['med_err']))
+        fh.write('\n' + METHOD)
+        fh.write('\n## Scenes\n\n')
+        for name, sdir, res in rows:
+            sj = os.path.join(sdir, 'scene.json')
+            desc = json.load(open(sj)) if os.path.exists(sj) else json.load(open(os.path.join(sdir, 'truth.json')))
+            fh.write('- %s: `%s`\n' % (name, json.dumps({k: desc[k] for k in ('env', 'camera') if k in desc})))
+    print('wrote ' + a.out)
+
+
+if __name__ == '__main__':
+    main()
