@@ -124,11 +124,17 @@ static size_t hdr_zero_run_at(const unsigned char *p, size_t n, int width, int h
     hdr_token_empty(p, n, &pos);
     while (pos < n && !hdr_token_empty(p, n, &pos)) {}
     hdr_token_empty(p, n, &pos);
-    if (width < 8 || width >= 32768) return 0; /* stb reads these flat, without runs */
+    /* stb reads flat RGBE without runs when the width rules runs out, or from a row that
+     * does not start like a run-length row: it then reads all pixels, 4 bytes each, and
+     * pads a short file with zeros. Refuse that instead. */
+    size_t pixels = (size_t)width * (size_t)height;
+    if (width < 8 || width >= 32768) return pos <= n && (n - pos) / 4 >= pixels ? 0 : n;
 #define NEXT() (pos < n ? p[pos++] : (pos++, 0))
     for (int j = 0; j < height; j++) {
+        size_t row = pos;
         int c1 = NEXT(), c2 = NEXT(), len = NEXT();
-        if (c1 != 2 || c2 != 2 || (len & 0x80)) return 0; /* flat from here on */
+        if (c1 != 2 || c2 != 2 || (len & 0x80))
+            return row <= n && (n - row) / 4 >= pixels ? 0 : n; /* flat from here on */
         len = (len << 8) | NEXT();
         if (len != width) return 0;
         for (int k = 0; k < 4; k++) {
@@ -176,17 +182,85 @@ static rs_image *hdr_read_mem(const void *data, size_t size, const char *name, r
     return img;
 }
 
+static unsigned be16(const unsigned char *p) { return (unsigned)p[0] << 8 | p[1]; }
+static size_t be32(const unsigned char *p) { return (size_t)be16(p) << 16 | be16(p + 2); }
+
+/* stb_image 2.27 builds JPEG Huffman tables without checking that a table has at most 256
+ * codes, and writes past its arrays when one claims more (fixed upstream after 2.27). This
+ * walks the markers as stb does (segments by their length, entropy-coded data up to the next
+ * marker) and returns the offset of a Define Huffman Table segment with such a table, else 0. */
+static size_t jpeg_bad_huffman_at(const unsigned char *p, size_t n)
+{
+    size_t pos = 2; /* after SOI */
+    while (pos + 1 < n) {
+        if (p[pos] != 0xff || p[pos + 1] == 0x00 || (p[pos + 1] >= 0xd0 && p[pos + 1] <= 0xd7)) {
+            pos++; /* entropy-coded data (0xff 0x00 is a stuffed byte) or restart markers */
+            continue;
+        }
+        unsigned marker = p[pos + 1];
+        if (marker == 0xff || marker == 0x01) {
+            pos++;
+            continue;
+        }
+        if (marker == 0xd9 || pos + 4 > n) break; /* EOI, or no room for a length */
+        size_t len = be16(p + pos + 2), seg = pos + 4, end = pos + 2 + len;
+        if (marker == 0xc4) {
+            for (size_t q = seg; q < end && q < n;) {
+                size_t codes = 0;
+                for (size_t i = 1; i <= 16; i++) codes += q + i < n ? p[q + i] : 0;
+                if (codes > 256) return pos;
+                q += 17 + codes;
+            }
+        }
+        pos = end > pos ? end : pos + 2;
+    }
+    return 0;
+}
+
+/* stb_image 2.27 does arithmetic on a NULL buffer when the first IDAT chunk of a PNG is empty
+ * (undefined behaviour that sanitizers stop on). Such files are legal but unheard of: refuse
+ * them. Returns 1 when the first IDAT is empty. */
+static int png_first_idat_empty(const unsigned char *p, size_t n)
+{
+    for (size_t pos = 8; pos + 8 <= n;) {
+        size_t len = be32(p + pos);
+        if (memcmp(p + pos + 4, "IDAT", 4) == 0) return len == 0;
+        if (len > n - pos - 8) break;
+        pos += 12 + len;
+    }
+    return 0;
+}
+
 /* 8- or 16-bit PNG and JPEG: sRGB-decoded to linear; grey (+alpha) -> 1 channel, colour
  * (+alpha) -> 3; alpha is dropped. */
 static rs_image *ldr_read_mem(const void *data, size_t size, const char *name, const char *kind,
                               rs_err *err)
 {
     int w = 0, h = 0, comp = 0;
+    /* Before any stb call: stbi_info already builds the Huffman tables. */
+    size_t bad_dht = kind[0] == 'J' ? jpeg_bad_huffman_at(data, size) : 0;
+    if (bad_dht) {
+        rs_err_set(err, RS_ERR_INPUT, name, 0, "JPEG: Huffman table at byte %zu has more than "
+                   "256 codes: expected a valid JPEG", bad_dht);
+        return NULL;
+    }
+    if (kind[0] == 'P' && png_first_idat_empty(data, size)) {
+        rs_err_set(err, RS_ERR_INPUT, name, 0, "PNG: empty first IDAT chunk: not supported");
+        return NULL;
+    }
     if (!stbi_info_from_memory(data, (int)size, &w, &h, &comp)) {
         rs_err_set(err, RS_ERR_INPUT, name, 0, "%s: %s", kind, stbi_failure_reason());
         return NULL;
     }
     if (rs_image_check_size(w, h, name, err) != 0) return NULL;
+    /* stb decodes a truncated JPEG to its full size without complaint, so a few hundred bytes
+     * can ask for millions of pixels. Real JPEGs hold at most a few hundred pixels per byte
+     * (a flat 8 x 8 block still costs bits), so 4096 only refuses impossible ones. */
+    if (kind[0] == 'J' && (long long)w * h > 4096LL * (long long)size) {
+        rs_err_set(err, RS_ERR_INPUT, name, 0, "JPEG: %d x %d pixels cannot come from %zu bytes: "
+                   "truncated or corrupt", w, h, size);
+        return NULL;
+    }
     int is16 = stbi_is_16_bit_from_memory(data, (int)size);
     void *px = is16 ? (void *)stbi_load_16_from_memory(data, (int)size, &w, &h, &comp, 0)
                     : (void *)stbi_load_from_memory(data, (int)size, &w, &h, &comp, 0);

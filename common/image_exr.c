@@ -154,6 +154,11 @@ static int exr_decode_chunk(exr_reader *rd, const exr_chunk_info_t *ci, int64_t 
     /* Every channel gets a plane, the unwanted ones (alpha, extra passes) too: OpenEXR 3.1's
      * generic unpacker reads out of bounds when some decode_to_ptr are NULL (it crashed on
      * Blender's half RGBA files). Selected channels take planes 0..nsel-1. */
+    if (dec.channel_count > 64) {   /* every channel gets a plane: bound what a header can ask */
+        exr_decoding_destroy(rd->ctx, &dec);
+        return rs_err_set(err, RS_ERR_INPUT, rd->name, 0, "EXR with %d channels: expected at most 64",
+                          (int)dec.channel_count);
+    }
     int nplanes = dec.channel_count > rd->nsel ? dec.channel_count : rd->nsel;
     size_t plane = (size_t)w * (size_t)h, need = plane * (size_t)nplanes;
     if (need > rd->tmp_cap) {

@@ -59,8 +59,8 @@ static void test_defaults(void **state)
     assert_int_equal(rs_config_path_count(cfg, "ingest", "scan"), 0);
     assert_int_equal(rs_config_reals(cfg, "capture", "rotation", v), 0);
     for (int i = 0; i < 9; i++) assert_true(v[i] == (i % 4 == 0));
-    assert_int_equal(rs_config_reals(cfg, "capture.any", "position", v), 0);
-    assert_true(v[0] == 0 && v[1] == 0 && v[2] == 0);
+    /* No default position: a forgotten camera pose must not read as the origin. */
+    assert_int_equal(rs_config_reals(cfg, "capture.any", "position", v), -1);
     assert_int_equal(rs_config_sections(cfg, "capture", NULL, 0), 0);
     assert_string_equal(rs_config_file(cfg), "tower.ini");
     assert_string_equal(rs_config_dir(cfg), "/base");
@@ -224,8 +224,7 @@ static void test_capture_sections(void **state)
     assert_true(p[0] == 1 && p[1] == 2 && p[2] == 3);
     assert_int_equal(rs_config_reals(cfg, "capture.east", "position", p), 0);
     assert_true(p[0] == 7 && p[1] == 8 && p[2] == 9);
-    assert_int_equal(rs_config_reals(cfg, "capture", "position", p), 0);
-    assert_true(p[0] == 0);
+    assert_int_equal(rs_config_reals(cfg, "capture", "position", p), -1);   /* unset, no default */
     char path[RS_CFG_PATH_MAX];
     assert_string_equal(rs_config_path(cfg, "capture.north", "panorama", path, sizeof path), "/base/n2.exr");
     assert_string_equal(rs_config_path(cfg, "capture", "panorama", path, sizeof path), "/base/main.exr");
@@ -339,7 +338,9 @@ static void test_section_text(void **state)
     char *mesh = rs_config_section_text(cfg, "mesh");
     /* Table order, canonical numbers, absolute paths, unset keys without default left out. */
     assert_string_equal(mesh, "[mesh]\ninput_mesh = /base/m.ply\npixels_per_facet = 6.5\n"
-                              "max_depth_ratio = 0.05\nmax_grazing_deg = 85\nfill_nadir = true\nnadir_max_rms = 0.02\n");
+                              "max_depth_ratio = 0.05\nmax_grazing_deg = 85\nsurface = greedy\nnormal_neighbours = 16\n"
+                              "poisson_depth = 10\noverlap_tolerance = 0.03\nreport_points = 200000\n"
+                              "fill_nadir = true\nnadir_max_rms = 0.02\n");
     free(mesh);
     char *north = rs_config_section_text(cfg, "capture.north");
     assert_string_equal(north, "[capture.north]\nposition = 1 2.5 -3\nrotation = 0 -1 0 1 0 0 0 0 1\n");
