@@ -32,6 +32,8 @@ struct rs_gather_scratch {
     rs_hit *hits;
     hit_ref *refs;
     uint32_t *pixels;          /* sky pixel of each map-sampled ray */
+    double *samp;              /* 5 per ray: the Sobol coordinates of a map-sampled ray */
+    uint32_t *range_lo, *range_hi; /* per ray: the guide's search range */
     uint8_t *occl;
 };
 
@@ -44,8 +46,11 @@ rs_gather_scratch *rs_gather_scratch_new(size_t n)
     s->hits = malloc(n * sizeof *s->hits);
     s->refs = malloc(n * sizeof *s->refs);
     s->pixels = malloc(n * sizeof *s->pixels);
+    s->samp = malloc(5 * n * sizeof *s->samp);
+    s->range_lo = malloc(n * sizeof *s->range_lo);
+    s->range_hi = malloc(n * sizeof *s->range_hi);
     s->occl = malloc(n);
-    if (!s->rays || !s->hits || !s->refs || !s->pixels || !s->occl) {
+    if (!s->rays || !s->hits || !s->refs || !s->pixels || !s->samp || !s->range_lo || !s->range_hi || !s->occl) {
         rs_gather_scratch_free(s);
         return NULL;
     }
@@ -59,6 +64,9 @@ void rs_gather_scratch_free(rs_gather_scratch *s)
     free(s->hits);
     free(s->refs);
     free(s->pixels);
+    free(s->samp);
+    free(s->range_lo);
+    free(s->range_hi);
     free(s->occl);
     free(s);
 }
@@ -127,6 +135,42 @@ static int sees_nothing(const rs_gather_ctx *g, rs_gather_scratch *s, rs_v3 n, r
         top = fmax(top, rs_v3_dot(n, rs_v3_sub(corner, a)));
     }
     return top <= eps;
+}
+
+/* guide_pick for B values at once, in three sweeps so that the cache misses of different picks
+ * overlap instead of queueing (the map's CDF is megabytes, each pick a random place in it):
+ * the guide entries, then the first CDF probe of each range, then the searches. */
+static void guide_pick_batch(rs_gather_scratch *s, const rs_skyenv *env, int sun, const double *x, int stride, int B)
+{
+    sky_guide *g = sun ? &s->sun : &s->sky;
+    const double *cdf = sun ? env->sun_cdf : env->cdf;
+    size_t npx = (size_t)env->width * env->height;
+    if (g->cdf != cdf) guide_build(g, cdf, npx);
+    for (int i = 0; i < B; i++) {
+        size_t b = (size_t)(x[i * stride] * GUIDE_BUCKETS);
+        __builtin_prefetch(&g->guide[b < GUIDE_BUCKETS ? b : GUIDE_BUCKETS - 1]);
+    }
+    for (int i = 0; i < B; i++) {
+        size_t b = (size_t)(x[i * stride] * GUIDE_BUCKETS);
+        if (b >= GUIDE_BUCKETS) b = GUIDE_BUCKETS - 1;
+        s->range_lo[i] = g->guide[b];
+        s->range_hi[i] = g->guide[b + 1];
+        __builtin_prefetch(&cdf[s->range_lo[i] + (s->range_hi[i] - s->range_lo[i]) / 2 + 1]);
+    }
+    for (int i = 0; i < B; i++) {
+        double target = x[i * stride] * cdf[npx];
+        size_t lo = s->range_lo[i], hi = s->range_hi[i];
+        while (lo < hi) {
+            size_t mid = lo + (hi - lo) / 2;
+            if (cdf[mid + 1] > target) hi = mid;
+            else lo = mid + 1;
+        }
+        if (lo >= npx) {                           /* as in guide_pick */
+            lo = npx - 1;
+            while (lo > 0 && cdf[lo + 1] == cdf[lo]) lo--;
+        }
+        s->pixels[i] = (uint32_t)lo;
+    }
 }
 
 static int cmp_hit(const void *a, const void *b)
@@ -236,22 +280,25 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
         double div = adaptive ? 1 : Ns, sum = 0, sum_sq = 0;
         while (done < goal) {
             int B = goal - done < M ? goal - done : M;     /* the scratch holds M rays */
+            double *sp = s->samp;
             for (int i = 0; i < B; i++) {
                 uint32_t k = (uint32_t)(done + i);
-                double x, y, z, unused, px, py;
-                rs_sobol2_owen(k, rs_hash_combine(seed, 3 + 3 * pass), &x, &y);       /* pixel, jitter u */
-                rs_sobol2_owen(k, rs_hash_combine(seed, 4 + 3 * pass), &z, &unused);  /* jitter v */
-                rs_sobol2_owen(k, rs_hash_combine(seed, 5 + 3 * pass), &px, &py);     /* point */
-                size_t pix = rs_gather_pick(s, env, pass, x);
+                double unused;
+                rs_sobol2_owen(k, rs_hash_combine(seed, 3 + 3 * pass), &sp[5 * i], &sp[5 * i + 1]);  /* pixel, jitter u */
+                rs_sobol2_owen(k, rs_hash_combine(seed, 4 + 3 * pass), &sp[5 * i + 2], &unused);     /* jitter v */
+                rs_sobol2_owen(k, rs_hash_combine(seed, 5 + 3 * pass), &sp[5 * i + 3], &sp[5 * i + 4]); /* point */
+            }
+            guide_pick_batch(s, env, pass, sp, 5, B);
+            for (int i = 0; i < B; i++) {
+                size_t pix = s->pixels[i];
                 int col = (int)(pix % (size_t)env->width), row = (int)(pix / (size_t)env->width);
-                rs_v3 d = rs_pose_dir_to_world(&env->pose, rs_pano_uv_to_dir((col + y) / env->width,
-                                                                             (row + z) / env->height));
-                rs_v3 p = rs_triangle_point(a, b, c, px, py);
+                rs_v3 d = rs_pose_dir_to_world(&env->pose, rs_pano_uv_to_dir((col + sp[5 * i + 1]) / env->width,
+                                                                             (row + sp[5 * i + 2]) / env->height));
+                rs_v3 p = rs_triangle_point(a, b, c, sp[5 * i + 3], sp[5 * i + 4]);
                 rays[i].org = rs_v3_add(p, rs_v3_scale(n, rs_scene_offset(g->scene, p)));
                 rays[i].dir = d;
                 rays[i].tnear = 0;
                 rays[i].tfar = rs_v3_dot(d, n) > 0 ? INFINITY : 0;   /* below the horizon: no ray */
-                s->pixels[i] = (uint32_t)pix;
             }
             if (B && out->sees_nothing) memset(occl, 0, (size_t)B);
             else if (B) rs_scene_occluded(g->scene, rays, occl, (size_t)B);
