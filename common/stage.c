@@ -2,6 +2,7 @@
  * and the shared program entry of rhoscan-<stage> (see stage.h). */
 #include "stage.h"
 
+#include <errno.h>
 #include <inttypes.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -262,6 +263,13 @@ static void stage_usage(const char *stage, FILE *out)
             stage, stage);
 }
 
+int rs_stdout_check(const char *prog)
+{
+    if (fflush(stdout) == 0 && !ferror(stdout)) return 0;
+    fprintf(stderr, "%s: cannot write to standard output: %s\n", prog, strerror(errno));
+    return 2;
+}
+
 int rs_stage_main(const char *stage, int argc, char **argv)
 {
     char prog[128];
@@ -285,7 +293,7 @@ int rs_stage_main(const char *stage, int argc, char **argv)
         else if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
             stage_usage(stage, stdout);
             free(sets);
-            return 0;
+            return rs_stdout_check(prog);
         } else if (a[0] == '-' || config) {
             fprintf(stderr, "%s: unexpected argument '%s'\n", prog, a);
             stage_usage(stage, stderr);
@@ -315,6 +323,7 @@ int rs_stage_main(const char *stage, int argc, char **argv)
             if (text) fputs(text, stdout);
             free(text);
         }
+        rc = rs_stdout_check(prog);
     } else {
 #ifdef _OPENMP
         long threads = rs_config_int(cfg, "pipeline", "threads");

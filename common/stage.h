@@ -55,6 +55,10 @@ int rs_stage_fingerprint(const rs_stage_def *def, const rs_config *cfg, uint64_t
  * unchanged since; 0 otherwise with the reason in why. */
 int rs_stage_up_to_date(const rs_stage_def *def, const rs_config *cfg, char *why, size_t n);
 
+/* After a program printed data to stdout: 0, or 2 (system error) with a message naming prog
+ * when the data did not all get out (a full disk, /dev/full, a closed pipe). */
+int rs_stdout_check(const char *prog);
+
 /* Shared program entry for rhoscan-<stage>: options --set section.key=value (repeatable),
  * --print-config, --quiet, --verbose, --help; CONFIG anywhere among them. Returns the exit code. */
 int rs_stage_main(const char *stage, int argc, char **argv);

@@ -111,7 +111,7 @@ int main(int argc, char **argv)
     rs_log_init("rhoscan");
     if (argc < 2 || strcmp(argv[1], "help") == 0 || strcmp(argv[1], "--help") == 0) {
         usage(argc < 2 ? stderr : stdout);
-        return argc < 2 ? 1 : 0;
+        return argc < 2 ? 1 : rs_stdout_check("rhoscan");
     }
     if (strcmp(argv[1], "run") != 0) {
         fprintf(stderr, "rhoscan: unknown command '%s'\n", argv[1]);
