@@ -152,7 +152,9 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
 {
     char path[4096];
     int rc = -1;
-    rs_capture cap = {0}, sky = {0};
+    rs_capture cap = {0}, sky = {0}, others[RS_SKYENV_MAX_OTHERS];
+    uint8_t *other_masks[RS_SKYENV_MAX_OTHERS];
+    int nothers = 0;
     rs_skyenv env = {0};
     rs_skyenv_info info;
     uint8_t *sky_mask = NULL;
@@ -208,7 +210,30 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         so.sky = &sky;
         so.sky_mask = sky_mask;
     }
+    /* Further captures ([capture.NAME]): their sky fills what this capture cannot see. */
+    const char *sections[RS_SKYENV_MAX_OTHERS + 1];
+    int nsec = rs_config_sections(cfg, "capture", sections, RS_SKYENV_MAX_OTHERS + 1);
+    for (int i = 0; i < nsec && i < RS_SKYENV_MAX_OTHERS + 1; i++) {
+        if (strcmp(sections[i], "capture") == 0 || nothers == RS_SKYENV_MAX_OTHERS) continue;
+        if (rs_capture_load(cfg, sections[i], &others[nothers], err) != 0) goto out;
+        nothers++;
+        size_t n = (size_t)others[nothers - 1].pano->width * others[nothers - 1].pano->height;
+        if (!(other_masks[nothers - 1] = malloc(n))) {
+            rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for [%s]'s sky mask", sections[i]);
+            goto out;
+        }
+        rs_skyenv_sky_mask(scene, &others[nothers - 1], other_masks[nothers - 1]);
+    }
+    if (nsec > RS_SKYENV_MAX_OTHERS + 1)
+        rs_log_warn("irradiance: only the first %d further captures feed the sky map", RS_SKYENV_MAX_OTHERS);
+    so.others = (const rs_capture *const *)others;
+    so.other_masks = (const uint8_t *const *)other_masks;
+    so.nothers = nothers;
     if (rs_skyenv_build_opts(&cap, ids->data, &so, &env, &info, err) != 0) goto out;
+    for (int i = 0; i < nothers; i++)
+        rs_log_info("irradiance: capture %s: exposure factor %.4g %.4g %.4g from %.3g sr of shared sky", others[i].path,
+                    info.other_scale[i][0], info.other_scale[i][1], info.other_scale[i][2], info.other_overlap_sr[i]);
+    if (nothers) rs_log_info("irradiance: further captures gave %zu map pixels", info.other_pixels);
     rs_report_time(rep, "sky_map", rs_now() - t0);
     rs_log_info("irradiance: sky %zu pixels (median luminance %.4g), %zu filled (%s), %zu bright kept out of the fill",
                 env.sky_pixels, env.sky_median, env.filled_pixels, rs_config_string(cfg, "sky", "fill"),
@@ -284,6 +309,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         rs_json_set_num(rep->metrics, "sky_model_fit_rms_log", info.fill.model.fit_rms_log);
         rs_json_set_int(rep->metrics, "sky_ground_from_albedo", info.fill.ground_from_albedo);
     }
+    if (nothers) rs_json_set_int(rep->metrics, "sky_other_capture_pixels", (long long)info.other_pixels);
     if (sky.pano) {
         rs_json_set_int(rep->metrics, "sky_panorama_pixels", (long long)info.sky_pano_pixels);
         rs_json_set_num(rep->metrics, "sky_panorama_overlap_sr", info.sky_overlap_sr);
@@ -314,6 +340,10 @@ out:
     rs_capture_release(&cap);
     rs_capture_release(&sky);
     free(sky_mask);
+    for (int i = 0; i < nothers; i++) {
+        rs_capture_release(&others[i]);
+        free(other_masks[i]);
+    }
     rs_mesh_free(mesh);
     return rc;
 }

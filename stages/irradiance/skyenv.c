@@ -79,47 +79,45 @@ static double median(double *x, size_t n)
     return x[n / 2];
 }
 
-/* Puts the sky panorama's sky into the map (frame and size of env): each sky pixel is spread
- * onto the map pixel holding its direction (area-weighted mean, so a small sun keeps its
- * power), and map pixels that got nothing take the sky pixel under their centre. Then the
- * exposure factor from the overlap with the capture's own sky, and the values, flagged in meas.
- * cap_meas: the capture's measured sky. Returns 0, -1 out of memory. */
-static int merge_sky_pano(rs_skyenv *env, const uint8_t *cap_meas, double bright_lum, const rs_skyenv_opts *o,
-                          uint8_t *meas, rs_skyenv_info *info)
+/* Spreads the sky pixels of capture c (mask) onto the map pixels holding their directions:
+ * acc[4k..4k+2] = solid-angle-weighted radiance sums, acc[4k+3] = solid angle (an area-weighted
+ * mean, so that a small sun keeps its power); map pixels that got nothing take the pixel under
+ * their centre when it is sky (weight 1e-12 x its solid angle). acc: 4 * W * H, zeroed. */
+static void splat_capture(const rs_skyenv *env, const rs_capture *c, const uint8_t *mask, double *acc)
 {
-    const rs_capture *sky = o->sky;
-    int w = env->width, h = env->height, sw = sky->pano->width, sh = sky->pano->height;
-    size_t npx = (size_t)w * h, nsky = (size_t)sw * sh;
-    double *acc = calloc(4 * npx, sizeof *acc);
-    double *ratio = malloc(3 * npx * sizeof *ratio);
-    if (!acc || !ratio) {
-        free(acc);
-        free(ratio);
-        return -1;
-    }
-    for (size_t j = 0; j < nsky; j++) {
-        if (!o->sky_mask[j]) continue;
-        int r = (int)(j / (size_t)sw), c, rr;
-        rs_v3 d = rs_pose_dir_to_world(&sky->pose, rs_pano_pixel_dir(sw, sh, (int)(j % (size_t)sw), r));
-        rs_pano_world_to_pixel(&env->pose, w, h, d, &c, &rr);
-        size_t k = (size_t)rr * w + c;
+    int w = env->width, h = env->height, sw = c->pano->width, sh = c->pano->height;
+    size_t npx = (size_t)w * h, nsrc = (size_t)sw * sh;
+    for (size_t j = 0; j < nsrc; j++) {
+        if (!mask[j]) continue;
+        int r = (int)(j / (size_t)sw), cc, rr;
+        rs_v3 d = rs_pose_dir_to_world(&c->pose, rs_pano_pixel_dir(sw, sh, (int)(j % (size_t)sw), r));
+        rs_pano_world_to_pixel(&env->pose, w, h, d, &cc, &rr);
+        size_t k = (size_t)rr * w + cc;
         double om = rs_pano_pixel_solid_angle(sw, sh, r);
-        for (int ch = 0; ch < 3; ch++) acc[4 * k + ch] += om * sky->pano->data[3 * j + ch];
+        for (int ch = 0; ch < 3; ch++) acc[4 * k + ch] += om * c->pano->data[3 * j + ch];
         acc[4 * k + 3] += om;
     }
     for (size_t k = 0; k < npx; k++) {
         if (acc[4 * k + 3] > 0) continue;
-        int c, r;
+        int cc, r;
         rs_v3 d = rs_pose_dir_to_world(&env->pose, rs_pano_pixel_dir(w, h, (int)(k % (size_t)w), (int)(k / (size_t)w)));
-        rs_pano_world_to_pixel(&sky->pose, sw, sh, d, &c, &r);
-        size_t j = (size_t)r * sw + c;
-        if (!o->sky_mask[j]) continue;
-        for (int ch = 0; ch < 3; ch++) acc[4 * k + ch] = sky->pano->data[3 * j + ch];
-        acc[4 * k + 3] = 1;
+        rs_pano_world_to_pixel(&c->pose, sw, sh, d, &cc, &r);
+        size_t j = (size_t)r * sw + cc;
+        if (!mask[j]) continue;
+        double om = 1e-12 * rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w));
+        for (int ch = 0; ch < 3; ch++) acc[4 * k + ch] = om * c->pano->data[3 * j + ch];
+        acc[4 * k + 3] = om;
     }
-    /* Exposure: per channel, the median ratio over directions both saw as sky, bright ones out. */
-    size_t nov = 0;
-    double overlap_sr = 0;
+}
+
+/* Exposure factor capture / c per channel: the median ratio over the directions both saw as sky,
+ * bright ones left out; 1 when they share less than 0.01 sr. ratio: 3 * W * H scratch. */
+static void exposure_factor(const rs_skyenv *env, const uint8_t *cap_meas, const double *acc, double bright_lum,
+                            double *ratio, double scale[3], double *overlap_sr)
+{
+    int w = env->width, h = env->height;
+    size_t npx = (size_t)w * h, nov = 0;
+    *overlap_sr = 0;
     for (size_t k = 0; k < npx; k++) {
         if (!(acc[4 * k + 3] > 0) || !cap_meas[k]) continue;
         float v[3];
@@ -128,19 +126,57 @@ static int merge_sky_pano(rs_skyenv *env, const uint8_t *cap_meas, double bright
         if (luminance(p) > bright_lum || luminance(v) > bright_lum || !(v[0] > 0 && v[1] > 0 && v[2] > 0)) continue;
         for (int ch = 0; ch < 3; ch++) ratio[ch * npx + nov] = p[ch] / v[ch];
         nov++;
-        overlap_sr += rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w));
+        *overlap_sr += rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w));
     }
-    for (int ch = 0; ch < 3; ch++) info->sky_pano_scale[ch] = overlap_sr >= 0.01 ? median(ratio + ch * npx, nov) : 1;
-    info->sky_overlap_sr = overlap_sr;
-    for (size_t k = 0; k < npx; k++) {
-        if (!(acc[4 * k + 3] > 0)) continue;
-        for (int ch = 0; ch < 3; ch++)
-            env->radiance[3 * k + ch] = (float)(info->sky_pano_scale[ch] * acc[4 * k + ch] / acc[4 * k + 3]);
+    for (int ch = 0; ch < 3; ch++) scale[ch] = *overlap_sr >= 0.01 ? median(ratio + ch * npx, nov) : 1;
+}
+
+/* The sky panorama over everything it sees as sky, then the further captures into what is
+ * still unmeasured; flags what they gave in meas. cap_meas: the capture's own sky. */
+static int merge_other_skies(rs_skyenv *env, const uint8_t *cap_meas, double bright_lum, const rs_skyenv_opts *o,
+                             uint8_t *meas, rs_skyenv_info *info)
+{
+    size_t npx = (size_t)env->width * env->height;
+    double *acc = malloc(4 * npx * sizeof *acc), *ratio = malloc(3 * npx * sizeof *ratio);
+    double *sum = o->nothers ? calloc(4 * npx, sizeof *sum) : NULL;
+    if (!acc || !ratio || (o->nothers && !sum)) {
+        free(acc);
+        free(ratio);
+        free(sum);
+        return -1;
+    }
+    if (o->sky) {
+        memset(acc, 0, 4 * npx * sizeof *acc);
+        splat_capture(env, o->sky, o->sky_mask, acc);
+        exposure_factor(env, cap_meas, acc, bright_lum, ratio, info->sky_pano_scale, &info->sky_overlap_sr);
+        for (size_t k = 0; k < npx; k++) {
+            if (!(acc[4 * k + 3] > 0)) continue;
+            for (int ch = 0; ch < 3; ch++)
+                env->radiance[3 * k + ch] = (float)(info->sky_pano_scale[ch] * acc[4 * k + ch] / acc[4 * k + 3]);
+            meas[k] = 1;
+            info->sky_pano_pixels++;
+        }
+    }
+    for (int i = 0; i < o->nothers && i < RS_SKYENV_MAX_OTHERS; i++) {
+        memset(acc, 0, 4 * npx * sizeof *acc);
+        splat_capture(env, o->others[i], o->other_masks[i], acc);
+        double *sc = info->other_scale[i];
+        exposure_factor(env, cap_meas, acc, bright_lum, ratio, sc, &info->other_overlap_sr[i]);
+        for (size_t k = 0; k < npx; k++) {
+            if (meas[k] || !(acc[4 * k + 3] > 0)) continue;
+            for (int ch = 0; ch < 3; ch++) sum[4 * k + ch] += sc[ch] * acc[4 * k + ch];
+            sum[4 * k + 3] += acc[4 * k + 3];
+        }
+    }
+    for (size_t k = 0; sum && k < npx; k++) {
+        if (!(sum[4 * k + 3] > 0)) continue;
+        for (int ch = 0; ch < 3; ch++) env->radiance[3 * k + ch] = (float)(sum[4 * k + ch] / sum[4 * k + 3]);
         meas[k] = 1;
-        info->sky_pano_pixels++;
+        info->other_pixels++;
     }
     free(acc);
     free(ratio);
+    free(sum);
     return 0;
 }
 
@@ -214,8 +250,8 @@ int rs_skyenv_build_opts(const rs_capture *cap, const float *facet_id, const rs_
             lum[ncap++] = luminance(cap->pano->data + 3 * k);
         }
     double cap_median = median(lum, ncap);
-    if (o->sky && merge_sky_pano(env, cap_meas, o->sun_threshold * (cap_median > 0 ? cap_median : 1e-30), o, meas,
-                                 info) != 0) {
+    if ((o->sky || o->nothers) &&
+        merge_other_skies(env, cap_meas, o->sun_threshold * (cap_median > 0 ? cap_median : 1e-30), o, meas, info) != 0) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory merging the sky panorama");
         goto out;
     }

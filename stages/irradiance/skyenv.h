@@ -37,7 +37,12 @@ typedef struct rs_skyenv_opts {
     rs_skyfill_opts fill;
     const rs_capture *sky;     /* sky-only panorama ([sky] panorama) or NULL */
     const uint8_t *sky_mask;   /* its pixels whose rays miss the model (rs_skyenv_sky_mask) */
+    const rs_capture *const *others;      /* further captures ([capture.NAME]), nothers of them */
+    const uint8_t *const *other_masks;    /* their sky pixels, as sky_mask */
+    int nothers;
 } rs_skyenv_opts;
+
+#define RS_SKYENV_MAX_OTHERS 16
 
 /* What rs_skyenv_build_opts found besides the map. */
 typedef struct rs_skyenv_info {
@@ -45,6 +50,9 @@ typedef struct rs_skyenv_info {
     size_t sky_pano_pixels;    /* map pixels taken from the sky panorama */
     double sky_pano_scale[3];  /* exposure factor applied to the sky panorama (capture / sky) */
     double sky_overlap_sr;     /* solid angle both saw as sky: where the factor comes from */
+    size_t other_pixels;       /* map pixels filled from the further captures */
+    double other_scale[RS_SKYENV_MAX_OTHERS][3];   /* their exposure factors, the same way */
+    double other_overlap_sr[RS_SKYENV_MAX_OTHERS];
 } rs_skyenv_info;
 
 /* facet_id: the observe stage's image (W x H, -1 where no facet). sun_threshold: pixels
@@ -62,7 +70,10 @@ int rs_skyenv_build(const rs_capture *cap, const float *facet_id, double sun_thr
  * capture's frame and size. Every direction the sky panorama sees as sky takes its value, times
  * a per-channel exposure factor: the median ratio capture / sky panorama over the directions
  * both see as sky (outside the bright pixels); 1 when they share less than 0.01 sr. The rest
- * of the capture's sky comes next; what neither saw is filled. info may be NULL. */
+ * of the capture's sky comes next. Directions neither saw take the mean of the further captures
+ * that see them as sky (each scaled to the capture's exposure the same way, weighted by the
+ * solid angle of their pixels there; up to RS_SKYENV_MAX_OTHERS). What none saw is filled.
+ * info may be NULL. */
 int rs_skyenv_build_opts(const rs_capture *cap, const float *facet_id, const rs_skyenv_opts *o,
                          rs_skyenv *env, rs_skyenv_info *info, rs_err *err);
 

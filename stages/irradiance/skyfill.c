@@ -9,7 +9,8 @@
 #define CV_SECTORS 8           /* held-out azimuth sectors, plus one band of the lowest sky */
 #define CV_LOW_SHARE 0.2       /* the low band: this share of the measured sky's solid angle */
 #define CV_MIN_SR 0.01         /* a held-out block needs this much measured sky to count */
-#define FIT_CELLS_W 128        /* the model is fitted on a grid of at most 128 x 64 cells */
+#define FIT_CELLS_W 64         /* the model is fitted on a grid of at most 64 x 32 cells */
+#define CV_MAX_W 2048          /* held-out blocks are measured on a map at most this wide */
 
 static double lum(const float *rgb) { return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]; }
 
@@ -67,6 +68,13 @@ static int row_fill(int w, int h, float *rad, const uint8_t *src, const uint8_t 
     return 0;
 }
 
+/* Upper bound of build_samples' count for a w x h map. */
+static size_t max_cells(int w, int h)
+{
+    int f = (w + FIT_CELLS_W - 1) / FIT_CELLS_W;
+    return (size_t)((w + f - 1) / f) * (size_t)((h + f - 1) / f);
+}
+
 /* Fitting samples: source pixels above the horizon, farther than mask_rad from the sun (when
  * sun is not NULL), not excluded, averaged over cells of f x f pixels. Returns the count. */
 static size_t build_samples(int w, int h, const rs_pose *pose, const float *rad, const uint8_t *src,
@@ -101,11 +109,12 @@ static size_t build_samples(int w, int h, const rs_pose *pose, const float *rad,
     return n;
 }
 
-/* Model values for the fill pixels above the horizon. */
-static void model_fill_sky(int w, int h, const rs_pose *pose, float *rad, const uint8_t *fill, const rs_skymodel *m)
+/* Model values for the fill pixels above the horizon (parallel: the whole map at the end). */
+static void model_fill_sky(int w, int h, const rs_pose *pose, float *rad, const uint8_t *fill, const rs_skymodel *m,
+                           int parallel)
 {
     size_t npx = (size_t)w * h;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (parallel)
     for (size_t k = 0; k < npx; k++) {
         if (!fill[k]) continue;
         rs_v3 d = pixel_world(w, h, pose, k);
@@ -213,48 +222,70 @@ static double block_error(int w, int h, const float *meas, const float *pred, co
     return sm > 0 ? (sp - sm) / sm : 0;
 }
 
-/* Both methods' held-out errors, and the residual order the model does best with. */
-static int cross_validate(int w, int h, const rs_pose *pose, const float *rad, const uint8_t *src,
-                          const rs_skyfill_opts *o, rs_v3 sun, rs_skysample *samples, rs_skyfill_report *rep,
-                          int *best_order)
+/* One held-out block f: the row method's relative error into *e_row and the model's at each
+ * residual order (-1 .. max) into e_model; returns 0 when the block has too little sky or the
+ * fit fails (it is then left out), 1 when counted, -1 out of memory. */
+static int cross_validate_block(int w, int h, const rs_pose *pose, const float *rad, const uint8_t *src,
+                                const uint16_t *fold, int f, const rs_skyfill_opts *o, rs_v3 sun, double *e_row,
+                                double *e_model)
 {
     size_t npx = (size_t)w * h;
-    uint16_t *fold = malloc(npx * sizeof *fold);
     uint8_t *src_f = malloc(npx), *fill_f = malloc(npx);
     float *tmp = malloc(3 * npx * sizeof *tmp);
-    if (!fold || !src_f || !fill_f || !tmp) {
-        free(fold);
-        free(src_f);
-        free(fill_f);
-        free(tmp);
-        return -1;
+    rs_skysample *samples = malloc(max_cells(w, h) * sizeof *samples);
+    int rc = -1;
+    if (!src_f || !fill_f || !tmp || !samples) goto out;
+    for (size_t k = 0; k < npx; k++) {
+        fill_f[k] = (uint8_t)(fold[k] >> f & 1);
+        src_f[k] = (uint8_t)(src[k] && !fill_f[k]);
     }
+    double sr;
+    memcpy(tmp, rad, 3 * npx * sizeof *tmp);
+    if (row_fill(w, h, tmp, src_f, fill_f) != 0) goto out;
+    *e_row = block_error(w, h, rad, tmp, fold, f, &sr);
+    rc = 0;
+    rs_skymodel m;
+    size_t n = build_samples(w, h, pose, rad, src_f, NULL, &sun, o->sun_mask_rad, samples);
+    if (sr < CV_MIN_SR || rs_skymodel_fit(samples, n, sun, -1, o->sh_ridge, &m) != 0) goto out;
+    for (int q = 0; q < o->sh_order + 2; q++) {
+        rs_skymodel_refit_sh(samples, n, q - 1, o->sh_ridge, &m);
+        model_fill_sky(w, h, pose, tmp, fill_f, &m, 0);   /* overwrites exactly the block */
+        e_model[q] = block_error(w, h, rad, tmp, fold, f, &sr);
+    }
+    rc = 1;
+out:
+    free(src_f);
+    free(fill_f);
+    free(tmp);
+    free(samples);
+    return rc;
+}
+
+/* Both methods' held-out errors, and the residual order the model does best with. Blocks run
+ * in parallel; the sums are taken in block order afterwards, so the result is the same for any
+ * thread count. */
+static int cross_validate(int w, int h, const rs_pose *pose, const float *rad, const uint8_t *src,
+                          const rs_skyfill_opts *o, rs_v3 sun, rs_skyfill_report *rep, int *best_order)
+{
+    size_t npx = (size_t)w * h;
+    enum { NB = CV_SECTORS + 1, NQ = RS_SKYMODEL_MAX_SH + 2 };
+    uint16_t *fold = malloc(npx * sizeof *fold);
+    if (!fold) return -1;
     assign_folds(w, h, pose, src, &sun, o->sun_mask_rad, fold);
-    int norders = o->sh_order + 2;                  /* -1 .. sh_order */
-    double se_row = 0, se_model[RS_SKYMODEL_MAX_SH + 2] = {0};
-    int nf = 0;
-    for (int f = 0; f <= CV_SECTORS; f++) {
-        for (size_t k = 0; k < npx; k++) {
-            fill_f[k] = (uint8_t)(fold[k] >> f & 1);
-            src_f[k] = (uint8_t)(src[k] && !fill_f[k]);
-        }
-        double sr;
-        memcpy(tmp, rad, 3 * npx * sizeof *tmp);
-        if (row_fill(w, h, tmp, src_f, fill_f) != 0) break;
-        double e_row = block_error(w, h, rad, tmp, fold, f, &sr);
-        if (sr < CV_MIN_SR) continue;
-        rs_skymodel m;
-        size_t n = build_samples(w, h, pose, rad, src_f, NULL, &sun, o->sun_mask_rad, samples);
-        if (rs_skymodel_fit(samples, n, sun, -1, o->sh_ridge, &m) != 0) continue;
+    double e_row[NB], e_model[NB][NQ];
+    int status[NB];
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int f = 0; f < NB; f++)
+        status[f] = cross_validate_block(w, h, pose, rad, src, fold, f, o, sun, &e_row[f], e_model[f]);
+    free(fold);
+    int norders = o->sh_order + 2, nf = 0;
+    double se_row = 0, se_model[NQ] = {0};
+    for (int f = 0; f < NB; f++) {
+        if (status[f] < 0) return -1;
+        if (status[f] == 0) continue;
         nf++;
-        se_row += e_row * e_row;
-        for (int q = 0; q < norders; q++) {
-            rs_skymodel_refit_sh(samples, n, q - 1, o->sh_ridge, &m);
-            memcpy(tmp, rad, 3 * npx * sizeof *tmp);
-            model_fill_sky(w, h, pose, tmp, fill_f, &m);
-            double e = block_error(w, h, rad, tmp, fold, f, &sr);
-            se_model[q] += e * e;
-        }
+        se_row += e_row[f] * e_row[f];
+        for (int q = 0; q < norders; q++) se_model[q] += e_model[f][q] * e_model[f][q];
     }
     rep->cv_folds = nf;
     if (nf > 0) {
@@ -265,10 +296,6 @@ static int cross_validate(int w, int h, const rs_pose *pose, const float *rad, c
         rep->cv_rel_model = sqrt(se_model[bq] / nf);
         *best_order = bq - 1;
     }
-    free(fold);
-    free(src_f);
-    free(fill_f);
-    free(tmp);
     return 0;
 }
 
@@ -291,8 +318,7 @@ int rs_skyfill_run(int w, int h, const rs_pose *pose, float *rad, const uint8_t 
         sun_dir = rs_v3_norm(acc);
         rep->sun_source = RS_SUN_PIXELS;
     }
-    int cell = (w + FIT_CELLS_W - 1) / FIT_CELLS_W;
-    rs_skysample *samples = malloc((size_t)((w + cell - 1) / cell) * ((h + cell - 1) / cell) * sizeof *samples);
+    rs_skysample *samples = malloc(max_cells(w, h) * sizeof *samples);
     if (!samples) return -1;
     if (rs_v3_len(sun_dir) == 0) {
         size_t n = build_samples(w, h, pose, rad, src, NULL, NULL, 0, samples);
@@ -301,16 +327,45 @@ int rs_skyfill_run(int w, int h, const rs_pose *pose, float *rad, const uint8_t 
     }
     rep->sun_dir = sun_dir;
     int order = o->sh_order;
-    if (o->cross_validate && cross_validate(w, h, pose, rad, src, o, sun_dir, samples, rep, &order) != 0) {
-        free(samples);
-        return -1;
+    if (o->cross_validate) {
+        /* Block errors are integrals over large regions: a coarser map (box-filtered by f x f,
+         * a source where all its pixels are) measures them as well, in bounded memory. */
+        int f = 1;
+        while (w / f > CV_MAX_W && w % (2 * f) == 0 && h % (2 * f) == 0) f *= 2;
+        int w2 = w / f, h2 = h / f;
+        float *rad2 = f > 1 ? calloc(3 * (size_t)w2 * h2, sizeof *rad2) : rad;
+        uint8_t *src2 = f > 1 ? malloc((size_t)w2 * h2) : (uint8_t *)src;
+        int rc_cv = -1;
+        if (rad2 && src2) {
+            for (int r2 = 0; f > 1 && r2 < h2; r2++)
+                for (int c2 = 0; c2 < w2; c2++) {
+                    size_t k2 = (size_t)r2 * w2 + c2;
+                    int all = 1;
+                    for (int r = r2 * f; r < (r2 + 1) * f; r++)
+                        for (int c = c2 * f; c < (c2 + 1) * f; c++) {
+                            size_t k = (size_t)r * w + c;
+                            all &= src[k];
+                            for (int ch = 0; ch < 3; ch++) rad2[3 * k2 + ch] += rad[3 * k + ch] / (float)(f * f);
+                        }
+                    src2[k2] = (uint8_t)all;
+                }
+            rc_cv = cross_validate(w2, h2, pose, rad2, src2, o, sun_dir, rep, &order);
+        }
+        if (f > 1) {
+            free(rad2);
+            free(src2);
+        }
+        if (rc_cv != 0) {
+            free(samples);
+            return -1;
+        }
     }
     int rc = 0;
     if (o->method == RS_SKYFILL_MODEL) {
         size_t n = build_samples(w, h, pose, rad, src, NULL, &sun_dir, o->sun_mask_rad, samples);
         rep->fit_samples = n;
         if (rs_skymodel_fit(samples, n, sun_dir, order, o->sh_ridge, &rep->model) == 0) {
-            model_fill_sky(w, h, pose, rad, fill, &rep->model);
+            model_fill_sky(w, h, pose, rad, fill, &rep->model, 1);
             rc = ground_fill(w, h, pose, rad, src, fill, o->ground_albedo, rep);
         } else {
             rc = row_fill(w, h, rad, src, fill);     /* too little sky to fit: rows at least */
@@ -321,6 +376,8 @@ int rs_skyfill_run(int w, int h, const rs_pose *pose, float *rad, const uint8_t 
         rc = row_fill(w, h, rad, src, fill);
         rep->fill_sigma = rep->cv_rel_row;
     }
+    /* No held-out block had enough sky: the fill's error is unknown, call it 100 %. */
+    if (!(rep->fill_sigma > 0)) rep->fill_sigma = 1;
     free(samples);
     return rc;
 }

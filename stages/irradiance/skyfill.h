@@ -30,7 +30,8 @@ typedef struct rs_skyfill_report {
     double cv_rel_row, cv_rel_model;   /* RMS over held-out blocks of the relative error of
                                           their integrated luminance; -1 when not computed */
     int cv_folds;              /* held-out blocks with enough sky */
-    double fill_sigma;         /* cv of the method used: relative uncertainty of filled light */
+    double fill_sigma;         /* cv of the method used: relative uncertainty of filled light
+                                  (1 when no held-out block could be measured) */
     double ground_rgb[3];      /* radiance given to unseen ground with no ground row to copy */
     int ground_from_albedo;    /* 1: no visible ground at all, ground_albedo was used */
     size_t fit_samples;

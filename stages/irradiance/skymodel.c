@@ -86,17 +86,33 @@ static int solve(double *A, double *b, int n)
 
 /* Per-sample data of one channel's fit. */
 typedef struct {
-    double cos_theta, gamma, logL, w;
+    double cos_theta, gamma, cos2_gamma, logL, w;   /* cos_theta clamped as in rs_skymodel_perez */
 } fitpt;
+
+/* log of the Perez factor at a fitting point, and (when grad) its derivatives by a b c d e. */
+static double log_perez_pt(const double *q, const fitpt *p, double *grad)
+{
+    double e1 = exp(q[1] / p->cos_theta), A = 1 + q[0] * e1;
+    double e2 = exp(q[3] * p->gamma), B = 1 + q[2] * e2 + q[4] * p->cos2_gamma;
+    if (!(A > 1e-9) || !(B > 1e-9) || !isfinite(A) || !isfinite(B)) return NAN;
+    if (grad) {
+        grad[0] = e1 / A;
+        grad[1] = q[0] * e1 / (p->cos_theta * A);
+        grad[2] = e2 / B;
+        grad[3] = q[2] * p->gamma * e2 / B;
+        grad[4] = p->cos2_gamma / B;
+    }
+    return log(A * B);
+}
 
 /* Weighted sum of squared log residuals; DBL_MAX if the model is not positive somewhere. */
 static double cost(const fitpt *pt, size_t n, const double *q, double *res)
 {
     double c = 0;
     for (size_t i = 0; i < n; i++) {
-        double f = rs_skymodel_perez(q, pt[i].cos_theta, pt[i].gamma);
-        if (!(f > 1e-9) || !isfinite(f)) return DBL_MAX;
-        double r = pt[i].logL - q[5] - log(f);
+        double lf = log_perez_pt(q, &pt[i], NULL);
+        if (!isfinite(lf)) return DBL_MAX;
+        double r = pt[i].logL - q[5] - lf;
         if (res) res[i] = r;
         c += pt[i].w * r * r;
     }
@@ -108,21 +124,17 @@ static void clamp_params(double *q)
     for (int k = 0; k < 5; k++) q[k] = q[k] < lo[k] ? lo[k] : (q[k] > hi[k] ? hi[k] : q[k]);
 }
 
-/* Levenberg-Marquardt from q (in/out), forward-difference Jacobian, box-projected steps. */
+/* Levenberg-Marquardt from q (in/out), analytic Jacobian, box-projected steps. */
 static double lm_fit(const fitpt *pt, size_t n, double *q, double *res, double *jac)
 {
     double c = cost(pt, n, q, res), lambda = 1e-3;
     if (c == DBL_MAX) return c;
     for (int it = 0; it < 100; it++) {
-        for (int k = 0; k < NPAR; k++) {
-            double qk[NPAR], h = 1e-6 * fmax(1, fabs(q[k]));
-            memcpy(qk, q, sizeof qk);
-            qk[k] += h;
-            for (size_t i = 0; i < n; i++) {
-                double f = rs_skymodel_perez(qk, pt[i].cos_theta, pt[i].gamma);
-                double r = (f > 1e-9 && isfinite(f)) ? pt[i].logL - qk[5] - log(f) : res[i];
-                jac[i * NPAR + k] = (r - res[i]) / h;
-            }
+        for (size_t i = 0; i < n; i++) {
+            double g[5];
+            log_perez_pt(q, &pt[i], g);                 /* finite: q passed cost() */
+            for (int k = 0; k < 5; k++) jac[i * NPAR + k] = -g[k];
+            jac[i * NPAR + 5] = -1;
         }
         double JtJ[NPAR * NPAR] = {0}, Jtr[NPAR] = {0};
         for (size_t i = 0; i < n; i++)
@@ -171,7 +183,7 @@ static void fit_channel(fitpt *pt, size_t n, double *w0, double *res, double *ja
         double sw = 0, sr = 0;
         for (size_t i = 0; i < n; i++) {
             sw += pt[i].w;
-            sr += pt[i].w * (pt[i].logL - log(rs_skymodel_perez(q, pt[i].cos_theta, pt[i].gamma)));
+            sr += pt[i].w * (pt[i].logL - log_perez_pt(q, &pt[i], NULL));
         }
         q[5] = sw > 0 ? sr / sw : 0;
         double c = lm_fit(pt, n, q, res, jac);
@@ -260,8 +272,9 @@ int rs_skymodel_fit(const rs_skysample *s, size_t n, rs_v3 sun, int sh_order, do
         size_t k = 0;
         for (size_t i = 0; i < n; i++) {
             if (!(s[i].rgb[ch] > 0)) continue;   /* log of black: no information on the shape */
-            pt[k].cos_theta = s[i].dir.z;
+            pt[k].cos_theta = s[i].dir.z < 0.01 ? 0.01 : s[i].dir.z;
             pt[k].gamma = angle_between(s[i].dir, m->sun);
+            pt[k].cos2_gamma = cos(pt[k].gamma) * cos(pt[k].gamma);
             pt[k].logL = log(s[i].rgb[ch]);
             pt[k].w = w0[k] = s[i].weight;
             k++;

@@ -1,6 +1,6 @@
 /* Sky completion on a synthetic sky: an analytic Perez sky with a low sun, partly hidden by a
- * courtyard-like occluder, filled by rows and by the fitted model; the sky-panorama path; the
- * solar position algorithm against NREL's published SPA example. */
+ * courtyard-like occluder, filled by rows and by the fitted model; the sky-panorama path; a second
+ * capture; the solar position algorithm against NREL's published SPA example. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -211,6 +211,83 @@ static void test_sky_panorama(void **state)
     rs_capture_release(&cap);
 }
 
+/* Two captures: a second one (exposure 0.8, its own occluder on another side) fills what the
+ * first cannot see with its values scaled back; only what both miss is filled, and the first
+ * capture's own sky is never replaced. */
+static void test_two_captures(void **state)
+{
+    (void)state;
+    rs_v3 sun = sun_dir(30, 8);
+    rs_capture cap = make_capture(sun);
+    float *ids = courtyard_ids(30);
+    rs_capture other;
+    memset(&other, 0, sizeof other);
+    other.pano = rs_image_new(W, H, 3);
+    rs_m3_identity(other.pose.rot);
+    uint8_t *mask = malloc((size_t)W * H);
+    for (int r = 0; r < H; r++)
+        for (int c = 0; c < W; c++) {
+            rs_v3 d = rs_pano_pixel_dir(W, H, c, r);
+            double az = atan2(d.y, d.x) * 180 / M_PI, el = asin(d.z) * 180 / M_PI;
+            for (int ch = 0; ch < 3; ch++) rs_image_px(other.pano, c, r)[ch] = 0.8f * rs_image_px(cap.pano, c, r)[ch];
+            mask[(size_t)r * W + c] = el > 0 && !(az > 120 && az < 200 && el < 30);
+        }
+    const rs_capture *others[1] = {&other};
+    const uint8_t *masks[1] = {mask};
+    rs_skyenv_opts o = opts(RS_SKYFILL_MODEL);
+    o.others = others;
+    o.other_masks = masks;
+    o.nothers = 1;
+    rs_skyenv env;
+    rs_skyenv_info info;
+    rs_err err;
+    assert_int_equal(rs_skyenv_build_opts(&cap, ids, &o, &env, &info, &err), 0);
+    print_message("second capture: %zu pixels, exposure %.4f %.4f %.4f over %.3f sr\n", info.other_pixels,
+                  info.other_scale[0][0], info.other_scale[0][1], info.other_scale[0][2], info.other_overlap_sr[0]);
+    for (int ch = 0; ch < 3; ch++) assert_true(fabs(info.other_scale[0][ch] - 1.25) < 1e-3);
+    size_t expect_filled = 0, expect_other = 0, bad = 0;
+    for (size_t k = 0; k < (size_t)W * H; k++) {
+        int seen1 = ids[k] < 0, seen2 = mask[k];
+        expect_filled += !seen1 && !seen2;
+        expect_other += !seen1 && seen2;
+        if (seen1 || seen2)
+            for (int ch = 0; ch < 3; ch++)
+                if (fabs(env.radiance[3 * k + ch] - cap.pano->data[3 * k + ch]) > 1e-3 * cap.pano->data[3 * k + ch]) bad++;
+    }
+    assert_int_equal(info.other_pixels, expect_other);
+    assert_int_equal(env.filled_pixels, expect_filled);
+    assert_int_equal(bad, 0);
+    rs_skyenv_release(&env);
+    free(mask);
+    free(ids);
+    rs_capture_release(&other);
+    rs_capture_release(&cap);
+}
+
+/* A sky whose sun is hidden (nothing within 10 degrees of it is seen) and not given: the search
+ * finds it from the glow around it, within 5 degrees. */
+static void test_find_hidden_sun(void **state)
+{
+    (void)state;
+    rs_v3 sun = sun_dir(-100, 25);
+    rs_skysample *s = malloc(64 * 32 * sizeof *s);
+    size_t n = 0;
+    for (int r = 0; r < 16; r++)
+        for (int c = 0; c < 64; c++) {
+            rs_v3 d = rs_pano_pixel_dir(64, 32, c, r);
+            if (rs_v3_dot(d, sun) > cos(10 * M_PI / 180)) continue;
+            s[n].dir = d;
+            truth_sky(d, sun, s[n].rgb);
+            s[n].weight = rs_pano_pixel_solid_angle(64, 32, r);
+            n++;
+        }
+    rs_v3 found = rs_skymodel_find_sun(s, n);
+    double err_deg = acos(fmin(1, rs_v3_dot(found, sun))) * 180 / M_PI;
+    print_message("hidden sun found %.2f degrees off\n", err_deg);
+    assert_true(err_deg < 5);
+    free(s);
+}
+
 /* NREL SPA report (Reda and Andreas 2004, table A4.1): 17 October 2003, 12:30:30 at UTC-7,
  * 39.742476 N 105.1786 W: zenith 50.11162, azimuth 194.34024 degrees. NOAA's equations agree
  * to a few hundredths of a degree. */
@@ -240,6 +317,8 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_low_sun_courtyard),
         cmocka_unit_test(test_sky_panorama),
+        cmocka_unit_test(test_two_captures),
+        cmocka_unit_test(test_find_hidden_sun),
         cmocka_unit_test(test_solar_position),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

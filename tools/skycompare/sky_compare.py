@@ -4,7 +4,8 @@
 usage: sky_compare.py --bin BUILD --shared SHARED --out docs/SKY.md --work DIR NAME=SCENE_DIR...
 
 Each SCENE_DIR is a tools/refscene output (pano.exr, env.exr, scan.ptx, truth.ply, truth.json).
-For every scene, rhoscan runs from the scan with [sky] fill = row, fill = model, and "true sky":
+For every scene, rhoscan runs from the scan (ingest, mesh, observe once; irradiance and reflectance
+per method; no render) with [sky] fill = row, fill = model, and "true sky":
 env.exr (the sky alone, rendered from the camera with the model hidden) given as the [sky]
 panorama, placed 1 km above the camera so that only the model's ground hides any of it. The
 shared evaluator (SHARED/tools/eval_albedo.py) measures the area-weighted mean relative albedo
@@ -66,7 +67,7 @@ METHOD = """## How the sky is completed (stages/irradiance: skyenv.c, skyfill.c,
   luminance-weighted centroid of the sun set, else the direction whose clear-sky Perez distribution
   explains the visible sky best. Per colour channel a Perez all-weather distribution (Perez, Seals,
   Michalsky 1993) is fitted by Levenberg-Marquardt on the log radiance of the visible sky above the
-  horizon (averaged over cells of at most 128 x 64, sky within `sun_mask_deg` of the sun left out,
+  horizon (averaged over cells of at most 64 x 32, sky within `sun_mask_deg` of the sun left out,
   Huber weights so trees and roofs do not drag it), then real spherical harmonics of the log
   residual up to `sh_order` with a ridge penalty `sh_ridge (l(l+1))^2`. Hidden directions above the
   horizon take the model. Hidden directions below the horizon take the mean visible ground of the
@@ -110,9 +111,13 @@ def main():
                     '--set', 'sky.position=%.9g %.9g %.9g' % (cam[0], cam[1], cam[2] + 1000),
                     '--set', 'sky.rotation=' + rot]
         res = {}
+        log = os.path.join(wdir, 'run.log')
+        rhoscan = os.path.join(a.bin, 'rhoscan')
+        for stage in ('ingest', 'mesh', 'observe'):      # shared by the methods; render is not needed
+            run([rhoscan, 'run', '--only', stage, cfg], log)
         for m, sets in methods + [('true sky', true_sky)]:
-            log = os.path.join(wdir, 'run.log')
-            run([os.path.join(a.bin, 'rhoscan'), 'run', cfg] + sets, log)
+            for stage in ('irradiance', 'reflectance'):
+                run([rhoscan, 'run', '--only', stage, cfg] + sets, log)
             work = os.path.join(wdir, 'work')
             ej = os.path.join(wdir, 'eval_%s.json' % m.replace(' ', '_'))
             run([sys.executable, os.path.join(a.shared, 'tools', 'eval_albedo.py'), os.path.join(sdir, 'truth.ply'),
