@@ -5,8 +5,9 @@ set -eu
 pkgs="build-essential cmake pkg-config libembree-dev libtbb-dev libopenexr-dev libstb-dev libinih-dev"
 if [ "${1:-}" = "--tests" ]; then
     # cmocka: unit tests; python3 with numpy/scipy/OpenImageIO: the reference evaluator;
-    # clang + libclang-rt-14-dev: fuzzing and sanitizer builds; blender-data: real DWA-compressed skies.
-    pkgs="$pkgs libcmocka-dev python3 python3-numpy python3-scipy python3-openimageio clang libclang-rt-14-dev blender-data"
+    # clang + libclang-rt-14-dev + libomp-dev (OpenMP for clang): fuzzing and sanitizer builds;
+    # blender-data: real DWA-compressed skies.
+    pkgs="$pkgs libcmocka-dev python3 python3-numpy python3-scipy python3-openimageio clang libclang-rt-14-dev libomp-dev blender-data"
 fi
 missing=""
 for p in $pkgs; do

@@ -1,9 +1,16 @@
 #!/usr/bin/env bash
 # The test command of the README and of CI: installs what the tests need (Debian 12, root),
-# builds, and runs every suite. Suites: unit, stages, playback (ctest labels).
+# builds, and runs every suite. Suites: unit, stages, stress, playback (ctest labels); then
+# unit and stages again under AddressSanitizer + UndefinedBehaviorSanitizer (build-asan), and
+# each reader's libFuzzer harness for its share of RHOSCAN_FUZZ_SECONDS (default 300).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 tools/setup-debian.sh --tests
 cmake -S . -B build -DCMAKE_BUILD_TYPE=RelWithDebInfo
 cmake --build build -j2
 ctest --test-dir build --output-on-failure -j2
+# Sanitizers: any report aborts the test that triggered it (-fno-sanitize-recover).
+cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRHOSCAN_SANITIZE=ON
+cmake --build build-asan -j2
+ctest --test-dir build-asan -L 'unit|stages' --output-on-failure -j2
+tools/fuzz.sh "${RHOSCAN_FUZZ_SECONDS:-300}"
