@@ -10,6 +10,13 @@
 #define NPAR 6                /* a b c d e, log scale */
 #define NSH ((RS_SKYMODEL_MAX_SH + 1) * (RS_SKYMODEL_MAX_SH + 1))
 #define HUBER_LOG 0.25        /* log-radiance residual beyond which a sample is down-weighted */
+/* Weak prior toward the CIE standard sky the fit started from: a deviation of one prior_scale
+ * costs PRIOR_WEIGHT x the total sample weight (a log residual of 0.1 on every sample). A visible
+ * sky that constrains a parameter moves it anyway; one that does not (the anti-solar sky near
+ * the horizon hidden in a courtyard) leaves it near a real sky's value instead of wherever the
+ * fit wanders (e = 2.8 brightened a hidden anti-solar sky 1.5-2x on a rendered courtyard). */
+#define PRIOR_WEIGHT 0.01
+static const double prior_scale[5] = {1, 0.3, 10, 1.5, 0.3};
 
 /* Parameter box: keeps the model positive and finite (b, d < 0 so nothing blows up at the
  * horizon or away from the sun); wider than every CIE standard sky. */
@@ -105,10 +112,26 @@ static double log_perez_pt(const double *q, const fitpt *p, double *grad)
     return log(A * B);
 }
 
-/* Weighted sum of squared log residuals; DBL_MAX if the model is not positive somewhere. */
-static double cost(const fitpt *pt, size_t n, const double *q, double *res)
+typedef struct {
+    const double *q0;          /* prior centre (a..e) */
+    double weight;             /* PRIOR_WEIGHT x total sample weight */
+} prior;
+
+static double prior_cost(const prior *pr, const double *q)
 {
     double c = 0;
+    for (int k = 0; k < 5; k++) {
+        double z = (q[k] - pr->q0[k]) / prior_scale[k];
+        c += pr->weight * z * z;
+    }
+    return c;
+}
+
+/* Weighted sum of squared log residuals plus the prior; DBL_MAX if the model is not positive
+ * somewhere. */
+static double cost(const fitpt *pt, size_t n, const double *q, double *res, const prior *pr)
+{
+    double c = prior_cost(pr, q);
     for (size_t i = 0; i < n; i++) {
         double lf = log_perez_pt(q, &pt[i], NULL);
         if (!isfinite(lf)) return DBL_MAX;
@@ -125,9 +148,9 @@ static void clamp_params(double *q)
 }
 
 /* Levenberg-Marquardt from q (in/out), analytic Jacobian, box-projected steps. */
-static double lm_fit(const fitpt *pt, size_t n, double *q, double *res, double *jac)
+static double lm_fit(const fitpt *pt, size_t n, double *q, double *res, double *jac, const prior *pr)
 {
-    double c = cost(pt, n, q, res), lambda = 1e-3;
+    double c = cost(pt, n, q, res, pr), lambda = 1e-3;
     if (c == DBL_MAX) return c;
     for (int it = 0; it < 100; it++) {
         for (size_t i = 0; i < n; i++) {
@@ -142,6 +165,11 @@ static double lm_fit(const fitpt *pt, size_t n, double *q, double *res, double *
                 Jtr[a] -= pt[i].w * jac[i * NPAR + a] * res[i];
                 for (int b = 0; b <= a; b++) JtJ[a * NPAR + b] += pt[i].w * jac[i * NPAR + a] * jac[i * NPAR + b];
             }
+        for (int a = 0; a < 5; a++) {               /* the prior's residuals */
+            double sc = pr->weight / (prior_scale[a] * prior_scale[a]);
+            JtJ[a * NPAR + a] += sc;
+            Jtr[a] -= sc * (q[a] - pr->q0[a]);
+        }
         for (int a = 0; a < NPAR; a++)
             for (int b = 0; b < a; b++) JtJ[b * NPAR + a] = JtJ[a * NPAR + b];
         int improved = 0;
@@ -153,11 +181,11 @@ static double lm_fit(const fitpt *pt, size_t n, double *q, double *res, double *
             if (solve(A, step, NPAR) == 0) {
                 for (int a = 0; a < NPAR; a++) qn[a] = q[a] + step[a];
                 clamp_params(qn);
-                double cn = cost(pt, n, qn, NULL);
+                double cn = cost(pt, n, qn, NULL, pr);
                 if (cn < c) {
                     double rel = (c - cn) / fmax(c, 1e-300);
                     memcpy(q, qn, sizeof qn);
-                    c = cost(pt, n, q, res);
+                    c = cost(pt, n, q, res, pr);
                     lambda = fmax(lambda * 0.3, 1e-9);
                     improved = rel > 1e-10;
                     break;
@@ -171,13 +199,16 @@ static double lm_fit(const fitpt *pt, size_t n, double *q, double *res, double *
 }
 
 /* Fits one channel: three CIE starts (clear type 12, intermediate type 8, overcast type 1),
- * each refined by LM, then two Huber reweightings from the best. */
+ * each refined by LM with a weak prior toward itself, then two Huber reweightings from the best. */
 static void fit_channel(fitpt *pt, size_t n, double *w0, double *res, double *jac, double out[NPAR])
 {
     static const double starts[3][5] = {{-1, -0.32, 10, -3, 0.45}, {-1, -0.55, 5, -2.5, 0.3}, {4, -0.7, 0.1, -1, 0}};
-    double best = DBL_MAX;
+    double best = DBL_MAX, wsum = 0;
+    for (size_t i = 0; i < n; i++) wsum += w0[i];
+    prior pr = {starts[0], PRIOR_WEIGHT * wsum};
     for (int s = 0; s < 3; s++) {
         double q[NPAR];
+        prior ps = {starts[s], PRIOR_WEIGHT * wsum};
         memcpy(q, starts[s], 5 * sizeof *q);
         /* log scale start: weighted mean of logL - log f */
         double sw = 0, sr = 0;
@@ -186,19 +217,20 @@ static void fit_channel(fitpt *pt, size_t n, double *w0, double *res, double *ja
             sr += pt[i].w * (pt[i].logL - log_perez_pt(q, &pt[i], NULL));
         }
         q[5] = sw > 0 ? sr / sw : 0;
-        double c = lm_fit(pt, n, q, res, jac);
+        double c = lm_fit(pt, n, q, res, jac, &ps);
         if (c < best) {
             best = c;
+            pr = ps;
             memcpy(out, q, NPAR * sizeof *q);
         }
     }
     for (int round = 0; round < 2; round++) {
-        cost(pt, n, out, res);
+        cost(pt, n, out, res, &pr);
         for (size_t i = 0; i < n; i++) {
             double a = fabs(res[i]);
             pt[i].w = w0[i] * (a > HUBER_LOG ? HUBER_LOG / a : 1);
         }
-        lm_fit(pt, n, out, res, jac);
+        lm_fit(pt, n, out, res, jac, &pr);
     }
 }
 

@@ -13,7 +13,7 @@ error over interior facets, per part and overall. The per-facet uncertainty (alb
 checked against the per-facet actual error: the share of facets it covers at 1 and 2 sigma and
 the ratio of its median to the median actual error. Sky numbers come from irradiance.json.
 """
-import argparse, json, os, subprocess, sys
+import argparse, json, os, shutil, subprocess, sys
 
 import numpy as np
 
@@ -68,7 +68,9 @@ METHOD = """## How the sky is completed (stages/irradiance: skyenv.c, skyfill.c,
   explains the visible sky best. Per colour channel a Perez all-weather distribution (Perez, Seals,
   Michalsky 1993) is fitted by Levenberg-Marquardt on the log radiance of the visible sky above the
   horizon (averaged over cells of at most 64 x 32, sky within `sun_mask_deg` of the sun left out,
-  Huber weights so trees and roofs do not drag it), then real spherical harmonics of the log
+  Huber weights so trees and roofs do not drag it, a weak prior toward the CIE standard sky each of
+  three starts comes from, so that what the visible sky does not constrain stays like a real
+  sky), then real spherical harmonics of the log
   residual up to `sh_order` with a ridge penalty `sh_ridge (l(l+1))^2`. Hidden directions above the
   horizon take the model. Hidden directions below the horizon take the mean visible ground of the
   same world elevation band (nearest band with any), and when no ground is visible at all
@@ -89,6 +91,7 @@ def main():
     ap.add_argument('--shared', required=True)
     ap.add_argument('--out', required=True)
     ap.add_argument('--work', required=True)
+    ap.add_argument('--reuse', action='store_true', help='keep the mesh and observation of an earlier run')
     ap.add_argument('scenes', nargs='+', help='NAME=SCENE_DIR')
     a = ap.parse_args()
     os.makedirs(a.work, exist_ok=True)
@@ -113,12 +116,15 @@ def main():
         res = {}
         log = os.path.join(wdir, 'run.log')
         rhoscan = os.path.join(a.bin, 'rhoscan')
-        for stage in ('ingest', 'mesh', 'observe'):      # shared by the methods; render is not needed
-            run([rhoscan, 'run', '--only', stage, cfg], log)
+        work = os.path.join(wdir, 'work')
+        if not (a.reuse and os.path.exists(os.path.join(work, 'observe.ply'))):
+            for stage in ('ingest', 'mesh', 'observe'):  # shared by the methods; render is not needed
+                run([rhoscan, 'run', '--only', stage, cfg], log)
         for m, sets in methods + [('true sky', true_sky)]:
             for stage in ('irradiance', 'reflectance'):
                 run([rhoscan, 'run', '--only', stage, cfg] + sets, log)
-            work = os.path.join(wdir, 'work')
+            kept = os.path.join(wdir, 'albedo_%s.ply' % m.replace(' ', '_'))
+            shutil.copy(os.path.join(work, 'albedo.ply'), kept)
             ej = os.path.join(wdir, 'eval_%s.json' % m.replace(' ', '_'))
             run([sys.executable, os.path.join(a.shared, 'tools', 'eval_albedo.py'), os.path.join(sdir, 'truth.ply'),
                  os.path.join(work, 'albedo.ply'), '--json', ej], log)
@@ -160,6 +166,15 @@ def main():
                 fh.write('| %s | %s | %.0f %% | %.0f %% | %.2f %% | %.2f %% |\n' % (
                     name, m, 100 * r['cover1'], 100 * r['cover2'], 100 * r['med_sig'], 100 * r['med_err']))
         fh.write('\n' + METHOD)
+    # Does the fill uncertainty cover the change the fill causes (against the true-sky run)?
+    for name, sdir, res in rows:
+        wdir = os.path.join(a.work, name)
+        for m in ('model', 'row'):
+            subprocess.run([sys.executable, os.path.join(os.path.dirname(os.path.abspath(__file__)), 'fill_check.py'),
+                            '--shared', a.shared, '--scene', '%s, fill = %s' % (name, m),
+                            '--filled', os.path.join(wdir, 'albedo_%s.ply' % m),
+                            '--true-sky', os.path.join(wdir, 'albedo_true_sky.ply'), '--out', a.out], check=True)
+    with open(a.out, 'a') as fh:
         fh.write('\n## Scenes\n\n')
         for name, sdir, res in rows:
             sj = os.path.join(sdir, 'scene.json')
