@@ -5,7 +5,9 @@ folder and checks the numbers against the dataset's expected.json:
   - albedo: per truth part (the truth.ply box a facet's centroid lies on), the area-weighted
     mean albedo of observed, estimable facets within `albedo_rel_tol` of the truth, and the
     area-weighted mean relative error below `max_mean_rel_error`;
-  - no non-finite value in albedo.ply, every output file present.
+  - no non-finite value in albedo.ply, every output file present;
+  - with an "eval" object (max_error, max_error_all, min_coverage): rhoscan-eval's thresholds;
+    its figures are available to "metrics" under "eval." (e.g. eval.albedo.interior.mean_rel).
 With --record, writes the current metrics into expected.json instead (review the diff, and say
 why in the commit that changes it).
 """
@@ -81,6 +83,22 @@ def main():
         if not os.path.exists(os.path.join(work, name)):
             print('FAIL: output %s missing' % name); ok = False
     metrics = json.load(open(os.path.join(work, 'metrics.json')))
+    ev = exp.get('eval')
+    if ev is not None:
+        # rhoscan-eval against the dataset's truth: its thresholds, and its figures under the
+        # path "eval." so that expected metrics can pin them (a worse result fails even when it
+        # stays under the threshold).
+        out = os.path.join(tmp, 'eval')
+        cmd = [os.path.join(a.bin, 'rhoscan-eval'), os.path.dirname(os.path.abspath(a.expected)), work, '--out', out]
+        for key, opt in (('max_error', '--max-error'), ('max_error_all', '--max-error-all'),
+                         ('min_coverage', '--min-coverage')):
+            if key in ev and not a.record:
+                cmd += [opt, repr(ev[key])]
+        r = subprocess.run(cmd)
+        if r.returncode != 0:
+            print('FAIL: rhoscan-eval exited %d (thresholds %s)' % (r.returncode, ev)); ok = False
+        if os.path.exists(os.path.join(out, 'eval.json')):
+            metrics['eval'] = json.load(open(os.path.join(out, 'eval.json')))
     truth = read_ply(os.path.join(os.path.dirname(a.expected), exp['truth']))
     res = read_ply(os.path.join(work, 'albedo.ply'))
     parts, finite = albedo_by_part(res, boxes_of(truth), exp.get('part_margin_m', 0.02))

@@ -1,0 +1,61 @@
+/* eval: rhoscan-eval, the comparison of a run (its work folder) with a Cycles truth folder
+ * (DESIGN.md section 4): albedo error per facet and per truth part, coverage, irradiance, re-render. */
+#ifndef RS_EVAL_H
+#define RS_EVAL_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "err.h"
+#include "json.h"
+#include "mesh.h"
+
+typedef struct rs_eval_opts {
+    const char *truth_dir;     /* truth.ply, pano.exr, pano_diffcol/diffdir/diffind.exr */
+    const char *work_dir;      /* albedo.ply, facet_id.exr, synth.exr */
+    const char *out_dir;       /* eval.json and eval_error.exr/.png go here; NULL = work_dir */
+    const char *json_path;     /* eval.json elsewhere; NULL = out_dir/eval.json */
+    double tol_m;              /* a sample point further than this from every truth triangle is unmatched */
+    double concave_threshold;  /* a part is concave when its mean enclosure reaches this */
+    /* Thresholds; NAN = not checked. */
+    double max_error;          /* area-weighted mean relative error, interior facets */
+    double max_error_all;      /* the same over all matched facets */
+    double min_coverage;       /* observed and estimable share of the model pixels */
+} rs_eval_opts;
+
+void rs_eval_opts_default(rs_eval_opts *o);
+
+/* Runs the comparison and writes eval.json and the error images. Returns 0 when the
+ * evaluation ran (then *passed = 1 when every threshold was met and no observed, estimable
+ * facet has a non-finite albedo; the reasons for a failure are in the JSON's "failures"),
+ * -1 with *err set when an input is missing or malformed. *result (if not NULL) receives
+ * the JSON document; caller frees with rs_json_free. */
+int rs_eval_run(const rs_eval_opts *o, rs_json **result, int *passed, rs_err *err);
+
+/* A number of the result by dotted path ("albedo.interior.mean_rel", "parts.0.concave");
+ * true/false read as 1/0; NAN when absent or null. */
+double rs_eval_get(const rs_json *doc, const char *path);
+
+/* The truth part each result facet lies on. Seven points per facet (the centroid, and the
+ * corners and edge midpoints pulled 15 % toward it, as ../shared/tools/eval_albedo.py does)
+ * each take the part of their nearest truth triangle if it lies within tol_m. */
+typedef struct rs_eval_match {
+    int *part;                 /* majority part per facet (ties: the lower id), -1 unmatched */
+    double *truth_rgb;         /* 3 per facet: the albedo of the first agreeing point's triangle */
+    uint8_t *interior;         /* all seven points matched and on one part */
+} rs_eval_match;
+
+/* A facet is matched when its centroid lies within tol_m of the truth. truth_part and
+ * truth_rgb hold one (three) value(s) per truth triangle. Caller frees with rs_eval_match_free. */
+int rs_eval_match_facets(const rs_mesh *res, const rs_mesh *truth, const int *truth_part,
+                         const double *truth_rgb, double tol_m, rs_eval_match *out, rs_err *err);
+void rs_eval_match_free(rs_eval_match *m);
+
+/* Enclosure of each facet of mesh: the cosine-weighted share of its hemisphere that hits the
+ * mesh itself (64 stratified directions from the centroid), i.e. how much of its light can be
+ * interreflection. out[nfaces]. */
+int rs_eval_enclosure(const rs_mesh *mesh, double *out, rs_err *err);
+
+/* Closest distance from p to triangle (a, b, c) (Ericson, Real-Time Collision Detection 5.1.5). */
+double rs_eval_point_tri_dist(rs_v3 p, rs_v3 a, rs_v3 b, rs_v3 c);
+
+#endif
