@@ -226,8 +226,14 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     }
     if (nsec > RS_SKYENV_MAX_OTHERS + 1)
         rs_log_warn("irradiance: only the first %d further captures feed the sky map", RS_SKYENV_MAX_OTHERS);
-    so.others = (const rs_capture *const *)others;
-    so.other_masks = (const uint8_t *const *)other_masks;
+    const rs_capture *other_ptrs[RS_SKYENV_MAX_OTHERS];
+    const uint8_t *mask_ptrs[RS_SKYENV_MAX_OTHERS];
+    for (int i = 0; i < nothers; i++) {
+        other_ptrs[i] = &others[i];
+        mask_ptrs[i] = other_masks[i];
+    }
+    so.others = other_ptrs;
+    so.other_masks = mask_ptrs;
     so.nothers = nothers;
     if (rs_skyenv_build_opts(&cap, ids->data, &so, &env, &info, err) != 0) goto out;
     for (int i = 0; i < nothers; i++)
