@@ -2,11 +2,15 @@
 #include "capture.h"
 
 #include <string.h>
+#include "calib_files.h"
 
 int rs_capture_load(const rs_config *cfg, const char *section, rs_capture *cap, rs_err *err)
 {
     memset(cap, 0, sizeof *cap);
-    if (!rs_config_path(cfg, section, "panorama", cap->path, sizeof cap->path))
+    /* With [rig], the calib stage's stitched panorama is the capture's panorama. */
+    int stitched = rs_calib_panorama_path(cfg, section, cap->path, sizeof cap->path, err);
+    if (stitched < 0) return -1;
+    if (!stitched && !rs_config_path(cfg, section, "panorama", cap->path, sizeof cap->path))
         return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
                           "[%s] panorama is not set: expected an equirectangular EXR or HDR file", section);
     rs_image *img = rs_image_read(cap->path, err);
@@ -34,6 +38,15 @@ int rs_capture_load(const rs_config *cfg, const char *section, rs_capture *cap, 
         const float *px = img->data + 3 * k;
         if (!(isfinite(px[0]) && isfinite(px[1]) && isfinite(px[2]))) cap->nonfinite++;
         else if (px[0] < 0 || px[1] < 0 || px[2] < 0) cap->negative++;
+    }
+    /* With [capture] correspondences, the pose the calib stage solved is the capture's pose
+     * (position and rotation only seeded the solver, so position is not required then). */
+    if (rs_config_has(cfg, section, "correspondences")) {
+        if (rs_calib_pose_apply(cfg, section, &cap->pose, err) != 0) {
+            rs_capture_release(cap);
+            return -1;
+        }
+        return 0;
     }
     double pos[3];
     if (rs_config_reals(cfg, section, "position", pos) != 0) {

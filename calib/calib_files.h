@@ -1,0 +1,28 @@
+/* calib_files: the files through which the calib stage hands its results to the stages that load
+ * the capture (common/capture.c): the stitched panorama and the solved pose, in the work folder. */
+#ifndef RS_CALIB_FILES_H
+#define RS_CALIB_FILES_H
+
+#include <stddef.h>
+#include "config.h"
+#include "err.h"
+#include "pano.h"
+
+#define RS_CALIB_PANO_FILE "pano_stitched.exr"   /* written when [rig] is set */
+#define RS_CALIB_POSE_FILE "capture_pose.txt"    /* written when [capture] correspondences is set */
+
+/* Where the capture's panorama comes from. Returns 1 and the stitched panorama's path in out when
+ * [rig] file is set (section "capture" only), 0 when the capture reads its own [capture] panorama,
+ * -1 when both are given or the stitched panorama has not been made yet (run the calib stage). */
+int rs_calib_panorama_path(const rs_config *cfg, const char *section, char *out, size_t n, rs_err *err);
+
+/* When [capture] correspondences is set, replaces *pose by the one the calib stage solved
+ * (the config's position and rotation only seeded the solver). Otherwise leaves it alone. */
+int rs_calib_pose_apply(const rs_config *cfg, const char *section, rs_pose *pose, rs_err *err);
+
+/* The pose file: "position X Y Z" and "rotation R00 ... R22" (row-major local -> world), full
+ * precision, atomic. */
+int rs_calib_pose_write(const char *path, const rs_pose *pose, rs_err *err);
+int rs_calib_pose_read(const char *path, rs_pose *pose, rs_err *err);
+
+#endif

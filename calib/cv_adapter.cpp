@@ -1,0 +1,230 @@
+// cv_adapter: OpenCV behind the C header cv_adapter.h. Each extern "C" entry wraps its body in
+// try/catch: an exception crossing into C code would be undefined behaviour.
+#include "cv_adapter.h"
+
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <exception>
+#include <string>
+#include <vector>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/photo.hpp>
+
+namespace {
+
+struct field_error {
+    std::string what;
+};
+
+void set_msg(char *msg, size_t n, const std::string &s)
+{
+    if (!msg || !n) return;
+    std::snprintf(msg, n, "%s", s.c_str());
+    // OpenCV's messages end in a newline: the caller adds its own context around them.
+    for (size_t k = std::strlen(msg); k > 0 && (msg[k - 1] == '\n' || msg[k - 1] == ' '); k--) msg[k - 1] = 0;
+}
+
+// A matrix field read into doubles: returns the number of entries (0 when the field is absent).
+int read_matrix(const cv::FileNode &cam, const char *key, int index, double *out, int max_entries)
+{
+    cv::FileNode node = cam[key];
+    if (node.empty()) return 0;
+    cv::Mat m;
+    try {
+        node >> m;
+    } catch (const cv::Exception &) {
+        throw field_error{"camera " + std::to_string(index) + ": " + key +
+                          " is not an !!opencv-matrix (expected rows, cols, dt and data)"};
+    }
+    if (m.empty())
+        throw field_error{"camera " + std::to_string(index) + ": " + key + " is empty or not an !!opencv-matrix"};
+    if (static_cast<int>(m.total()) * m.channels() > max_entries)
+        throw field_error{"camera " + std::to_string(index) + ": " + key + " has " +
+                          std::to_string(m.total() * m.channels()) + " entries, expected at most " +
+                          std::to_string(max_entries)};
+    cv::Mat d;
+    m.reshape(1, 1).convertTo(d, CV_64F);
+    for (int i = 0; i < d.cols; i++) out[i] = d.at<double>(0, i);
+    return d.cols;
+}
+
+}  // namespace
+
+extern "C" int rs_cv_rig_read(const char *path, rs_cv_camera **cams, int *count, int *declared_count, char *msg,
+                              size_t msg_size)
+{
+    *cams = nullptr;
+    *count = 0;
+    *declared_count = -1;
+    rs_cv_camera *out = nullptr;
+    try {
+        cv::FileStorage fs(path, cv::FileStorage::READ);
+        if (!fs.isOpened()) {
+            set_msg(msg, msg_size, "cannot open as an OpenCV FileStorage file (expected %YAML:1.0 with "
+                                   "camera_count and cameras)");
+            return -1;
+        }
+        cv::FileNode cc = fs["camera_count"];
+        if (!cc.empty()) {
+            if (!cc.isInt()) throw field_error{"camera_count is not an integer"};
+            *declared_count = static_cast<int>(cc);
+        }
+        cv::FileNode seq = fs["cameras"];
+        if (seq.empty() || !seq.isSeq())
+            throw field_error{"no `cameras` sequence (expected `cameras:` followed by one `- name: ...` map per "
+                              "camera)"};
+        int n = static_cast<int>(seq.size());
+        out = static_cast<rs_cv_camera *>(std::calloc(n > 0 ? n : 1, sizeof *out));
+        if (!out) throw std::bad_alloc();
+        for (int i = 0; i < n; i++) {
+            cv::FileNode cam = seq[i];
+            rs_cv_camera *c = &out[i];
+            if (!cam.isMap()) throw field_error{"camera " + std::to_string(i) + " is not a map of fields"};
+            std::string name = cam["name"].empty() ? "cam" + std::to_string(i) : std::string(cam["name"]);
+            std::snprintf(c->name, sizeof c->name, "%s", name.c_str());
+            std::string model = cam["model"].empty() ? "pinhole" : std::string(cam["model"]);
+            std::snprintf(c->model, sizeof c->model, "%s", model.c_str());
+            if (!cam["image_width"].empty() && cam["image_width"].isInt()) c->width = static_cast<int>(cam["image_width"]);
+            if (!cam["image_height"].empty() && cam["image_height"].isInt())
+                c->height = static_cast<int>(cam["image_height"]);
+            c->has_matrix = read_matrix(cam, "camera_matrix", i, c->camera_matrix, 9) == 9;
+            if (!cam["camera_matrix"].empty() && !c->has_matrix)
+                throw field_error{"camera " + std::to_string(i) + ": camera_matrix must be 3 x 3"};
+            c->distortion_count = read_matrix(cam, "distortion_coefficients", i, c->distortion, 8);
+            c->has_rotation = read_matrix(cam, "R_rig_cam", i, c->r_rig_cam, 9) == 9;
+            if (!cam["R_rig_cam"].empty() && !c->has_rotation)
+                throw field_error{"camera " + std::to_string(i) + ": R_rig_cam must be 3 x 3"};
+            c->has_translation = read_matrix(cam, "t_rig_cam", i, c->t_rig_cam, 3) == 3;
+            if (!cam["t_rig_cam"].empty() && !c->has_translation)
+                throw field_error{"camera " + std::to_string(i) + ": t_rig_cam must have 3 entries"};
+        }
+        *cams = out;
+        *count = n;
+        return 0;
+    } catch (const field_error &e) {
+        set_msg(msg, msg_size, e.what);
+    } catch (const cv::Exception &e) {
+        set_msg(msg, msg_size, std::string("not a valid FileStorage YAML file: ") + e.what());
+    } catch (const std::exception &e) {
+        set_msg(msg, msg_size, std::string("reading the rig file failed: ") + e.what());
+    } catch (...) {
+        set_msg(msg, msg_size, "reading the rig file failed: unknown exception");
+    }
+    std::free(out);
+    return -1;
+}
+
+extern "C" int rs_cv_image_read(const char *path, float **data, int *width, int *height, int *channels,
+                                int *integer_bits, char *msg, size_t msg_size)
+{
+    *data = nullptr;
+    try {
+        cv::Mat m = cv::imread(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR);
+        if (m.empty()) {
+            set_msg(msg, msg_size, "OpenCV cannot decode this image file");
+            return -1;
+        }
+        int depth = m.depth();
+        *integer_bits = depth == CV_8U ? 8 : depth == CV_16U ? 16 : 0;
+        double scale = depth == CV_8U ? 1.0 / 255 : depth == CV_16U ? 1.0 / 65535 : 1.0;
+        cv::Mat f;
+        m.convertTo(f, CV_32F, scale);
+        if (f.channels() == 4) cv::cvtColor(f, f, cv::COLOR_BGRA2RGB);
+        else if (f.channels() == 3) cv::cvtColor(f, f, cv::COLOR_BGR2RGB);
+        else if (f.channels() != 1) {
+            set_msg(msg, msg_size, "image has " + std::to_string(f.channels()) + " channels: expected 1, 3 or 4");
+            return -1;
+        }
+        f = f.clone();   // continuous
+        size_t n = f.total() * f.channels();
+        float *p = static_cast<float *>(std::malloc(n * sizeof *p));
+        if (!p) throw std::bad_alloc();
+        std::memcpy(p, f.ptr<float>(), n * sizeof *p);
+        *data = p;
+        *width = f.cols;
+        *height = f.rows;
+        *channels = f.channels();
+        return 0;
+    } catch (const cv::Exception &e) {
+        set_msg(msg, msg_size, std::string("OpenCV: ") + e.what());
+    } catch (const std::exception &e) {
+        set_msg(msg, msg_size, e.what());
+    } catch (...) {
+        set_msg(msg, msg_size, "unknown exception");
+    }
+    return -1;
+}
+
+extern "C" int rs_cv_merge_debevec(const unsigned char *const *images, const float *times_s, int count, int width,
+                                   int height, const float *response, float *out, float *response_out, char *msg,
+                                   size_t msg_size)
+{
+    try {
+        std::vector<cv::Mat> imgs;
+        std::vector<float> times(times_s, times_s + count);
+        for (int i = 0; i < count; i++) {
+            // OpenCV's photo module expects BGR; the merge is per channel, so RGB order is kept
+            // as long as the response is read back in the same order.
+            imgs.emplace_back(height, width, CV_8UC3, const_cast<unsigned char *>(images[i]));
+        }
+        cv::Mat resp;
+        if (response) {
+            resp = cv::Mat(256, 1, CV_32FC3, const_cast<float *>(response)).clone();
+        } else {
+            cv::Ptr<cv::CalibrateDebevec> cal = cv::createCalibrateDebevec();
+            cal->process(imgs, resp, times);
+        }
+        if (response_out) {
+            cv::Mat r32;
+            resp.convertTo(r32, CV_32FC3);
+            std::memcpy(response_out, r32.ptr<float>(), 256 * 3 * sizeof(float));
+        }
+        cv::Mat hdr;
+        cv::createMergeDebevec()->process(imgs, hdr, times, resp);
+        cv::Mat outm(height, width, CV_32FC3, out);
+        hdr.convertTo(outm, CV_32FC3);
+        return 0;
+    } catch (const cv::Exception &e) {
+        set_msg(msg, msg_size, std::string("OpenCV: ") + e.what());
+    } catch (const std::exception &e) {
+        set_msg(msg, msg_size, e.what());
+    } catch (...) {
+        set_msg(msg, msg_size, "unknown exception");
+    }
+    return -1;
+}
+
+extern "C" int rs_cv_project(int fisheye, const double *camera_matrix, const double *dist, int n,
+                             const double *points, double *pixels, char *msg, size_t msg_size)
+{
+    try {
+        cv::Mat k(3, 3, CV_64F, const_cast<double *>(camera_matrix));
+        cv::Mat d(1, fisheye ? 4 : 5, CV_64F, const_cast<double *>(dist));
+        cv::Mat pts(n, 1, CV_64FC3, const_cast<double *>(points));
+        cv::Mat zero = cv::Mat::zeros(3, 1, CV_64F);
+        cv::Mat out;
+        if (fisheye) cv::fisheye::projectPoints(pts, out, zero, zero, k, d);
+        else cv::projectPoints(pts, zero, zero, k, d, out);
+        cv::Mat o64;
+        out.convertTo(o64, CV_64FC2);
+        std::memcpy(pixels, o64.ptr<double>(), static_cast<size_t>(n) * 2 * sizeof(double));
+        return 0;
+    } catch (const cv::Exception &e) {
+        set_msg(msg, msg_size, std::string("OpenCV: ") + e.what());
+    } catch (const std::exception &e) {
+        set_msg(msg, msg_size, e.what());
+    } catch (...) {
+        set_msg(msg, msg_size, "unknown exception");
+    }
+    return -1;
+}
+
+extern "C" void rs_cv_free(void *p)
+{
+    std::free(p);
+}

@@ -1,0 +1,46 @@
+/* rig: a Ladybug-style camera rig (DESIGN.md section 7) and its lens models: OpenCV's pinhole
+ * model with k1 k2 p1 p2 k3 and OpenCV's fisheye model with k1..k4, each used only inside the
+ * field of view where it is one-to-one (the radial polynomial folds back at large radii). */
+#ifndef RS_RIG_H
+#define RS_RIG_H
+
+#include "err.h"
+#include "vec.h"
+
+typedef enum { RS_LENS_PINHOLE, RS_LENS_FISHEYE } rs_lens_model;
+
+typedef struct rs_rig_camera {
+    char name[64];
+    int width, height;         /* px */
+    rs_lens_model model;
+    double fx, fy, cx, cy;     /* px; pixel centres at integer coordinates (OpenCV) */
+    double dist[5];            /* pinhole: k1 k2 p1 p2 k3; fisheye: k1 k2 k3 k4 (dist[4] = 0) */
+    double r_rig_cam[9];       /* camera -> rig rotation, row-major */
+    rs_v3 t_rig_cam;           /* camera centre in the rig frame, m */
+    double max_field;          /* pinhole: largest usable tan of the angle off the axis;
+                                  fisheye: largest usable angle off the axis (rad) */
+} rs_rig_camera;
+
+typedef struct rs_rig {
+    int count;
+    rs_rig_camera *cams;
+} rs_rig;
+
+/* Reads and checks a rig file (through OpenCV's FileStorage). Errors name the file, the camera
+ * and the field: missing sizes or matrices, a camera matrix that is not [fx 0 cx; 0 fy cy; 0 0 1],
+ * a rotation that is not orthonormal with det +1, an unknown model, a distortion vector of the
+ * wrong length, camera_count different from the cameras listed. Release with rs_rig_release. */
+int rs_rig_load(const char *path, rs_rig *rig, rs_err *err);
+void rs_rig_release(rs_rig *rig);
+
+/* Pixel (x, y) of a direction in the camera frame (x right, y down, z forward; need not be unit).
+ * Returns 1 when the direction lies inside the lens model's usable field and the pixel inside
+ * the image (0 <= x <= width - 1, same for y), else 0 (x, y still set when finite). *margin_px
+ * (may be NULL) is the distance in pixels to the nearest edge of that usable region. */
+int rs_rig_project(const rs_rig_camera *c, rs_v3 d_cam, double *x, double *y, double *margin_px);
+
+/* The inverse: the unit camera-frame direction of pixel (x, y), by Newton iteration on the
+ * distortion. Returns 0 when it does not converge inside the usable field. */
+int rs_rig_unproject(const rs_rig_camera *c, double x, double y, rs_v3 *d_cam);
+
+#endif

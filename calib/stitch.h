@@ -1,0 +1,30 @@
+/* stitch: a rig's frames -> one equirectangular panorama in the rig frame (DESIGN.md section 2),
+ * at infinite depth, with feathered blending and per-camera gains estimated from the overlaps. */
+#ifndef RS_STITCH_H
+#define RS_STITCH_H
+
+#include "image.h"
+#include "rig.h"
+
+typedef struct rs_stitch_opts {
+    int width;                 /* panorama width (px); height = width / 2 */
+    double feather_px;         /* blending weight reaches 1 this many camera pixels inside the usable edge */
+    int estimate_gain;         /* 1: estimate and divide out one gain per camera */
+} rs_stitch_opts;
+
+typedef struct rs_stitch_stats {
+    double coverage;           /* share of the sphere (solid angle) that some camera sees */
+    int overlap_pairs;         /* camera pairs that share enough pixels for the gain estimate */
+} rs_stitch_stats;
+
+/* Stitches frames[i] (3 channels, rig->cams[i]'s size, linear) into *pano (3 channels; NaN
+ * where no camera sees). gains[i] gets camera i's estimated gain (observed = gain x true,
+ * geometric mean 1 over the cameras; all 1 without estimate_gain). Deterministic for any
+ * thread count. Caller frees *pano with rs_image_free. */
+int rs_stitch(const rs_rig *rig, rs_image *const *frames, const rs_stitch_opts *opts, rs_image **pano,
+              double *gains, rs_stitch_stats *stats, rs_err *err);
+
+/* The panorama width that matches the finest camera: 2 pi times its largest focal length, even. */
+int rs_stitch_default_width(const rs_rig *rig);
+
+#endif

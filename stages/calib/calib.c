@@ -1,0 +1,255 @@
+/* calib: the capture's calibration before anything looks at its pixels. With [rig], stitches the
+ * rig's frames into pano_stitched.exr; with [capture] correspondences, solves the capture's pose
+ * from the pairs file and writes capture_pose.txt. Both are picked up by rs_capture_load. */
+#include <stdlib.h>
+#include <string.h>
+#include <ctype.h>
+#include "calib_files.h"
+#include "calib_math.h"
+#include "capture.h"
+#include "fileio.h"
+#include "log.h"
+#include "register.h"
+#include "cv_adapter.h"
+#include "stitch.h"
+#include "stages.h"
+
+/* Solves the pose of [capture] from its pairs file on a width x height panorama and records the
+ * residual of every pair, the rejected ones by line. */
+static int register_capture(const rs_config *cfg, int width, int height, rs_report *rep, rs_err *err)
+{
+    char pairs_path[4096], out[4096];
+    rs_config_path(cfg, "capture", "correspondences", pairs_path, sizeof pairs_path);
+    rs_pair *pairs = NULL;
+    rs_v3 *bearing = NULL, *world = NULL;
+    double *resid = NULL;
+    uint8_t *inlier = NULL;
+    int n = 0, rc = -1;
+    if (rs_pairs_read(pairs_path, width, height, &pairs, &n, err) != 0) return -1;
+    bearing = malloc((size_t)n * sizeof *bearing);
+    world = malloc((size_t)n * sizeof *world);
+    resid = malloc((size_t)n * sizeof *resid);
+    inlier = malloc((size_t)n);
+    if (!bearing || !world || !resid || !inlier) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+        goto out;
+    }
+    for (int i = 0; i < n; i++) {
+        bearing[i] = rs_pair_bearing(pairs[i].col, pairs[i].row, width, height);
+        world[i] = pairs[i].world;
+    }
+    /* The config's pose, when given, seeds the solver as one more candidate. */
+    rs_pose guess;
+    double pos[3] = {0, 0, 0};
+    int seeded = rs_config_reals(cfg, "capture", "position", pos) == 0;
+    rs_config_reals(cfg, "capture", "rotation", guess.rot);
+    guess.position = rs_v3_make(pos[0], pos[1], pos[2]);
+    rs_register_opts opts = {(int)rs_config_int(cfg, "calib", "ransac_iterations"),
+                             rs_config_real(cfg, "calib", "inlier_deg"), (uint64_t)rs_config_int(cfg, "calib", "seed"),
+                             seeded ? &guess : NULL};
+    rs_register_result res;
+    double t0 = rs_now();
+    if (rs_register_solve(bearing, world, n, &opts, &res, resid, inlier, err) != 0) {
+        /* The solver knows no file: name the pairs file the message is about. */
+        snprintf(err->file, sizeof err->file, "%.*s", (int)sizeof err->file - 1, pairs_path);
+        goto out;
+    }
+    rs_report_time(rep, "registration", rs_now() - t0);
+    if (rs_calib_pose_write(rs_work_path(cfg, RS_CALIB_POSE_FILE, out, sizeof out), &res.pose, err) != 0) goto out;
+
+    rs_json *reg = rs_json_set_obj(rep->metrics, "registration");
+    rs_json_set_str(reg, "pairs_file", pairs_path);
+    rs_json_set_int(reg, "pairs", n);
+    rs_json_set_int(reg, "inliers", res.inliers);
+    rs_json_set_num(reg, "rms_deg", res.rms_deg);
+    rs_json_set_num(reg, "max_deg", res.max_deg);
+    rs_json *p = rs_json_set_arr(reg, "position");
+    rs_json_push_num(p, res.pose.position.x);
+    rs_json_push_num(p, res.pose.position.y);
+    rs_json_push_num(p, res.pose.position.z);
+    rs_json *r = rs_json_set_arr(reg, "rotation");
+    for (int k = 0; k < 9; k++) rs_json_push_num(r, res.pose.rot[k]);
+    if (seeded) {
+        rs_json_set_num(reg, "shift_from_config_m", rs_v3_len(rs_v3_sub(res.pose.position, guess.position)));
+        rs_json_set_num(reg, "turn_from_config_deg", rs_calib_rot_angle(res.pose.rot, guess.rot) * 180 / M_PI);
+    }
+    rs_json *all = rs_json_set_arr(reg, "pairs_by_line");
+    for (int i = 0; i < n; i++) {
+        rs_json *o = rs_json_push_obj(all);
+        rs_json_set_int(o, "line", pairs[i].line);
+        rs_json_set_num(o, "residual_deg", resid[i]);
+        rs_json_set_bool(o, "inlier", inlier[i]);
+        if (!inlier[i])
+            rs_report_skip(rep, "correspondence", "%s:%ld: pixel (%g, %g) is %.3f deg from where the pose puts "
+                           "(%g, %g, %g): rejected as an outlier", pairs_path, pairs[i].line, pairs[i].col,
+                           pairs[i].row, resid[i], pairs[i].world.x, pairs[i].world.y, pairs[i].world.z);
+    }
+    rs_log_info("calib: pose from %d of %d pairs, residual rms %.4f deg, max %.4f deg; centre (%.4f, %.4f, %.4f)",
+                res.inliers, n, res.rms_deg, res.max_deg, res.pose.position.x, res.pose.position.y,
+                res.pose.position.z);
+    rc = 0;
+out:
+    free(pairs);
+    free(bearing);
+    free(world);
+    free(resid);
+    free(inlier);
+    return rc;
+}
+
+/* One frame as linear float RGB: EXR, HDR, PNG and JPEG through rs_image_read, TIFF through
+ * OpenCV (integer TIFF is sRGB-decoded like PNG). */
+static rs_image *read_frame(const char *path, rs_err *err)
+{
+    const char *dot = strrchr(path, '.');
+    char ext[8] = "";
+    for (int k = 0; dot && dot[k + 1] && k < 7; k++) ext[k] = (char)tolower((unsigned char)dot[k + 1]);
+    rs_image *img = NULL;
+    if (strcmp(ext, "tif") == 0 || strcmp(ext, "tiff") == 0) {
+        float *data = NULL;
+        int w, h, ch, bits;
+        char msg[512];
+        if (!rs_file_exists(path)) {
+            rs_err_errno(err, path, "cannot open the frame");
+            return NULL;
+        }
+        if (rs_cv_image_read(path, &data, &w, &h, &ch, &bits, msg, sizeof msg) != 0) {
+            rs_err_set(err, RS_ERR_INPUT, path, 0, "%s", msg);
+            return NULL;
+        }
+        img = rs_image_new(w, h, ch);
+        if (img) {
+            for (size_t k = 0; k < (size_t)w * h * ch; k++) img->data[k] = bits ? rs_srgb_to_linear(data[k]) : data[k];
+        }
+        rs_cv_free(data);
+        if (!img) rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
+    } else {
+        img = rs_image_read(path, err);
+    }
+    if (img && img->channels == 1) {
+        rs_image *rgb = rs_image_new(img->width, img->height, 3);
+        if (rgb)
+            for (size_t k = 0; k < (size_t)img->width * img->height; k++)
+                rgb->data[3 * k] = rgb->data[3 * k + 1] = rgb->data[3 * k + 2] = img->data[k];
+        rs_image_free(img);
+        img = rgb;
+        if (!img) rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
+    }
+    return img;
+}
+
+/* [rig]: the rig file and its frames -> the stitched panorama at out_path. */
+static int stitch_rig(const rs_config *cfg, const char *out_path, rs_report *rep, rs_err *err)
+{
+    char rig_path[4096], path[4096];
+    rs_config_path(cfg, "rig", "file", rig_path, sizeof rig_path);
+    rs_rig rig;
+    if (rs_rig_load(rig_path, &rig, err) != 0) return -1;
+    int nframes = rs_config_path_count(cfg, "rig", "frames"), rc = -1;
+    rs_image **frames = calloc((size_t)rig.count, sizeof *frames);
+    double *gains = calloc((size_t)rig.count, sizeof *gains);
+    rs_image *pano = NULL;
+    if (!frames || !gains) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+        goto out;
+    }
+    if (nframes != rig.count) {
+        rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                   "[rig] frames lists %d image%s but %s has %d camera%s: expected one frame per camera, in "
+                   "the order of the rig file", nframes, nframes == 1 ? "" : "s", rig_path, rig.count,
+                   rig.count == 1 ? "" : "s");
+        goto out;
+    }
+    for (int i = 0; i < rig.count; i++) {
+        rs_config_path_at(cfg, "rig", "frames", i, path, sizeof path);
+        if (!(frames[i] = read_frame(path, err))) goto out;
+        if (frames[i]->width != rig.cams[i].width || frames[i]->height != rig.cams[i].height) {
+            rs_err_set(err, RS_ERR_INPUT, path, 0, "frame is %d x %d but camera %d (%s) of %s is %d x %d",
+                       frames[i]->width, frames[i]->height, i, rig.cams[i].name, rig_path, rig.cams[i].width,
+                       rig.cams[i].height);
+            goto out;
+        }
+    }
+    int width = (int)rs_config_int(cfg, "rig", "width");
+    if (width == 0) width = rs_stitch_default_width(&rig);
+    if (width % 2) width++;
+    rs_stitch_opts opts = {width, rs_config_real(cfg, "rig", "feather_px"), rs_config_bool(cfg, "rig", "gain")};
+    rs_stitch_stats stats;
+    if (rs_stitch(&rig, frames, &opts, &pano, gains, &stats, err) != 0) goto out;
+    static const char *const names[] = {"R", "G", "B"};
+    if (rs_image_write_exr(pano, out_path, names, 0, "rhoscan calib: stitched from [rig] frames (infinite depth)",
+                           err) != 0)
+        goto out;
+    rs_json *st = rs_json_set_obj(rep->metrics, "stitch");
+    rs_json_set_str(st, "rig_file", rig_path);
+    rs_json_set_int(st, "cameras", rig.count);
+    rs_json_set_int(st, "width", width);
+    rs_json_set_num(st, "coverage_of_sphere", stats.coverage);
+    rs_json_set_int(st, "overlapping_camera_pairs", stats.overlap_pairs);
+    rs_json *g = rs_json_set_obj(st, "gains");
+    double max_offset = 0;
+    for (int i = 0; i < rig.count; i++) {
+        rs_json_set_num(g, rig.cams[i].name, gains[i]);
+        max_offset = fmax(max_offset, rs_v3_len(rig.cams[i].t_rig_cam));
+    }
+    /* Parallax is not corrected: say how large the ignored offsets are. */
+    rs_json_set_num(st, "max_camera_offset_m", max_offset);
+    rs_log_info("calib: stitched %d frames into %d x %d, %.1f %% of the sphere covered", rig.count, width, width / 2,
+                100 * stats.coverage);
+    if (max_offset > 0)
+        rs_report_skip(rep, "parallax correction", "cameras sit up to %.3f m from the rig centre; stitching assumes "
+                       "infinite depth, so near objects may show seams", max_offset);
+    rc = 0;
+out:
+    for (int i = 0; frames && i < rig.count; i++) rs_image_free(frames[i]);
+    free(frames);
+    free(gains);
+    rs_image_free(pano);
+    rs_rig_release(&rig);
+    return rc;
+}
+
+/* The size of the capture's panorama: the stitched one or [capture] panorama. */
+static int panorama_size(const rs_config *cfg, int *width, int *height, rs_err *err)
+{
+    char path[4096];
+    int stitched = rs_calib_panorama_path(cfg, "capture", path, sizeof path, err);
+    if (stitched < 0) return -1;
+    if (!stitched && !rs_config_path(cfg, "capture", "panorama", path, sizeof path))
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                          "[capture] correspondences is set but there is no panorama: expected [capture] panorama "
+                          "or [rig] file and frames");
+    rs_image *img = rs_image_read(path, err);
+    if (!img) return -1;
+    *width = img->width;
+    *height = img->height;
+    rs_image_free(img);
+    return 0;
+}
+
+int rs_calib_run(const rs_config *cfg, rs_report *rep, rs_err *err)
+{
+    char path[4096];
+    int have_rig = rs_config_has(cfg, "rig", "file");
+    int have_pairs = rs_config_has(cfg, "capture", "correspondences");
+    if (have_rig && rs_config_has(cfg, "capture", "panorama"))
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                          "both [rig] file and [capture] panorama are set: expected one of them (the panorama "
+                          "stitched from the rig's frames becomes the capture's panorama)");
+    if (have_rig) {
+        double t0 = rs_now();
+        if (stitch_rig(cfg, rs_work_path(cfg, RS_CALIB_PANO_FILE, path, sizeof path), rep, err) != 0) return -1;
+        rs_report_time(rep, "stitch", rs_now() - t0);
+    }
+    if (have_pairs) {
+        int w = 0, h = 0;
+        if (panorama_size(cfg, &w, &h, err) != 0) return -1;
+        if (register_capture(cfg, w, h, rep, err) != 0) return -1;
+    } else {
+        /* A pose left from an earlier run with pairs must not outlive them. */
+        remove(rs_work_path(cfg, RS_CALIB_POSE_FILE, path, sizeof path));
+    }
+    if (!have_rig && !have_pairs)
+        rs_report_skip(rep, "calib", "no [rig] file and no [capture] correspondences: nothing to calibrate");
+    return 0;
+}

@@ -1,0 +1,260 @@
+/* The calib stage as a program: frames rendered from a known panorama through a known rig stitch
+ * back to it (PSNR >= 35 dB away from the cameras' borders) with the sensors' gains recovered; the
+ * pose is solved from a pairs file and rs_capture_load hands both to the later stages; bad rig
+ * files, mismatched frame counts and conflicting keys end in clear messages. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "calib_files.h"
+#include "calib_math.h"
+#include "capture.h"
+#include "image.h"
+#include "register.h"
+#include "rig.h"
+#include "testutil.h"
+
+#define NCAM 6
+#define PANO_W 1024
+
+static const double true_gain[NCAM] = {1.03, 0.97, 1.02, 0.99, 1.01, 0.0};   /* last: geometric mean 1 */
+
+/* The known panorama: smooth colour patterns with detail down to about 20 pixels. */
+static float truth_value(rs_v3 d, int ch)
+{
+    double v = 0.45 + 0.2 * sin(5 * d.x + 3 * d.y + ch) * cos(4 * d.z + 1) + 0.12 * sin(13 * d.x - 11 * d.y + 7 * d.z) +
+               0.06 * sin(40 * d.y + 25 * d.z - 2 * ch);
+    return (float)v;
+}
+
+/* Camera k's rotation: five around the horizon every 72 degrees (pinhole), one looking up
+ * (fisheye). Columns: the camera's x (right), y (down), z (forward) in the rig frame. */
+static void camera_rotation(int k, double r[9])
+{
+    rs_v3 x, y, z;
+    if (k < 5) {
+        double yaw = k * 72 * M_PI / 180;
+        z = rs_v3_make(cos(yaw), sin(yaw), 0);
+        x = rs_v3_make(sin(yaw), -cos(yaw), 0);
+        y = rs_v3_make(0, 0, -1);
+    } else {
+        z = rs_v3_make(0, 0, 1);
+        x = rs_v3_make(0, -1, 0);
+        y = rs_v3_make(1, 0, 0);
+    }
+    double m[9] = {x.x, y.x, z.x, x.y, y.y, z.y, x.z, y.z, z.z};
+    memcpy(r, m, sizeof m);
+}
+
+static void write_rig_file(const char *path, int count_declared)
+{
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fprintf(f, "%%YAML:1.0\n---\ncamera_count: %d\ncameras:\n", count_declared);
+    for (int k = 0; k < NCAM; k++) {
+        double r[9];
+        camera_rotation(k, r);
+        int fish = k == 5;
+        fprintf(f, "   - name: cam%d\n     image_width: %d\n     image_height: %d\n     model: %s\n", k,
+                640, fish ? 640 : 512, fish ? "fisheye" : "pinhole");
+        fprintf(f, "     camera_matrix: !!opencv-matrix\n        rows: 3\n        cols: 3\n        dt: d\n"
+                   "        data: [ %.1f, 0., 319.5, 0., %.1f, %.1f, 0., 0., 1. ]\n",
+                fish ? 200.0 : 300.0, fish ? 200.0 : 300.0, fish ? 319.5 : 255.5);
+        if (fish)
+            fprintf(f, "     distortion_coefficients: !!opencv-matrix\n        rows: 1\n        cols: 4\n        dt: d\n"
+                       "        data: [ 0.02, -0.004, 0.0005, 0. ]\n");
+        else
+            fprintf(f, "     distortion_coefficients: !!opencv-matrix\n        rows: 1\n        cols: 5\n        dt: d\n"
+                       "        data: [ -0.08, 0.01, 0.0005, -0.0003, 0. ]\n");
+        fprintf(f, "     R_rig_cam: !!opencv-matrix\n        rows: 3\n        cols: 3\n        dt: d\n        data: [ ");
+        for (int i = 0; i < 9; i++) fprintf(f, "%.17g%s", r[i], i < 8 ? ", " : " ]\n");
+        fprintf(f, "     t_rig_cam: !!opencv-matrix\n        rows: 3\n        cols: 1\n        dt: d\n"
+                   "        data: [ %g, %g, 0.05 ]\n", 0.04 * cos(k * 1.2566), 0.04 * sin(k * 1.2566));
+    }
+    fclose(f);
+}
+
+/* Renders camera k's frame from the known panorama (bilinear), times its gain. */
+static void write_frames(const char *dir, const rs_rig *rig, const rs_image *truth, double *gains)
+{
+    double prod = 1;
+    for (int k = 0; k < NCAM - 1; k++) prod *= true_gain[k];
+    for (int k = 0; k < NCAM; k++) gains[k] = k < NCAM - 1 ? true_gain[k] : 1 / prod;
+    for (int k = 0; k < NCAM; k++) {
+        const rs_rig_camera *c = &rig->cams[k];
+        rs_image *img = rs_image_new(c->width, c->height, 3);
+        for (int y = 0; y < c->height; y++)
+            for (int x = 0; x < c->width; x++) {
+                rs_v3 d;
+                float *px = rs_image_px(img, x, y);
+                if (!rs_rig_unproject(c, x, y, &d)) continue;   /* outside the lens's usable field: black */
+                double u, v;
+                rs_pano_dir_to_uv(rs_m3_mul_v(c->r_rig_cam, d), &u, &v);
+                rs_pano_sample(truth, u, v, px);
+                for (int ch = 0; ch < 3; ch++) px[ch] = (float)(px[ch] * gains[k]);
+            }
+        char name[32];
+        snprintf(name, sizeof name, "cam%d.exr", k);
+        rs_err err;
+        static const char *const names[] = {"R", "G", "B"};
+        assert_int_equal(rs_image_write_exr(img, rs_test_path(dir, name), names, 0, NULL, &err), 0);
+        rs_image_free(img);
+    }
+}
+
+static int run_calib(const char *config, char **out)
+{
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "'%s/rhoscan-calib' '%s'", rs_test_bin_dir(), config);
+    return rs_test_run(cmd, out);
+}
+
+static void write_config(const char *dir, const char *frames, const char *extra)
+{
+    char text[4096];
+    snprintf(text, sizeof text,
+             "[pipeline]\nworkdir = out\n[rig]\nfile = rig.yaml\nframes = %s\nwidth = %d\n%s\n", frames, PANO_W,
+             extra ? extra : "");
+    rs_test_write(rs_test_path(dir, "calib.ini"), text);
+}
+
+static void expect_failure(const char *dir, const char *needle)
+{
+    char *out = NULL;
+    int rc = run_calib(rs_test_path(dir, "calib.ini"), &out);
+    print_message("exit %d: %s", rc, out);
+    assert_int_equal(rc, 1);
+    assert_non_null(strstr(out, needle));
+    free(out);
+}
+
+static void test_stitch_and_register(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("calib");
+    rs_image *truth = rs_image_new(PANO_W, PANO_W / 2, 3);
+    for (int r = 0; r < PANO_W / 2; r++)
+        for (int c = 0; c < PANO_W; c++)
+            for (int ch = 0; ch < 3; ch++)
+                rs_image_px(truth, c, r)[ch] = truth_value(rs_pano_pixel_dir(PANO_W, PANO_W / 2, c, r), ch);
+    write_rig_file(rs_test_path(dir, "rig.yaml"), NCAM);
+    rs_rig rig;
+    rs_err err = {0};
+    assert_int_equal(rs_rig_load(rs_test_path(dir, "rig.yaml"), &rig, &err), 0);
+    double gains[NCAM];
+    write_frames(dir, &rig, truth, gains);
+    const char *frames = "cam0.exr cam1.exr cam2.exr cam3.exr cam4.exr cam5.exr";
+
+    /* Pairs: 20 points 15-25 m away seen from a known pose, plus 4 wrong pairs. */
+    rs_pose pose;
+    double w[3] = {0.1, -0.05, 0.7};
+    rs_calib_rot_exp(w, pose.rot);
+    pose.position = rs_v3_make(12, -4, 1.6);
+    FILE *f = fopen(rs_test_path(dir, "pairs.txt"), "w");
+    fprintf(f, "# column row X Y Z\n");
+    srand(3);
+    for (int i = 0; i < 24; i++) {
+        rs_v3 dl = rs_v3_norm(rs_v3_make(rand() / (double)RAND_MAX - 0.5, rand() / (double)RAND_MAX - 0.5,
+                                         0.5 * (rand() / (double)RAND_MAX - 0.5)));
+        rs_v3 x = rs_v3_add(pose.position, rs_v3_scale(rs_pose_dir_to_world(&pose, dl), 15 + 10.0 * rand() / RAND_MAX));
+        double u, v;
+        rs_pano_dir_to_uv(dl, &u, &v);
+        if (i >= 20) u = fmod(u + 0.3, 1.0);   /* outliers */
+        fprintf(f, "%.4f %.4f %.6f %.6f %.6f\n", u * PANO_W - 0.5, v * PANO_W / 2 - 0.5, x.x, x.y, x.z);
+    }
+    fclose(f);
+    write_config(dir, frames, "[capture]\ncorrespondences = pairs.txt\nposition = 11 -3 1\n");
+    char *out = NULL;
+    int rc = run_calib(rs_test_path(dir, "calib.ini"), &out);
+    print_message("%s", out);
+    assert_int_equal(rc, 0);
+    free(out);
+
+    /* The stitched panorama against the known one, leaving out pixels that any camera sees
+     * within 8 px of its image border, and those no camera sees. */
+    rs_image *pano = rs_image_read(rs_test_path(dir, "out/" RS_CALIB_PANO_FILE), &err);
+    assert_non_null(pano);
+    assert_int_equal(pano->width, PANO_W);
+    double se = 0, only_sum[NCAM][2] = {{0}};
+    long used = 0, uncovered = 0;
+    for (int r = 0; r < pano->height; r++)
+        for (int c = 0; c < pano->width; c++) {
+            rs_v3 d = rs_pano_pixel_dir(PANO_W, PANO_W / 2, c, r);
+            int near_border = 0, seen = 0, only = -1;
+            for (int k = 0; k < NCAM; k++) {
+                double x, y;
+                if (!rs_rig_project(&rig.cams[k], rs_m3_mul_vt(rig.cams[k].r_rig_cam, d), &x, &y, NULL)) continue;
+                only = seen ? -2 : k;
+                seen = 1;
+                if (x < 8 || y < 8 || x > rig.cams[k].width - 9 || y > rig.cams[k].height - 9) near_border = 1;
+            }
+            const float *p = rs_image_px(pano, c, r);
+            if (!seen) {
+                assert_true(isnan(p[0]));
+                uncovered++;
+                continue;
+            }
+            if (near_border) continue;
+            if (only >= 0)
+                for (int ch = 0; ch < 3; ch++) {
+                    only_sum[only][0] += p[ch];
+                    only_sum[only][1] += rs_image_px(truth, c, r)[ch];
+                }
+            for (int ch = 0; ch < 3; ch++) {
+                double e = p[ch] - rs_image_px(truth, c, r)[ch];
+                se += e * e;
+            }
+            used++;
+        }
+    double psnr = 10 * log10(1.0 / (se / (3.0 * used)));
+    print_message("stitch: PSNR %.2f dB over %ld pixels (%.1f %% of the panorama); %ld pixels unseen\n", psnr, used,
+                  100.0 * used / (PANO_W * PANO_W / 2), uncovered);
+    assert_true(psnr >= 35);
+    /* Where one camera alone sees, the stitched radiance is the truth: its gain was divided out
+     * (without the correction the ratio would be the gain, 0.97 to 1.03). */
+    for (int k = 0; k < NCAM; k++) {
+        double ratio = only_sum[k][0] / only_sum[k][1];
+        print_message("cam%d: gain %.4f, stitched / truth where it sees alone %.5f\n", k, gains[k], ratio);
+        assert_true(fabs(ratio - 1) < 0.002);
+    }
+    assert_true(used > PANO_W * PANO_W / 2 / 2);
+
+    /* The pose, and what rs_capture_load gives the later stages. */
+    rs_config *cfg = rs_config_load(rs_test_path(dir, "calib.ini"), NULL, &err);
+    assert_non_null(cfg);
+    rs_capture cap;
+    assert_int_equal(rs_capture_load(cfg, "capture", &cap, &err), 0);
+    assert_int_equal(cap.pano->width, PANO_W);
+    print_message("pose: %.6f m, %.6f deg from the truth\n", rs_v3_len(rs_v3_sub(cap.pose.position, pose.position)),
+                  rs_calib_rot_angle(cap.pose.rot, pose.rot) * 180 / M_PI);
+    assert_true(rs_v3_len(rs_v3_sub(cap.pose.position, pose.position)) < 0.005);
+    assert_true(rs_calib_rot_angle(cap.pose.rot, pose.rot) * 180 / M_PI < 0.01);
+    rs_capture_release(&cap);
+    rs_config_free(cfg);
+
+    /* Failures. */
+    write_config(dir, "cam0.exr cam1.exr cam2.exr cam3.exr cam4.exr", NULL);
+    expect_failure(dir, "[rig] frames lists 5 images but");
+    write_config(dir, "cam0.exr cam1.exr cam2.exr cam3.exr cam5.exr cam4.exr", NULL);
+    expect_failure(dir, "frame is 640 x 640 but camera 4 (cam4)");
+    write_config(dir, frames, "[capture]\npanorama = cam0.exr\n");
+    expect_failure(dir, "both [rig] file and [capture] panorama are set");
+    write_rig_file(rs_test_path(dir, "rig.yaml"), 5);
+    write_config(dir, frames, NULL);
+    expect_failure(dir, "camera_count is 5 but 6 cameras are listed");
+    rs_test_write(rs_test_path(dir, "few.txt"), "1 2 3 4 5\n6 7 8 9 10\n");
+    write_rig_file(rs_test_path(dir, "rig.yaml"), NCAM);
+    write_config(dir, frames, "[capture]\ncorrespondences = few.txt\n");
+    expect_failure(dir, "2 correspondences: expected at least 4");
+
+    rs_rig_release(&rig);
+    rs_image_free(pano);
+    rs_image_free(truth);
+    rs_test_rmtree(dir);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {cmocka_unit_test(test_stitch_and_register)};
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
