@@ -101,6 +101,20 @@ int rs_render_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         rs_err_set(err, RS_ERR_INPUT, idp, 0, "does not match the panorama's size (rerun observe)");
         goto out;
     }
+    /* An estimate of 1 or more (the direct method in a concave corner, or a facet with too
+     * little light) is not a physical albedo, and with it the forward model has no finite
+     * solution: render with it capped just below 1, and say how many were. */
+    const double rho_max = 0.999;
+    size_t capped = 0;
+    for (size_t i = 0; i < 3 * nf; i++)
+        if (!(rho[i] <= rho_max)) {
+            rho[i] = isfinite(rho[i]) || rho[i] > 0 ? rho_max : 0;
+            capped++;
+        }
+    if (capped)
+        rs_report_skip(rep, "albedo above 1", "%zu facet channels capped at %.3f for the forward model", capped,
+                       rho_max);
+    rs_json_set_int(rep->metrics, "albedo_channels_capped", (long long)capped);
     double residual, t0 = rs_now();
     int iters = rs_transport_solve(K, rho, esky, L, G, rs_config_real(cfg, "render", "tolerance"),
                               (int)rs_config_int(cfg, "render", "max_iterations"), &residual);
