@@ -2,10 +2,12 @@
 """plot: SVG plots of rhoscan-bench's CSV, standard library only.
 
   bench/plot.py bench.csv OUTDIR
-writes OUTDIR/time_vs_error.svg (total time of observe + irradiance + reflectance + render
+writes OUTDIR/time_vs_error.svg (CPU time of observe + irradiance + reflectance + render
 against the albedo error, one colour per facet count, the Pareto front of each count joined
-and ringed) and OUTDIR/scaling.svg (time per stage against facet count, log-log, rows named
-'scale' or 'default').
+and ringed), OUTDIR/scaling.svg (CPU time per stage against facet count, log-log, rows named
+'scale' or 'default') and OUTDIR/tables.md (every row as a markdown table).
+CPU time (user + system of the stage programs) is plotted because wall time on a shared
+machine measures the other jobs too; both are in the tables.
 """
 import csv, math, sys
 
@@ -68,10 +70,14 @@ def pareto(points):
     return front
 
 
+def cpu_total(r):
+    return r['cpu_observe'] + r['cpu_irradiance'] + r['cpu_reflectance'] + r['cpu_render']
+
+
 def time_vs_error(rows, path):
-    pts = [r for r in rows if r['albedo_err'] == r['albedo_err']]
-    out, X, Y = svg_frame('Run time against albedo error (observe + irradiance + reflectance + render)',
-                          'wall time (s), log', 'albedo error (area-weighted mean relative), log',
+    pts = [dict(r, t_total=cpu_total(r)) for r in rows if r['albedo_err'] == r['albedo_err']]
+    out, X, Y = svg_frame('CPU time against albedo error (observe + irradiance + reflectance + render)',
+                          'CPU time (s), log', 'albedo error (area-weighted mean relative), log',
                           span([r['t_total'] for r in pts], True), span([r['albedo_err'] for r in pts], True), True, True)
     for k, n in enumerate(sorted({r['facets'] for r in pts})):
         c = COLOURS[k % len(COLOURS)]
@@ -95,10 +101,10 @@ def time_vs_error(rows, path):
 
 
 def scaling(rows, path):
-    pts = [r for r in rows if r['row'] in ('scale', 'default')]
-    stages = ['t_observe', 't_irradiance', 't_reflectance', 't_render', 't_total']
+    pts = [dict(r, cpu_total=cpu_total(r)) for r in rows if r['row'] in ('scale', 'default')]
+    stages = ['cpu_observe', 'cpu_irradiance', 'cpu_reflectance', 'cpu_render', 'cpu_total']
     vals = [r[s] for r in pts for s in stages if r[s] > 0]
-    out, X, Y = svg_frame('Stage wall time against facet count (log-log)', 'facets', 'wall time (s)',
+    out, X, Y = svg_frame('Stage CPU time against facet count (log-log)', 'facets', 'CPU time (s)',
                           span([r['facets'] for r in pts], True), span(vals, True), True, True)
     for k, s in enumerate(stages):
         c = COLOURS[k % len(COLOURS)]
@@ -112,11 +118,25 @@ def scaling(rows, path):
                 out.append('<circle cx="%.1f" cy="%.1f" r="3" fill="%s"/>' % (X(n), Y(t), c))
         y = T + 16 * (k + 1)
         out.append('<line x1="%d" y1="%d" x2="%d" y2="%d" stroke="%s" stroke-width="2"/><text x="%d" y="%d">%s</text>' %
-                   (W - R + 8, y - 4, W - R + 22, y - 4, c, W - R + 27, y, s[2:]))
+                   (W - R + 8, y - 4, W - R + 22, y - 4, c, W - R + 27, y, s[4:]))
     y = T + 16 * (len(stages) + 2)
     out.append('<text x="%d" y="%d" font-size="10">solid: row scale</text>' % (W - R + 8, y))
     out.append('<text x="%d" y="%d" font-size="10">dashed: row default</text>' % (W - R + 8, y + 14))
     out.append('</svg>')
+    open(path, 'w').write('\n'.join(out) + '\n')
+
+
+def tables(rows, path):
+    head = ('| facets | row | samples / sky / sun | extra | CPU s (obs + irr + refl + render) | wall s | '
+            'peak MB | rays (irradiance) | Mrays per CPU-s (irradiance) | albedo error | p90 | E error |')
+    out = [head, '|' + ' --- |' * 12]
+    for r in rows:
+        out.append('| %d | %s | %d / %d / %d | %s | %.2f (%.2f + %.2f + %.2f + %.2f) | %.1f | %.0f | %.3g | %.2f | %.4f | %.4f | %.4f |' % (
+            r['facets'], r['row'] if r['method'] == 'interreflection' else r['row'] + ' (' + r['method'] + ')',
+            r['samples'], r['sky_samples'], r['sun_samples'], r['extra'], cpu_total(r), r['cpu_observe'],
+            r['cpu_irradiance'], r['cpu_reflectance'], r['cpu_render'], r['t_total'], r['peak_mb'], r['rays'],
+            r['rays'] / r['cpu_irradiance'] / 1e6 if r['cpu_irradiance'] > 0 else 0, r['albedo_err'],
+            r['albedo_err_p90'], r['irradiance_err']))
     open(path, 'w').write('\n'.join(out) + '\n')
 
 
@@ -131,6 +151,7 @@ def main():
         rows.append(r)
     time_vs_error(rows, sys.argv[2] + '/time_vs_error.svg')
     scaling(rows, sys.argv[2] + '/scaling.svg')
+    tables(rows, sys.argv[2] + '/tables.md')
 
 
 if __name__ == '__main__':
