@@ -3,6 +3,8 @@
  * distribution", Solar Energy 50(3); starts from CIE S 011/E:2003 standard skies. */
 #include "skymodel.h"
 
+#include "linsolve.h"
+
 #include <float.h>
 #include <stdlib.h>
 #include <string.h>
@@ -57,38 +59,6 @@ static void sh_eval(int order, rs_v3 d, double *y)
                 y[l * l + l - m] = 1.4142135623730951 * K * P[l][m] * sin(m * phi);
             }
         }
-}
-
-/* Solves A x = b (n x n, A overwritten) by Gaussian elimination with partial pivoting;
- * returns -1 when singular. */
-static int solve(double *A, double *b, int n)
-{
-    for (int c = 0; c < n; c++) {
-        int p = c;
-        for (int r = c + 1; r < n; r++)
-            if (fabs(A[r * n + c]) > fabs(A[p * n + c])) p = r;
-        if (!(fabs(A[p * n + c]) > 1e-300)) return -1;
-        if (p != c) {
-            for (int k = 0; k < n; k++) {
-                double t = A[c * n + k];
-                A[c * n + k] = A[p * n + k];
-                A[p * n + k] = t;
-            }
-            double t = b[c];
-            b[c] = b[p];
-            b[p] = t;
-        }
-        for (int r = c + 1; r < n; r++) {
-            double f = A[r * n + c] / A[c * n + c];
-            for (int k = c; k < n; k++) A[r * n + k] -= f * A[c * n + k];
-            b[r] -= f * b[c];
-        }
-    }
-    for (int c = n - 1; c >= 0; c--) {
-        for (int k = c + 1; k < n; k++) b[c] -= A[c * n + k] * b[k];
-        b[c] /= A[c * n + c];
-    }
-    return 0;
 }
 
 /* Per-sample data of one channel's fit. */
@@ -178,7 +148,7 @@ static double lm_fit(const fitpt *pt, size_t n, double *q, double *res, double *
             memcpy(A, JtJ, sizeof A);
             memcpy(step, Jtr, sizeof step);
             for (int a = 0; a < NPAR; a++) A[a * NPAR + a] += lambda * (JtJ[a * NPAR + a] + 1e-12);
-            if (solve(A, step, NPAR) == 0) {
+            if (rs_solve_dense(A, step, NPAR) == 0) {
                 for (int a = 0; a < NPAR; a++) qn[a] = q[a] + step[a];
                 clamp_params(qn);
                 double cn = cost(pt, n, qn, NULL, pr);
@@ -253,7 +223,7 @@ static void sh_fit_channel(const rs_skysample *s, size_t n, const double *res, c
             A[(l * l + l + m) * nc + l * l + l + m] += pen * sw;
         }
     memset(coef, 0, NSH * sizeof *coef);
-    if (solve(A, b, nc) == 0)
+    if (rs_solve_dense(A, b, (size_t)nc) == 0)
         for (int a = 0; a < nc; a++) coef[a] = b[a];
 }
 

@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include "linsolve.h"
 #include "vec.h"
 
 #define MIN_RIM_SHARE 0.8        /* of the columns must have a point below the scanner */
@@ -15,32 +16,16 @@ static double elevation(rs_v3 d) { return atan2(d.z, sqrt(d.x * d.x + d.y * d.y)
 /* Least-squares plane z = k[0] x + k[1] y + k[2] through n points; 0 on success. */
 static int fit_plane(const rs_v3 *p, size_t n, double k[3])
 {
-    double A[3][4] = {{0}};
+    double A[9] = {0};
+    k[0] = k[1] = k[2] = 0;
     for (size_t i = 0; i < n; i++) {
         double r[3] = {p[i].x, p[i].y, 1};
         for (int a = 0; a < 3; a++) {
-            for (int b = 0; b < 3; b++) A[a][b] += r[a] * r[b];
-            A[a][3] += r[a] * p[i].z;
+            for (int b = 0; b < 3; b++) A[3 * a + b] += r[a] * r[b];
+            k[a] += r[a] * p[i].z;
         }
     }
-    for (int col = 0; col < 3; col++) {         /* Gauss-Jordan with partial pivoting */
-        int piv = col;
-        for (int r = col + 1; r < 3; r++)
-            if (fabs(A[r][col]) > fabs(A[piv][col])) piv = r;
-        if (fabs(A[piv][col]) < 1e-12) return -1;
-        for (int c = 0; c < 4; c++) {
-            double t = A[col][c];
-            A[col][c] = A[piv][c];
-            A[piv][c] = t;
-        }
-        for (int r = 0; r < 3; r++) {
-            if (r == col) continue;
-            double f = A[r][col] / A[col][col];
-            for (int c = col; c < 4; c++) A[r][c] -= f * A[col][c];
-        }
-    }
-    for (int a = 0; a < 3; a++) k[a] = A[a][3] / A[a][a];
-    return 0;
+    return rs_solve_dense(A, k, 3);
 }
 
 rs_mesh *rs_nadir_cap(const rs_cloud *c, int s, double max_rms_m, rs_nadir_stats *st, rs_err *err)

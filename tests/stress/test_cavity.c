@@ -1,6 +1,7 @@
 /* test_cavity: a nearly closed box (one cell of its lid missing) under a uniform white sky, with
  * albedo 0.5, 0.9 and 0.99 (one per colour channel): the forward solve converges to the direct
  * solution, and the reflectance stage, given the radiance of that solution, returns the albedo. */
+#include "linsolve.h"
 #include "stress.h"
 
 #define NCELL 6                /* cells per side of the unit box */
@@ -41,32 +42,8 @@ static void direct_solve(const rs_transport *K, const double *rho, const double 
         for (size_t e = K->row_start[i]; e < K->row_start[i + 1]; e++) A[i * n + K->col[e]] -= p * K->k[e];
         b[i] = p * esky[3 * i + ch];
     }
-    for (size_t c = 0; c < n; c++) {
-        size_t piv = c;
-        for (size_t r = c + 1; r < n; r++)
-            if (fabs(A[r * n + c]) > fabs(A[piv * n + c])) piv = r;
-        if (piv != c) {
-            for (size_t k = 0; k < n; k++) {
-                double t = A[c * n + k];
-                A[c * n + k] = A[piv * n + k];
-                A[piv * n + k] = t;
-            }
-            double t = b[c];
-            b[c] = b[piv];
-            b[piv] = t;
-        }
-        for (size_t r = c + 1; r < n; r++) {
-            double f = A[r * n + c] / A[c * n + c];
-            if (f == 0) continue;
-            for (size_t k = c; k < n; k++) A[r * n + k] -= f * A[c * n + k];
-            b[r] -= f * b[c];
-        }
-    }
-    for (size_t r = n; r-- > 0;) {
-        double s = b[r];
-        for (size_t k = r + 1; k < n; k++) s -= A[r * n + k] * L[3 * k + ch];
-        L[3 * r + ch] = s / A[r * n + r];
-    }
+    assert_int_equal(rs_solve_dense(A, b, n), 0);
+    for (size_t r = 0; r < n; r++) L[3 * r + ch] = b[r];
     free(A);
     free(b);
 }
