@@ -10,6 +10,8 @@
 #include "fileio.h"
 
 #define SCAN_COMMENT "rhoscan_scan"
+#define ORIGIN_COMMENT "rhoscan_origin"
+#define VIEWPOINT_COMMENT "rhoscan_viewpoint"
 
 void rs_cloud_free(rs_cloud *c)
 {
@@ -61,16 +63,55 @@ int rs_cloud_append(rs_cloud *dst, const rs_cloud *src, rs_err *err)
     rs_scan *scans = realloc(dst->scans, (size_t)(dst->nscans + src->nscans + 1) * sizeof *scans);
     if (!scans) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
     dst->scans = scans;
-    memcpy(dst->xyz + 3 * n0, src->xyz, 3 * src->npoints * sizeof *src->xyz);
+    /* Into dst's frame: the two origins may differ (world = xyz + origin on both sides). */
+    double shift[3];
+    for (int j = 0; j < 3; j++) shift[j] = src->origin[j] - dst->origin[j];
+    for (size_t i = 0; i < 3 * src->npoints; i++) dst->xyz[3 * n0 + i] = src->xyz[i] + shift[i % 3];
     memcpy(dst->valid + n0, src->valid, src->npoints);
     if (src->intensity) memcpy(dst->intensity + n0, src->intensity, src->npoints * sizeof *src->intensity);
     if (src->rgb) memcpy(dst->rgb + 3 * n0, src->rgb, 3 * src->npoints);
     for (int s = 0; s < src->nscans; s++) {
         dst->scans[dst->nscans] = src->scans[s];
+        for (int j = 0; j < 3; j++) dst->scans[dst->nscans].position[j] += shift[j];
         dst->scans[dst->nscans++].first += n0;
+    }
+    if (src->has_viewpoint && !dst->has_viewpoint) {
+        dst->has_viewpoint = 1;
+        for (int j = 0; j < 3; j++) dst->viewpoint[j] = src->viewpoint[j] + shift[j];
     }
     dst->npoints = total;
     return 0;
+}
+
+int rs_cloud_recentre(rs_cloud *c, double limit_m)
+{
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t i = 0; i < c->npoints; i++)
+        if (c->valid[i])
+            for (int j = 0; j < 3; j++) {
+                lo[j] = fmin(lo[j], c->xyz[3 * i + j]);
+                hi[j] = fmax(hi[j], c->xyz[3 * i + j]);
+            }
+    for (int s = 0; s < c->nscans; s++)
+        for (int j = 0; j < 3; j++) {
+            lo[j] = fmin(lo[j], c->scans[s].position[j]);
+            hi[j] = fmax(hi[j], c->scans[s].position[j]);
+        }
+    int far = 0;
+    for (int j = 0; j < 3; j++) far |= lo[j] <= hi[j] && fmax(fabs(lo[j]), fabs(hi[j])) > limit_m;
+    if (!far) return 0;
+    /* Whole metres: the offset reads back exactly and points keep their sub-metre digits. */
+    double shift[3];
+    for (int j = 0; j < 3; j++) shift[j] = lo[j] <= hi[j] ? floor(0.5 * (lo[j] + hi[j]) + 0.5) : 0;
+    for (size_t i = 0; i < c->npoints; i++)
+        for (int j = 0; j < 3; j++) c->xyz[3 * i + j] -= shift[j];
+    for (int s = 0; s < c->nscans; s++)
+        for (int j = 0; j < 3; j++) c->scans[s].position[j] -= shift[j];
+    for (int j = 0; j < 3; j++) {
+        if (c->has_viewpoint) c->viewpoint[j] -= shift[j];
+        c->origin[j] += shift[j];
+    }
+    return 1;
 }
 
 rs_cloud *rs_cloud_read(const char *path, rs_err *err)
@@ -145,6 +186,12 @@ int rs_cloud_write_ply(const rs_cloud *c, const char *path, rs_err *err)
                                sc->position[0], sc->position[1], sc->position[2]) != 0)
             goto nomem;
     }
+    if ((c->origin[0] != 0 || c->origin[1] != 0 || c->origin[2] != 0) &&
+        rs_ply_add_comment(ply, ORIGIN_COMMENT " %.17g %.17g %.17g", c->origin[0], c->origin[1], c->origin[2]) != 0)
+        goto nomem;
+    if (c->has_viewpoint && rs_ply_add_comment(ply, VIEWPOINT_COMMENT " %.17g %.17g %.17g", c->viewpoint[0],
+                                               c->viewpoint[1], c->viewpoint[2]) != 0)
+        goto nomem;
     rs_ply_element *el = rs_ply_add_element(ply, "vertex", nvalid);
     if (!el || !rs_ply_add_scalar(el, "x", RS_PLY_FLOAT64, x) || !rs_ply_add_scalar(el, "y", RS_PLY_FLOAT64, y) ||
         !rs_ply_add_scalar(el, "z", RS_PLY_FLOAT64, z))
@@ -237,6 +284,28 @@ rs_cloud *rs_cloud_from_ply(const rs_ply *ply, const char *name, rs_err *err)
     }
     int nscans = read_scan_comments(ply, name, &c->scans, err);
     if (nscans < 0) goto fail;
+    const char *origin = rs_ply_find_comment(ply, ORIGIN_COMMENT);
+    if (origin) {
+        int used = 0;
+        if (sscanf(origin, "%lf %lf %lf %n", c->origin, c->origin + 1, c->origin + 2, &used) != 3 ||
+            origin[used] != '\0' || !isfinite(c->origin[0]) || !isfinite(c->origin[1]) || !isfinite(c->origin[2])) {
+            rs_err_set(err, RS_ERR_INPUT, name, 0, "comment \"" ORIGIN_COMMENT " %.200s\": expected three finite "
+                       "numbers (the offset added to every coordinate)", origin);
+            goto fail;
+        }
+    }
+    const char *vp = rs_ply_find_comment(ply, VIEWPOINT_COMMENT);
+    if (vp) {
+        int used = 0;
+        if (sscanf(vp, "%lf %lf %lf %n", c->viewpoint, c->viewpoint + 1, c->viewpoint + 2, &used) != 3 ||
+            vp[used] != '\0' || !isfinite(c->viewpoint[0]) || !isfinite(c->viewpoint[1]) ||
+            !isfinite(c->viewpoint[2])) {
+            rs_err_set(err, RS_ERR_INPUT, name, 0, "comment \"" VIEWPOINT_COMMENT " %.200s\": expected three finite "
+                       "numbers (the scanner centre)", vp);
+            goto fail;
+        }
+        c->has_viewpoint = 1;
+    }
     const double *scan = scalar(el, "scan"), *row = scalar(el, "row"), *col = scalar(el, "col");
     if (nscans > 0 && (!scan || !row || !col)) {
         rs_err_set(err, RS_ERR_INPUT, name, 0, "the file describes %d scan grid(s) but its vertices lack scan, row "

@@ -24,6 +24,10 @@ typedef struct rs_cloud {
     uint8_t *valid;            /* npoints: 0 for no-return points (0 0 0 in PTX) */
     int nscans;                /* 0 for an unorganized cloud */
     rs_scan *scans;
+    double origin[3];          /* world = xyz + origin (m): non-zero once georeferenced
+                                  coordinates were recentred (rs_cloud_recentre) */
+    int has_viewpoint;         /* the unorganized points' scanner centre is known */
+    double viewpoint[3];       /* it, in the frame of xyz (normals are turned toward it) */
 } rs_cloud;
 
 void rs_cloud_free(rs_cloud *c);          /* NULL is fine */
@@ -36,6 +40,19 @@ int rs_cloud_append(rs_cloud *dst, const rs_cloud *src, rs_err *err);
 /* Points that belong to no scan (an unorganized part of the cloud). */
 size_t rs_cloud_unorganized(const rs_cloud *c);
 
+/* Georeferenced coordinates (some |coordinate| of a valid point or scanner above limit_m,
+ * e.g. 1e4 m) lose millimetres in float: moves points and scanner positions by the whole
+ * metres of their bounding box centre, adding that to c->origin. Returns 1 when moved, 0 when
+ * not needed. Done in double before any float geometry (PCL, Embree, mesh.ply). */
+int rs_cloud_recentre(rs_cloud *c, double limit_m);
+
+/* Reads an XYZ/CSV text cloud: one point per line, numbers separated by white space, commas
+ * or semicolons; lines starting with # or // and a first line that is not numeric (a header)
+ * are skipped. columns names each column in order: x y z intensity r g b (or red green blue),
+ * nx ny nz and "-" (ignored); NULL means "x y z". Colours above 1 anywhere are 0..255, else
+ * 0..1. Errors name the file, line and column. Gives an unorganized cloud. */
+rs_cloud *rs_cloud_read_text(const char *path, const char *columns, rs_err *err);
+
 /* Leica PTX with one or more scans (DESIGN.md section 3): the 4x4 matrix (row-vector form,
  * may hold a scale) is applied to every point; the position line is the scanner centre in the
  * registered frame already and is kept as it is (not transformed).
@@ -45,7 +62,9 @@ rs_cloud *rs_ptx_read_mem(const char *data, size_t size, const char *name, rs_er
 
 /* cloud.ply: valid points only, vertex properties x y z (double), intensity, red green blue
  * (when present), and for organized scans scan, row, col (int); each scan's grid and scanner
- * position in a comment "rhoscan_scan INDEX COLS ROWS PX PY PZ". Reading a PLY written by
+ * position in a comment "rhoscan_scan INDEX COLS ROWS PX PY PZ", and a non-zero origin in
+ * "rhoscan_origin OX OY OZ" (world = x + OX, ...; positions are in the same local frame), and
+ * the unorganized points' scanner in "rhoscan_viewpoint X Y Z". Reading a PLY written by
  * other software gives an unorganized cloud. */
 int rs_cloud_write_ply(const rs_cloud *c, const char *path, rs_err *err);
 rs_cloud *rs_cloud_read_ply(const char *path, rs_err *err);

@@ -1,11 +1,154 @@
-/* ingest: the ingest stage. Reads the [ingest] scan files (PTX or PLY, told apart by
- * content) into one cloud and writes cloud.ply. Exports rs_ingest_run. */
+/* ingest: the ingest stage. Reads the [ingest] scan files (PTX, PLY, PCD, XYZ/CSV) into one
+ * cloud, recentres georeferenced coordinates, cleans unorganized points (outlier removal,
+ * voxel downsampling, PCL) and writes cloud.ply. Exports rs_ingest_run. */
 #include "stages.h"
 
 #include <stdlib.h>
+#include <string.h>
+#include <strings.h>
 
 #include "cloud.h"
+#include "fileio.h"
 #include "log.h"
+#include "pcl_bridge.h"
+
+/* By extension for the text and PCD formats (a text cloud cannot be told from a PTX by its
+ * first lines), else by content: "ply" magic or PTX. */
+static rs_cloud *read_any(const rs_config *cfg, const char *path, const char **kind, rs_err *err)
+{
+    const char *dot = strrchr(path, '.');
+    if (dot && strcasecmp(dot, ".pcd") == 0) {
+        *kind = "PCD";
+        return rs_pcl_read_pcd(path, err);
+    }
+    if (dot && (strcasecmp(dot, ".xyz") == 0 || strcasecmp(dot, ".txt") == 0 || strcasecmp(dot, ".csv") == 0 ||
+                strcasecmp(dot, ".pts") == 0)) {
+        *kind = "text";
+        return rs_cloud_read_text(path, rs_config_string(cfg, "ingest", "columns"), err);
+    }
+    *kind = dot && strcasecmp(dot, ".ply") == 0 ? "PLY" : "PTX or PLY";
+    return rs_cloud_read(path, err);
+}
+
+/* Indices of the valid points outside every scan grid, as floats for PCL. */
+static float *loose_points(const rs_cloud *c, size_t *n, size_t **index)
+{
+    size_t first_loose = c->npoints - rs_cloud_unorganized(c), k = 0;
+    for (size_t i = first_loose; i < c->npoints; i++) k += c->valid[i] != 0;
+    float *xyz = malloc((k ? k : 1) * 3 * sizeof *xyz);
+    *index = malloc((k ? k : 1) * sizeof **index);
+    if (!xyz || !*index) {
+        free(xyz);
+        free(*index);
+        *index = NULL;
+        return NULL;
+    }
+    k = 0;
+    for (size_t i = first_loose; i < c->npoints; i++) {
+        if (!c->valid[i]) continue;
+        for (int j = 0; j < 3; j++) xyz[3 * k + j] = (float)c->xyz[3 * i + j];
+        (*index)[k++] = i;
+    }
+    *n = k;
+    return xyz;
+}
+
+/* Statistical outlier removal, then voxel downsampling, of the unorganized points. Scan grids
+ * are left alone: the grid mesher cuts their outliers at depth jumps, and thinning a grid
+ * would break it. */
+static int clean(const rs_config *cfg, rs_cloud *c, rs_report *rep, rs_err *err)
+{
+    size_t n, *index = NULL;
+    float *xyz = loose_points(c, &n, &index);
+    if (!xyz) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+    int rc = -1;
+    uint8_t *keep = NULL;
+    float *vxyz = NULL, *vin = NULL;
+    uint8_t *vrgb = NULL;
+    long k = rs_config_int(cfg, "ingest", "outlier_neighbours");
+    size_t removed = 0;
+    if (n == 0) {
+        rc = 0;
+        goto out;
+    }
+    if (k > 0 && n > (size_t)k) {
+        double t0 = rs_now();
+        keep = malloc(n);
+        if (!keep) {
+            rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+            goto out;
+        }
+        if (rs_pcl_outliers(xyz, n, (int)k, rs_config_real(cfg, "ingest", "outlier_std"), keep, err) != 0) goto out;
+        size_t m = 0;
+        for (size_t i = 0; i < n; i++) {
+            if (!keep[i]) {
+                c->valid[index[i]] = 0;
+                removed++;
+                continue;
+            }
+            memcpy(xyz + 3 * m, xyz + 3 * i, 3 * sizeof *xyz);
+            index[m++] = index[i];
+        }
+        n = m;
+        rs_report_time(rep, "outliers", rs_now() - t0);
+        rs_log_info("statistical outlier removal (%ld neighbours, %g sigma): %zu of %zu unorganized points removed", k,
+                    rs_config_real(cfg, "ingest", "outlier_std"), removed, n + removed);
+    } else {
+        rs_report_skip(rep, "outlier removal", k > 0 ? "too few unorganized points" : "[ingest] outlier_neighbours = 0");
+    }
+    rs_json_set_int(rep->metrics, "outliers_removed", (long long)removed);
+
+    if (!rs_config_has(cfg, "ingest", "voxel_size")) {
+        rs_report_skip(rep, "voxel downsampling", "[ingest] voxel_size not set");
+        rc = 0;
+        goto out;
+    }
+    double t0 = rs_now(), leaf = rs_config_real(cfg, "ingest", "voxel_size");
+    float *in = NULL;
+    uint8_t *rgb = NULL;
+    if (c->intensity && !(in = malloc((n ? n : 1) * sizeof *in))) goto nomem;
+    if (c->rgb && !(rgb = malloc((n ? n : 1) * 3))) {
+        free(in);
+        goto nomem;
+    }
+    for (size_t i = 0; i < n; i++) {
+        if (in) in[i] = c->intensity[index[i]];
+        if (rgb) memcpy(rgb + 3 * i, c->rgb + 3 * index[i], 3);
+    }
+    size_t m;
+    int vr = rs_pcl_voxel(xyz, in, rgb, n, leaf, &m, &vxyz, &vin, &vrgb, err);
+    free(in);
+    free(rgb);
+    if (vr != 0) goto out;
+    /* The survivors replace the unorganized part: the first m of its slots get the centroids,
+     * the rest become invalid (cloud.ply writes valid points only). */
+    size_t first_loose = c->npoints - rs_cloud_unorganized(c);
+    for (size_t i = first_loose; i < c->npoints; i++) c->valid[i] = 0;
+    for (size_t i = 0; i < m; i++) {
+        size_t at = first_loose + i;
+        for (int j = 0; j < 3; j++) c->xyz[3 * at + j] = vxyz[3 * i + j];
+        if (c->intensity) c->intensity[at] = vin[i];
+        if (c->rgb) memcpy(c->rgb + 3 * at, vrgb + 3 * i, 3);
+        c->valid[at] = 1;
+    }
+    rs_report_time(rep, "voxel", rs_now() - t0);
+    rs_log_info("voxel downsampling (%g m): %zu -> %zu unorganized points", leaf, n, m);
+    rs_json_set_num(rep->metrics, "voxel_size_m", leaf);
+    rs_json_set_int(rep->metrics, "voxel_points_in", (long long)n);
+    rs_json_set_int(rep->metrics, "voxel_points_out", (long long)m);
+    rc = 0;
+    goto out;
+nomem:
+    rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+out:
+    free(xyz);
+    free(index);
+    free(keep);
+    free(vxyz);
+    free(vin);
+    free(vrgb);
+    return rc;
+}
 
 int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err)
 {
@@ -17,7 +160,7 @@ int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     int nfiles = rs_config_path_count(cfg, "ingest", "scan");
     if (nfiles <= 0)
         return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
-                          "[ingest] scan is not set; expected one or more PTX or PLY files (or [mesh] input_mesh)");
+                          "[ingest] scan is not set; expected one or more point-cloud files (or [mesh] input_mesh)");
     char dir[4096];
     if (rs_workdir(cfg, dir, sizeof dir, err) != 0) return -1;
 
@@ -28,11 +171,13 @@ int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json *files = rs_json_set_arr(rep->metrics, "files");
     for (int i = 0; i < nfiles; i++) {
         rs_config_path_at(cfg, "ingest", "scan", i, path, sizeof path);
-        rs_cloud *c = rs_cloud_read(path, err);
+        const char *kind;
+        rs_cloud *c = read_any(cfg, path, &kind, err);
         if (!c) goto out;
         size_t valid = 0;
         for (size_t k = 0; k < c->npoints; k++) valid += c->valid[k] != 0;
-        rs_log_info("%s: %zu points, %zu with a return, %d scan grid(s)", path, c->npoints, valid, c->nscans);
+        rs_log_info("%s (%s): %zu points, %zu with a return, %d scan grid(s)", path, kind, c->npoints, valid,
+                    c->nscans);
         rs_json *f = rs_json_push_obj(files);
         rs_json_set_str(f, "path", path);
         rs_json_set_int(f, "points", (long long)c->npoints);
@@ -43,18 +188,30 @@ int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         if (ok != 0) goto out;
     }
     rs_report_time(rep, "read", rs_now() - t0);
+    if (rs_config_reals(cfg, "ingest", "scanner_position", all->viewpoint) == 0) all->has_viewpoint = 1;
 
-    size_t valid = 0;
-    for (size_t k = 0; k < all->npoints; k++) valid += all->valid[k] != 0;
+    /* Before anything turns coordinates into floats (PCL here, the mesh later). */
+    if (rs_cloud_recentre(all, rs_config_real(cfg, "ingest", "recentre_above")))
+        rs_log_info("georeferenced coordinates: recentred by (%.0f, %.0f, %.0f) m, kept as rhoscan_origin in "
+                    "cloud.ply and mesh.ply", all->origin[0], all->origin[1], all->origin[2]);
+    rs_json *origin = rs_json_set_arr(rep->metrics, "origin_m");
+    for (int j = 0; j < 3; j++) rs_json_push_num(origin, all->origin[j]);
+
+    size_t valid_in = 0;
+    for (size_t k = 0; k < all->npoints; k++) valid_in += all->valid[k] != 0;
     rs_json_set_int(rep->metrics, "points", (long long)all->npoints);
-    rs_json_set_int(rep->metrics, "valid", (long long)valid);
+    rs_json_set_int(rep->metrics, "valid", (long long)valid_in);
     rs_json_set_int(rep->metrics, "scans", all->nscans);
     rs_json_set_int(rep->metrics, "unorganized", (long long)rs_cloud_unorganized(all));
-    if (valid == 0) {
+    if (valid_in == 0) {
         rs_err_set(err, RS_ERR_INPUT, NULL, 0, "the scans hold no point with a return (all %zu are 0 0 0); "
                    "expected a scan of the scene", all->npoints);
         goto out;
     }
+    if (rs_cloud_unorganized(all) > 0 && clean(cfg, all, rep, err) != 0) goto out;
+    size_t valid = 0;
+    for (size_t k = 0; k < all->npoints; k++) valid += all->valid[k] != 0;
+    rs_json_set_int(rep->metrics, "points_written", (long long)valid);
 
     t0 = rs_now();
     if (rs_cloud_write_ply(all, rs_work_path(cfg, "cloud.ply", path, sizeof path), err) != 0) goto out;

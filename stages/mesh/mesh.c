@@ -1,5 +1,6 @@
-/* mesh: the mesh stage. Triangulates the scan grids of cloud.ply (or takes [mesh] input_mesh
- * as it is), simplifies to the facet size and writes mesh.ply. Exports rs_mesh_run. */
+/* mesh: the mesh stage. Triangulates the scan grids of cloud.ply (one sheet where scans
+ * overlap) or reconstructs its unorganized points (PCL), or takes [mesh] input_mesh as it is;
+ * simplifies to the facet size, measures the result and writes mesh.ply. Exports rs_mesh_run. */
 #include "stages.h"
 
 #include <math.h>
@@ -12,8 +13,11 @@
 #include "image.h"
 #include "log.h"
 #include "mesh.h"
+#include "meshreport.h"
 #include "nadir.h"
+#include "overlap.h"
 #include "simplify.h"
+#include "unorganized.h"
 
 /* Cells spanning more than this many angular grid steps are not surface (the seam of a
  * sweep that does not close). */
@@ -47,7 +51,7 @@ static void report_mesh(rs_report *rep, const rs_mesh *m)
 }
 
 static int write_mesh(const rs_mesh *m, const char *path, const char *source, double facet_size_m,
-                      const char *facet_source, rs_err *err)
+                      const char *facet_source, const double origin[3], rs_err *err)
 {
     rs_ply *ply = rs_ply_new();
     if (!ply) return rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
@@ -55,7 +59,10 @@ static int write_mesh(const rs_mesh *m, const char *path, const char *source, do
     if (rs_ply_add_comment(ply, "rhoscan_generator rhoscan-mesh %s", RHOSCAN_VERSION) != 0 ||
         rs_ply_add_comment(ply, "rhoscan_source %s", source) != 0 ||
         (facet_size_m > 0 && rs_ply_add_comment(ply, "rhoscan_facet_size %.9g", facet_size_m) != 0) ||
-        rs_ply_add_comment(ply, "rhoscan_facet_size_source %s", facet_source) != 0 || !rs_mesh_to_ply(m, ply)) {
+        rs_ply_add_comment(ply, "rhoscan_facet_size_source %s", facet_source) != 0 ||
+        (origin && (origin[0] != 0 || origin[1] != 0 || origin[2] != 0) &&
+         rs_ply_add_comment(ply, "rhoscan_origin %.17g %.17g %.17g", origin[0], origin[1], origin[2]) != 0) ||
+        !rs_mesh_to_ply(m, ply)) {
         rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory building the PLY");
         goto out;
     }
@@ -117,7 +124,7 @@ static int run_input_mesh(const rs_config *cfg, const char *in_path, rs_report *
 
     char path[4096];
     double t1 = rs_now();
-    if (write_mesh(out, rs_work_path(cfg, "mesh.ply", path, sizeof path), "input_mesh", 0, "none (input_mesh)", err) != 0)
+    if (write_mesh(out, rs_work_path(cfg, "mesh.ply", path, sizeof path), "input_mesh", 0, "none (input_mesh)", NULL, err) != 0)
         goto out;
     rs_report_time(rep, "write", rs_now() - t1);
     rc = 0;
@@ -192,7 +199,189 @@ static int fill_nadir(const rs_config *cfg, const rs_cloud *c, rs_mesh **grid, r
     return 0;
 }
 
-/* Triangulation of cloud.ply's scan grids and simplification. */
+/* Several scans: each grid triangulated alone with its nadir cap, then the faces whose
+ * surface another scan saw better dropped (overlap.h), so that one sheet remains. */
+static rs_mesh *multi_scan(const rs_config *cfg, const rs_cloud *c, const rs_grid_opts *go, rs_grid_stats *gs,
+                           rs_report *rep, rs_err *err)
+{
+    rs_mesh *all = rs_mesh_new(0, 0), *out = NULL;
+    int *owner = NULL;
+    uint8_t *guess = NULL, *drop = NULL;
+    size_t caps = 0;
+    if (!all) goto nomem;
+    memset(gs, 0, sizeof *gs);
+    for (int s = 0; s < c->nscans; s++) {
+        rs_cloud one = *c;     /* a view of scan s alone: the grid indexes the shared arrays */
+        one.nscans = 1;
+        one.scans = &c->scans[s];
+        rs_grid_stats g1;
+        rs_mesh *grid = rs_grid_triangulate(&one, go, &g1, err);
+        if (!grid) goto fail;
+        gs->cells += g1.cells;
+        gs->cells_no_return += g1.cells_no_return;
+        gs->dropped_gap += g1.dropped_gap;
+        gs->dropped_depth += g1.dropped_depth;
+        gs->dropped_grazing += g1.dropped_grazing;
+        size_t nreal = grid->nfaces;
+        if (rs_config_bool(cfg, "mesh", "fill_nadir")) {
+            rs_nadir_stats ns;
+            rs_mesh *cap = rs_nadir_cap(c, s, rs_config_real(cfg, "mesh", "nadir_max_rms"), &ns, err);
+            if (!cap && !ns.why_not[0]) {
+                rs_mesh_free(grid);
+                goto fail;
+            }
+            if (cap) {
+                rs_mesh *merged = rs_mesh_merge_welded(grid, cap);
+                rs_mesh_free(cap);
+                rs_mesh_free(grid);
+                if (!merged) goto nomem;
+                grid = merged;
+            } else {
+                char what[64];
+                snprintf(what, sizeof what, "nadir fill of scan %d", s);
+                rs_report_skip(rep, what, "%s", ns.why_not);
+            }
+        }
+        size_t f0 = all->nfaces;
+        rs_mesh *merged = rs_mesh_merge_welded(all, grid);
+        int *ow = realloc(owner, (merged ? merged->nfaces : 1) * sizeof *ow);
+        uint8_t *gu = realloc(guess, merged ? merged->nfaces : 1);
+        if (ow) owner = ow;
+        if (gu) guess = gu;
+        if (!merged || !ow || !gu) {
+            rs_mesh_free(merged);
+            rs_mesh_free(grid);
+            goto nomem;
+        }
+        for (size_t f = f0; f < merged->nfaces; f++) {
+            owner[f] = s;
+            guess[f] = f - f0 >= nreal;   /* the cap's faces come after the grid's */
+        }
+        caps += grid->nfaces - nreal;
+        rs_mesh_free(grid);
+        rs_mesh_free(all);
+        all = merged;
+    }
+    rs_json_set_int(rep->metrics, "nadir_triangles", (long long)caps);
+
+    double t0 = rs_now();
+    drop = malloc(all->nfaces ? all->nfaces : 1);
+    if (!drop) goto nomem;
+    rs_overlap_stats os;
+    if (rs_overlap_resolve(all, owner, guess, c->scans, c->nscans, rs_config_real(cfg, "mesh", "overlap_tolerance"),
+                           drop, &os, err) != 0)
+        goto fail;
+    rs_report_time(rep, "overlap", rs_now() - t0);
+    rs_json_set_int(rep->metrics, "overlap_faces_dropped", (long long)os.dropped);
+    rs_json_set_int(rep->metrics, "overlap_nadir_faces_dropped", (long long)os.dropped_guess);
+    rs_log_info("%d scans: %zu of %zu faces dropped where another scan saw the surface better (%zu of them nadir "
+                "fill)", c->nscans, os.dropped, all->nfaces, os.dropped_guess);
+    size_t kept = 0;
+    for (size_t f = 0; f < all->nfaces; f++)
+        if (!drop[f]) memmove(all->tris + 3 * kept++, all->tris + 3 * f, 3 * sizeof *all->tris);
+    all->nfaces = kept;
+    out = all;
+    all = NULL;
+    goto done;
+nomem:
+    rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory merging %d scans", c->nscans);
+fail:
+done:
+    rs_mesh_free(all);
+    free(owner);
+    free(guess);
+    free(drop);
+    return out;
+}
+
+/* The surface of cloud.ply before simplification: its scan grids triangulated (nadir holes
+ * closed: *nadir_done), or its unorganized points reconstructed. */
+static rs_mesh *build_surface(const rs_config *cfg, const rs_cloud *c, int *nadir_done, const char **source,
+                              rs_report *rep, rs_err *err)
+{
+    double t0 = rs_now();
+    *nadir_done = 0;
+    if (c->nscans == 0) {
+        rs_unorg_opts uo = {strcmp(rs_config_string(cfg, "mesh", "surface"), "poisson") == 0,
+                            (int)rs_config_int(cfg, "mesh", "normal_neighbours"),
+                            rs_config_has(cfg, "mesh", "max_edge") ? rs_config_real(cfg, "mesh", "max_edge") : 0,
+                            (int)rs_config_int(cfg, "mesh", "poisson_depth"), (int)rs_config_int(cfg, "pipeline", "threads")};
+        rs_unorg_stats us;
+        rs_mesh *m = rs_unorg_mesh(c, &uo, &us, err);
+        if (!m) return NULL;
+        *source = uo.poisson ? "unorganized points (Poisson)" : "unorganized points (greedy projection)";
+        rs_report_time(rep, "reconstruct", rs_now() - t0);
+        rs_json_set_str(rep->metrics, "source", *source);
+        rs_json_set_int(rep->metrics, "points", (long long)us.points);
+        rs_json_set_num(rep->metrics, "spacing_median_m", us.spacing_median_m);
+        rs_json_set_num(rep->metrics, "spacing_p90_m", us.spacing_p90_m);
+        rs_json_set_int(rep->metrics, "points_no_normal", (long long)us.points_no_normal);
+        rs_json_set_int(rep->metrics, "faces_reconstructed", (long long)us.faces_raw);
+        if (uo.poisson) rs_json_set_int(rep->metrics, "faces_trimmed", (long long)us.faces_trimmed);
+        else rs_json_set_num(rep->metrics, "max_edge_m", us.max_edge_m);
+        rs_log_info("%zu unorganized points (spacing median %.3g m, p90 %.3g m): %zu triangles", us.points,
+                    us.spacing_median_m, us.spacing_p90_m, m->nfaces);
+        return m;
+    }
+    size_t loose = rs_cloud_unorganized(c);
+    if (loose)
+        rs_report_skip(rep, "unorganized points", "%zu points belong to no scan grid; the grids are meshed", loose);
+    rs_grid_opts go = {rs_config_real(cfg, "mesh", "max_depth_ratio"),
+                       rs_config_real(cfg, "mesh", "max_grazing_deg") * M_PI / 180.0, MAX_GAP_STEPS};
+    rs_grid_stats gs;
+    rs_mesh *grid;
+    if (c->nscans == 1) {
+        grid = rs_grid_triangulate(c, &go, &gs, err);
+    } else {
+        grid = multi_scan(cfg, c, &go, &gs, rep, err);
+        *nadir_done = 1;
+    }
+    if (!grid) return NULL;
+    *source = "scan grids";
+    rs_report_time(rep, "triangulate", rs_now() - t0);
+    rs_json_set_str(rep->metrics, "source", "scan grids");
+    rs_json_set_int(rep->metrics, "scans", c->nscans);
+    rs_json_set_int(rep->metrics, "grid_cells", (long long)gs.cells);
+    rs_json_set_int(rep->metrics, "cells_no_return", (long long)gs.cells_no_return);
+    rs_json_set_int(rep->metrics, "cells_dropped_gap", (long long)gs.dropped_gap);
+    rs_json_set_int(rep->metrics, "triangles_dropped_depth", (long long)gs.dropped_depth);
+    rs_json_set_int(rep->metrics, "triangles_dropped_grazing", (long long)gs.dropped_grazing);
+    if (grid->nfaces == 0) {
+        rs_err_set(err, RS_ERR_INPUT, NULL, 0, "no triangle survived the grid triangulation (%zu cells, %zu without "
+                   "returns, %zu across depth jumps, %zu at grazing angles); expected a scan of surfaces",
+                   gs.cells, gs.cells_no_return, gs.dropped_depth, gs.dropped_grazing);
+        rs_mesh_free(grid);
+        return NULL;
+    }
+    return grid;
+}
+
+/* The quality report of the final mesh against the cloud's valid points. */
+static int report_quality(const rs_config *cfg, const rs_cloud *c, const rs_mesh *m, rs_report *rep, rs_err *err)
+{
+    double t0 = rs_now();
+    size_t n = 0;
+    for (size_t i = 0; i < c->npoints; i++) n += c->valid[i] != 0;
+    double *pts = malloc((n ? n : 1) * 3 * sizeof *pts);
+    if (!pts) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+    size_t k = 0;
+    for (size_t i = 0; i < c->npoints; i++)
+        if (c->valid[i]) memcpy(pts + 3 * k++, c->xyz + 3 * i, 3 * sizeof *pts);
+    rs_mesh_quality q;
+    int rc = rs_mesh_quality_measure(m, pts, n, (size_t)rs_config_int(cfg, "mesh", "report_points"), 1.0, &q, err);
+    free(pts);
+    if (rc != 0) return -1;
+    rs_mesh_quality_json(&q, rs_json_set_obj(rep->metrics, "quality"));
+    rs_report_time(rep, "report", rs_now() - t0);
+    rs_log_info("mesh: %zu facets, edges %.3g m mean (%.3g .. %.3g m, p5 .. p95), %zu boundary loops, %zu non-manifold "
+                "edges", q.faces, q.edge_mean_m, q.edge_p5_m, q.edge_p95_m, q.boundary_loops, q.nonmanifold_edges);
+    if (q.points_tested)
+        rs_log_info("scan points to the mesh: mean %.4g m, p95 %.4g m, %.1f %% within 2 cm (%zu points)", q.dist_mean_m,
+                    q.dist_p95_m, 100 * q.within_2cm, q.points_tested);
+    return 0;
+}
+
+/* Meshing of cloud.ply (grids or unorganized points), simplification, report. */
 static int run_scan(const rs_config *cfg, rs_report *rep, rs_err *err)
 {
     char path[4096];
@@ -203,36 +392,15 @@ static int run_scan(const rs_config *cfg, rs_report *rep, rs_err *err)
         return rs_err_set(err, RS_ERR_INPUT, path, 0, "not found: run the ingest stage first, or set [mesh] input_mesh");
     rs_cloud *c = rs_cloud_read_ply(path, err);
     if (!c) return -1;
-    if (c->nscans == 0) {
-        rs_err_set(err, RS_ERR_INPUT, path, 0, "%zu points but no scan grid: meshing needs an organized scan (PTX) or "
-                   "[mesh] input_mesh; unorganized meshing comes with PCL", c->npoints);
-        goto out;
-    }
-    size_t loose = rs_cloud_unorganized(c);
-    if (loose)
-        rs_report_skip(rep, "unorganized points", "%zu points belong to no scan grid; unorganized meshing comes with PCL",
-                       loose);
     rs_report_time(rep, "read", rs_now() - t0);
+    rs_json *origin = rs_json_set_arr(rep->metrics, "origin_m");
+    for (int j = 0; j < 3; j++) rs_json_push_num(origin, c->origin[j]);
 
-    t0 = rs_now();
-    rs_grid_opts go = {rs_config_real(cfg, "mesh", "max_depth_ratio"),
-                       rs_config_real(cfg, "mesh", "max_grazing_deg") * M_PI / 180.0, MAX_GAP_STEPS};
-    rs_grid_stats gs;
-    grid = rs_grid_triangulate(c, &go, &gs, err);
-    if (!grid) goto out;
-    rs_report_time(rep, "triangulate", rs_now() - t0);
-    rs_json_set_str(rep->metrics, "source", "scan grids");
-    rs_json_set_int(rep->metrics, "scans", c->nscans);
-    rs_json_set_int(rep->metrics, "grid_cells", (long long)gs.cells);
-    rs_json_set_int(rep->metrics, "cells_no_return", (long long)gs.cells_no_return);
-    rs_json_set_int(rep->metrics, "cells_dropped_gap", (long long)gs.dropped_gap);
-    rs_json_set_int(rep->metrics, "triangles_dropped_depth", (long long)gs.dropped_depth);
-    rs_json_set_int(rep->metrics, "triangles_dropped_grazing", (long long)gs.dropped_grazing);
-
-    if (grid->nfaces == 0) {
-        rs_err_set(err, RS_ERR_INPUT, path, 0, "no triangle survived the grid triangulation (%zu cells, %zu without "
-                   "returns, %zu across depth jumps, %zu at grazing angles); expected a scan of surfaces",
-                   gs.cells, gs.cells_no_return, gs.dropped_depth, gs.dropped_grazing);
+    int nadir_done;
+    const char *source = "scan grids";
+    grid = build_surface(cfg, c, &nadir_done, &source, rep, err);
+    if (!grid) {
+        if (!err->file[0]) snprintf(err->file, sizeof err->file, "%.*s", (int)sizeof err->file - 1, path);
         goto out;
     }
 
@@ -250,7 +418,9 @@ static int run_scan(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_str(rep->metrics, "facet_size_source", facet_source);
 
     /* After the facet size: that is a property of what the scanner measured. */
-    if (rs_config_bool(cfg, "mesh", "fill_nadir") && fill_nadir(cfg, c, &grid, rep, err) != 0) goto out;
+    if (!nadir_done && c->nscans > 0 && rs_config_bool(cfg, "mesh", "fill_nadir") &&
+        fill_nadir(cfg, c, &grid, rep, err) != 0)
+        goto out;
     rs_json_set_int(rep->metrics, "faces_in", (long long)grid->nfaces);
 
     t0 = rs_now();
@@ -272,11 +442,24 @@ static int run_scan(const rs_config *cfg, rs_report *rep, rs_err *err)
     if (edge_per_m > 0) rs_json_set_num(rep->metrics, "edge_per_metre_of_distance", edge_per_m);
     rs_json_set_num(rep->metrics, "mean_edge_in_m", ss.mean_edge_in);
     report_mesh(rep, simple);
-    rs_log_info("%zu grid triangles -> %zu facets (mean edge %.3g m -> %.3g m)", grid->nfaces, simple->nfaces,
+    rs_log_info("%zu triangles -> %zu facets (mean edge %.3g m -> %.3g m)", grid->nfaces, simple->nfaces,
                 ss.mean_edge_in, ss.mean_edge_out);
 
+    if (c->nscans > 1) {
+        size_t removed = 0, r1 = 1;
+        /* Dropping a facet can uncover another pair behind it: a few passes. */
+        for (int pass = 0; pass < 3 && r1 > 0; pass++) {
+            if (rs_overlap_dedup(simple, rs_config_real(cfg, "mesh", "overlap_tolerance"), &r1, err) != 0) goto out;
+            removed += r1;
+        }
+        rs_json_set_int(rep->metrics, "overlap_facets_dropped_after_simplify", (long long)removed);
+        rs_json_set_int(rep->metrics, "faces", (long long)simple->nfaces);
+        if (removed) rs_log_info("%zu facets dropped where two scans' simplified sheets still overlapped", removed);
+    }
+    if (report_quality(cfg, c, simple, rep, err) != 0) goto out;
+
     t0 = rs_now();
-    if (write_mesh(simple, rs_work_path(cfg, "mesh.ply", path, sizeof path), "scan grids", facet_m, facet_source,
+    if (write_mesh(simple, rs_work_path(cfg, "mesh.ply", path, sizeof path), source, facet_m, facet_source, c->origin,
                    err) != 0)
         goto out;
     rs_report_time(rep, "write", rs_now() - t0);

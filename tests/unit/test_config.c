@@ -338,7 +338,7 @@ static void test_section_text(void **state)
     char *mesh = rs_config_section_text(cfg, "mesh");
     /* Table order, canonical numbers, absolute paths, unset keys without default left out. */
     assert_string_equal(mesh, "[mesh]\ninput_mesh = /base/m.ply\npixels_per_facet = 6.5\n"
-                              "max_depth_ratio = 0.05\nmax_grazing_deg = 85\nsurface = greedy\nnormal_neighbours = 16\n"
+                              "max_depth_ratio = 0.05\nmax_grazing_deg = 85\nsurface = poisson\nnormal_neighbours = 16\n"
                               "poisson_depth = 10\noverlap_tolerance = 0.03\nreport_points = 200000\n"
                               "fill_nadir = true\nnadir_max_rms = 0.02\n");
     free(mesh);

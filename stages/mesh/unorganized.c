@@ -1,0 +1,177 @@
+/* unorganized: normals, surface reconstruction and clean-up of unorganized clouds with PCL
+ * (see unorganized.h). */
+#include "unorganized.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "pcl_bridge.h"
+
+static int cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+/* Median and 90th percentile of the nearest-neighbour distance, from at most 20000 points. */
+static int spacing(const float *xyz, size_t n, double *med, double *p90, rs_err *err)
+{
+    size_t stride = n / 20000 + 1, k = (n + stride - 1) / stride;
+    float *q = malloc(k * 3 * sizeof *q), *d = malloc(k * sizeof *d);
+    if (!q || !d) {
+        free(q);
+        free(d);
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+    }
+    for (size_t i = 0; i < k; i++) memcpy(q + 3 * i, xyz + 3 * (i * stride), 3 * sizeof *q);
+    int rc = rs_pcl_nearest(xyz, n, q, k, 1, d, NULL, err);
+    if (rc == 0) {
+        qsort(d, k, sizeof *d, cmp_float);
+        *med = d[k / 2];
+        *p90 = d[(size_t)(0.9 * (double)(k - 1))];
+    }
+    free(q);
+    free(d);
+    return rc;
+}
+
+/* Poisson closes the surface far beyond the data and bulges past the edges of open surfaces:
+ * keep a face when its centroid lies within TRIM_SPACINGS local point spacings (the nearest
+ * point's distance to its own nearest neighbour) of the nearest point. Returns the count of
+ * faces removed, or (size_t)-1. */
+#define TRIM_SPACINGS 3.0
+static size_t trim(rs_mesh *m, const float *xyz, size_t n, rs_err *err)
+{
+    size_t nf = m->nfaces ? m->nfaces : 1;
+    float *cen = malloc(nf * 3 * sizeof *cen), *d = malloc(nf * sizeof *d), *gap = malloc(n * sizeof *gap);
+    uint32_t *near = malloc(nf * sizeof *near);
+    size_t removed = (size_t)-1;
+    if (!cen || !d || !gap || !near) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+        goto out;
+    }
+    for (size_t f = 0; f < m->nfaces; f++)
+        for (int j = 0; j < 3; j++)
+            cen[3 * f + j] = (m->verts[3 * (size_t)m->tris[3 * f] + j] + m->verts[3 * (size_t)m->tris[3 * f + 1] + j] +
+                              m->verts[3 * (size_t)m->tris[3 * f + 2] + j]) / 3.0f;
+    if (rs_pcl_nearest(xyz, n, xyz, n, 1, gap, NULL, err) != 0 ||
+        rs_pcl_nearest(xyz, n, cen, m->nfaces, 0, d, near, err) != 0)
+        goto out;
+    size_t kept = 0;
+    for (size_t f = 0; f < m->nfaces; f++)
+        if (near[f] != UINT32_MAX && d[f] <= TRIM_SPACINGS * gap[near[f]])
+            memmove(m->tris + 3 * kept++, m->tris + 3 * f, 3 * sizeof *m->tris);
+    removed = m->nfaces - kept;
+    m->nfaces = kept;
+out:
+    free(cen);
+    free(d);
+    free(gap);
+    free(near);
+    return removed;
+}
+
+/* Drops unused vertices (keeping order). */
+static rs_mesh *compact(const float *verts, size_t nverts, const uint32_t *tris, size_t ntris, rs_err *err)
+{
+    uint32_t *remap = malloc((nverts ? nverts : 1) * sizeof *remap);
+    if (!remap) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+        return NULL;
+    }
+    for (size_t v = 0; v < nverts; v++) remap[v] = UINT32_MAX;
+    for (size_t k = 0; k < 3 * ntris; k++) remap[tris[k]] = 0;
+    size_t nv = 0;
+    for (size_t v = 0; v < nverts; v++)
+        if (remap[v] == 0) remap[v] = (uint32_t)nv++;
+    rs_mesh *m = rs_mesh_new(nv, ntris);
+    if (m) {
+        for (size_t v = 0; v < nverts; v++)
+            if (remap[v] != UINT32_MAX) memcpy(m->verts + 3 * (size_t)remap[v], verts + 3 * v, 3 * sizeof(float));
+        for (size_t k = 0; k < 3 * ntris; k++) m->tris[k] = remap[tris[k]];
+    } else {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+    }
+    free(remap);
+    return m;
+}
+
+rs_mesh *rs_unorg_mesh(const rs_cloud *c, const rs_unorg_opts *o, rs_unorg_stats *st, rs_err *err)
+{
+    memset(st, 0, sizeof *st);
+    if (!c->has_viewpoint) {
+        rs_err_set(err, RS_ERR_INPUT, NULL, 0, "an unorganized cloud needs its scanner position to orient the surface: "
+                   "expected [ingest] scanner_position = X Y Z (world frame, metres)");
+        return NULL;
+    }
+    size_t first = c->npoints - rs_cloud_unorganized(c), n = 0;
+    for (size_t i = first; i < c->npoints; i++) n += c->valid[i] != 0;
+    if (n < 3 || n >= UINT32_MAX) {
+        rs_err_set(err, RS_ERR_INPUT, NULL, 0, "%zu unorganized points; expected 3 to %u", n, UINT32_MAX - 1);
+        return NULL;
+    }
+    st->points = n;
+    float *xyz = malloc(n * 3 * sizeof *xyz), *vp = malloc(n * 3 * sizeof *vp), *nrm = malloc(n * 3 * sizeof *nrm);
+    float *pv = NULL;
+    uint32_t *tris = NULL;
+    rs_mesh *m = NULL;
+    if (!xyz || !vp || !nrm) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu points", n);
+        goto out;
+    }
+    size_t k = 0;
+    for (size_t i = first; i < c->npoints; i++) {
+        if (!c->valid[i]) continue;
+        for (int j = 0; j < 3; j++) {
+            xyz[3 * k + j] = (float)c->xyz[3 * i + j];
+            vp[3 * k + j] = (float)c->viewpoint[j];
+        }
+        k++;
+    }
+    if (spacing(xyz, n, &st->spacing_median_m, &st->spacing_p90_m, err) != 0) goto out;
+    if (rs_pcl_normals(xyz, n, o->normal_neighbours, vp, o->threads, nrm, err) != 0) goto out;
+    for (size_t i = 0; i < n; i++)
+        st->points_no_normal += nrm[3 * i] == 0 && nrm[3 * i + 1] == 0 && nrm[3 * i + 2] == 0;
+
+    size_t ntris = 0;
+    if (!o->poisson) {
+        st->max_edge_m = o->max_edge_m > 0 ? o->max_edge_m : 8 * st->spacing_p90_m;
+        if (rs_pcl_greedy(xyz, nrm, n, st->max_edge_m, 2.5, 100, &tris, &ntris, err) != 0) goto out;
+        st->faces_raw = ntris;
+        m = compact(xyz, n, tris, ntris, err);
+    } else {
+        size_t nv;
+        if (rs_pcl_poisson(xyz, nrm, n, o->poisson_depth, &pv, &nv, &tris, &ntris, err) != 0) goto out;
+        st->faces_raw = ntris;
+        rs_mesh tmp = {nv, ntris, pv, tris};
+        size_t removed = trim(&tmp, xyz, n, err);
+        if (removed == (size_t)-1) goto out;
+        st->faces_trimmed = removed;
+        /* Poisson winds with its own convention: turn every face toward the scanner's side. */
+        for (size_t f = 0; f < tmp.nfaces; f++) {
+            rs_v3 cen, nf;
+            rs_mesh_face(&tmp, f, &cen, &nf, NULL);
+            rs_v3 to = rs_v3_sub(rs_v3_make(c->viewpoint[0], c->viewpoint[1], c->viewpoint[2]), cen);
+            if (rs_v3_dot(nf, to) < 0) {
+                uint32_t t = tmp.tris[3 * f + 1];
+                tmp.tris[3 * f + 1] = tmp.tris[3 * f + 2];
+                tmp.tris[3 * f + 2] = t;
+            }
+        }
+        m = compact(pv, nv, tris, tmp.nfaces, err);
+    }
+    if (m && m->nfaces == 0) {
+        rs_err_set(err, RS_ERR_INPUT, NULL, 0, "surface reconstruction of %zu points gave no triangle (median spacing "
+                   "%.3g m); expected a scan of surfaces", n, st->spacing_median_m);
+        rs_mesh_free(m);
+        m = NULL;
+    }
+out:
+    free(xyz);
+    free(vp);
+    free(nrm);
+    free(pv);
+    free(tris);
+    return m;
+}
