@@ -70,6 +70,8 @@ const rs_cfg_key rs_cfg_keys[] = {
      "camera rig in OpenCV FileStorage YAML (DESIGN.md section 7); its stitched panorama replaces [capture] panorama"},
     {"rig", "frames", RS_CFG_PATHS, NULL, 0, 0, NULL, "", "calib",
      "one image per rig camera, in the order of the rig file's cameras (EXR, HDR, PNG, JPEG, TIFF)"},
+    {"rig", "exposure_times_s", RS_CFG_STRING, NULL, 0, 0, NULL, "s", "calib",
+     "exposure brackets: times of each camera's 8-bit exposures; frames then lists them camera by camera (Debevec merge)"},
     {"rig", "width", RS_CFG_INT, "0", 0, 65536, NULL, "px", "calib",
      "stitched panorama width (height = width / 2); 0: from the finest camera's pixel angle"},
     {"rig", "feather_px", RS_CFG_REAL, "32", 0.5, 10000, NULL, "px", "calib",

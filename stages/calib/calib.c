@@ -12,6 +12,7 @@
 #include "register.h"
 #include "cv_adapter.h"
 #include "stitch.h"
+#include "hdr.h"
 #include "stages.h"
 
 /* Solves the pose of [capture] from its pairs file on a width x height panorama and records the
@@ -138,6 +139,92 @@ static rs_image *read_frame(const char *path, rs_err *err)
     return img;
 }
 
+/* [rig] exposure_times_s: the exposure times of each camera's brackets, in seconds. */
+static int exposure_times(const rs_config *cfg, double *times, int max, rs_err *err)
+{
+    const char *text = rs_config_string(cfg, "rig", "exposure_times_s");
+    int n = 0;
+    if (!text) return 0;
+    for (const char *p = text; *p;) {
+        char *end;
+        double t = strtod(p, &end);
+        if (end == p) {
+            while (*p == ' ' || *p == '\t') p++;
+            if (!*p) break;
+            return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                              "[rig] exposure_times_s = \"%s\": expected exposure times in seconds, > 0, separated "
+                              "by spaces", text);
+        }
+        if (!(t > 0) || n == max)
+            return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                              "[rig] exposure_times_s = \"%s\": expected 2 to %d times > 0 (s)", text, max);
+        times[n++] = t;
+        p = end;
+    }
+    if (n < 2)
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                          "[rig] exposure_times_s = \"%s\": expected at least 2 exposure times (s)", text);
+    return n;
+}
+
+/* Camera cam's brackets (frames cam * n .. cam * n + n - 1, 8-bit files read as stored codes)
+ * merged into radiance; the clipping is reported. */
+static rs_image *merge_brackets(const rs_config *cfg, const rs_rig_camera *c, int cam, const double *times, int n,
+                                rs_report *rep, rs_json *hdr_json, rs_err *err)
+{
+    rs_image *shots[16] = {NULL}, *merged = NULL;
+    char path[4096], msg[512];
+    for (int e = 0; e < n; e++) {
+        rs_config_path_at(cfg, "rig", "frames", cam * n + e, path, sizeof path);
+        float *data = NULL;
+        int w, h, ch, bits;
+        if (!rs_file_exists(path)) {
+            rs_err_errno(err, path, "cannot open the frame");
+            goto out;
+        }
+        if (rs_cv_image_read(path, &data, &w, &h, &ch, &bits, msg, sizeof msg) != 0) {
+            rs_err_set(err, RS_ERR_INPUT, path, 0, "%s", msg);
+            goto out;
+        }
+        if (bits != 8 || ch != 3 || w != c->width || h != c->height) {
+            rs_err_set(err, RS_ERR_INPUT, path, 0, "bracket is %d x %d, %d channel%s, %s: expected %d x %d 8-bit RGB "
+                       "(camera %d, %s)", w, h, ch, ch == 1 ? "" : "s", bits ? "integer" : "float", c->width,
+                       c->height, cam, c->name);
+            rs_cv_free(data);
+            goto out;
+        }
+        shots[e] = rs_image_new(w, h, 3);
+        if (shots[e]) memcpy(shots[e]->data, data, (size_t)w * h * 3 * sizeof(float));
+        rs_cv_free(data);
+        if (!shots[e]) {
+            rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
+            goto out;
+        }
+    }
+    rs_hdr_report hr;
+    if (rs_hdr_merge((const rs_image *const *)shots, times, n, NULL, &merged, &hr, err) != 0) goto out;
+    rs_json *o = rs_json_set_obj(hdr_json, c->name);
+    rs_json_set_int(o, "clipped_pixels", (long long)hr.clipped_px);
+    rs_json_set_bool(o, "sun_clipped", hr.sun_clipped);
+    if (hr.sun_clipped) {
+        rs_v3 d;
+        rs_json_set_num(o, "sun_x", hr.sun_x);
+        rs_json_set_num(o, "sun_y", hr.sun_y);
+        rs_json_set_int(o, "sun_pixels", (long long)hr.sun_px);
+        if (rs_rig_unproject(c, hr.sun_x, hr.sun_y, &d)) {
+            rs_v3 dr = rs_m3_mul_v(c->r_rig_cam, d);
+            rs_json_set_num(o, "sun_elevation_deg_rig", asin(fmax(-1, fmin(1, dr.z))) * 180 / M_PI);
+            rs_json_set_num(o, "sun_azimuth_deg_rig", atan2(dr.y, dr.x) * 180 / M_PI);
+        }
+        rs_report_skip(rep, "sun radiance", "camera %s: the sun is clipped in every exposure (%zu pixels "
+                       "around (%.1f, %.1f)): its radiance there is a lower bound", c->name, hr.sun_px, hr.sun_x,
+                       hr.sun_y);
+    }
+out:
+    for (int e = 0; e < n; e++) rs_image_free(shots[e]);
+    return merged;
+}
+
 /* [rig]: the rig file and its frames -> the stitched panorama at out_path. */
 static int stitch_rig(const rs_config *cfg, const char *out_path, rs_report *rep, rs_err *err)
 {
@@ -153,16 +240,28 @@ static int stitch_rig(const rs_config *cfg, const char *out_path, rs_report *rep
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
         goto out;
     }
-    if (nframes != rig.count) {
+    double times[16];
+    int nexp = exposure_times(cfg, times, 16, err);
+    if (nexp < 0) goto out;
+    if (nexp == 0 && nframes != rig.count) {
         rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
                    "[rig] frames lists %d image%s but %s has %d camera%s: expected one frame per camera, in "
                    "the order of the rig file", nframes, nframes == 1 ? "" : "s", rig_path, rig.count,
                    rig.count == 1 ? "" : "s");
         goto out;
     }
+    if (nexp > 0 && nframes != rig.count * nexp) {
+        rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                   "[rig] frames lists %d images but %s has %d cameras and [rig] exposure_times_s gives %d "
+                   "exposures: expected %d frames, each camera's exposures together, in the order of the times",
+                   nframes, rig_path, rig.count, nexp, rig.count * nexp);
+        goto out;
+    }
+    rs_json *hdr_json = nexp ? rs_json_set_obj(rep->metrics, "hdr") : NULL;
     for (int i = 0; i < rig.count; i++) {
-        rs_config_path_at(cfg, "rig", "frames", i, path, sizeof path);
-        if (!(frames[i] = read_frame(path, err))) goto out;
+        rs_config_path_at(cfg, "rig", "frames", nexp ? i * nexp : i, path, sizeof path);
+        frames[i] = nexp ? merge_brackets(cfg, &rig.cams[i], i, times, nexp, rep, hdr_json, err) : read_frame(path, err);
+        if (!frames[i]) goto out;
         if (frames[i]->width != rig.cams[i].width || frames[i]->height != rig.cams[i].height) {
             rs_err_set(err, RS_ERR_INPUT, path, 0, "frame is %d x %d but camera %d (%s) of %s is %d x %d",
                        frames[i]->width, frames[i]->height, i, rig.cams[i].name, rig_path, rig.cams[i].width,

@@ -253,8 +253,88 @@ static void test_stitch_and_register(void **state)
     rs_test_rmtree(dir);
 }
 
+/* Brackets: each camera's frame (linear, times its gain) photographed at three exposure times
+ * through a gamma 2.2 response into 8-bit PNG codes. */
+static void write_brackets(const char *dir, const rs_rig *rig, const double *times, char *list, size_t n)
+{
+    list[0] = 0;
+    for (int k = 0; k < NCAM; k++) {
+        char name[64];
+        snprintf(name, sizeof name, "cam%d.exr", k);
+        rs_err err;
+        rs_image *lin = rs_image_read(rs_test_path(dir, name), &err);
+        assert_non_null(lin);
+        assert_int_equal(lin->width, rig->cams[k].width);
+        for (int e = 0; e < 3; e++) {
+            rs_image *shot = rs_image_new(lin->width, lin->height, 3);
+            for (size_t i = 0; i < (size_t)lin->width * lin->height * 3; i++) {
+                double code = floor(255 * pow(fmin(lin->data[i] * times[e] * 60, 1), 1 / 2.2) + 0.5);
+                shot->data[i] = rs_srgb_to_linear((float)(code / 255));   /* the PNG writer sRGB-encodes */
+            }
+            snprintf(name, sizeof name, "cam%d_e%d.png", k, e);
+            assert_int_equal(rs_image_write_png(shot, rs_test_path(dir, name), 1, &err), 0);
+            rs_image_free(shot);
+            snprintf(list + strlen(list), n - strlen(list), "%s ", name);
+        }
+        rs_image_free(lin);
+    }
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static void test_brackets(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("calibhdr");
+    rs_image *truth = rs_image_new(PANO_W, PANO_W / 2, 3);
+    for (int r = 0; r < PANO_W / 2; r++)
+        for (int c = 0; c < PANO_W; c++)
+            for (int ch = 0; ch < 3; ch++)
+                rs_image_px(truth, c, r)[ch] = truth_value(rs_pano_pixel_dir(PANO_W, PANO_W / 2, c, r), ch);
+    write_rig_file(rs_test_path(dir, "rig.yaml"), NCAM);
+    rs_rig rig;
+    rs_err err = {0};
+    assert_int_equal(rs_rig_load(rs_test_path(dir, "rig.yaml"), &rig, &err), 0);
+    double gains[NCAM];
+    write_frames(dir, &rig, truth, gains);
+    const double times[3] = {1.0 / 200, 1.0 / 50, 1.0 / 12.5};
+    char list[2048];
+    write_brackets(dir, &rig, times, list, sizeof list);
+    write_config(dir, list, "exposure_times_s = 0.005 0.02 0.08\n");
+    char *out = NULL;
+    int rc = run_calib(rs_test_path(dir, "calib.ini"), &out);
+    print_message("%s", out);
+    assert_int_equal(rc, 0);
+    free(out);
+    /* Debevec's radiance has one free scale: fix it by the median ratio, then compare. */
+    rs_image *pano = rs_image_read(rs_test_path(dir, "out/" RS_CALIB_PANO_FILE), &err);
+    assert_non_null(pano);
+    size_t n = (size_t)PANO_W * PANO_W / 2 * 3, m = 0;
+    double *ratio = malloc(n * sizeof *ratio), sum_rel = 0;
+    for (size_t k = 0; k < n; k++)
+        if (isfinite(pano->data[k])) ratio[m++] = pano->data[k] / truth->data[k];
+    qsort(ratio, m, sizeof *ratio, cmp_double);
+    double scale = ratio[m / 2];
+    for (size_t k = 0; k < n; k++)
+        if (isfinite(pano->data[k])) sum_rel += fabs(pano->data[k] / truth->data[k] / scale - 1);
+    print_message("brackets: scale %g, mean relative error %.4f over %zu values\n", scale, sum_rel / m, m);
+    assert_true(sum_rel / m < 0.03);
+    /* Brackets that do not add up. */
+    write_config(dir, "cam0_e0.png cam0_e1.png", "exposure_times_s = 0.005 0.02 0.08\n");
+    expect_failure(dir, "exposure_times_s gives 3 exposures: expected 18 frames");
+    free(ratio);
+    rs_image_free(pano);
+    rs_image_free(truth);
+    rs_rig_release(&rig);
+    rs_test_rmtree(dir);
+}
+
 int main(void)
 {
-    const struct CMUnitTest tests[] = {cmocka_unit_test(test_stitch_and_register)};
+    const struct CMUnitTest tests[] = {cmocka_unit_test(test_stitch_and_register), cmocka_unit_test(test_brackets)};
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
