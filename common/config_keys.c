@@ -113,6 +113,8 @@ const rs_cfg_key rs_cfg_keys[] = {
      "gather only the facets a camera sees and, transitively, those their rays hit (the rest light nothing seen)"},
     {"irradiance", "sun_target_error", RS_CFG_REAL, "0", 0, 1, NULL, "", "irradiance",
      "> 0: double a facet's sun rays (up to 16 x sun_samples) until their standard error is below this share of E_sky"},
+    {"irradiance", "skip_convex", RS_CFG_BOOL, "true", 0, 0, NULL, "", "irradiance",
+     "facets with the whole model below their plane (bounding-box test) trace no ray: they see only sky"},
 
     {"sky", "panorama", RS_CFG_PATH, NULL, 0, 0, NULL, "", "irradiance",
      "sky-only panorama (EXR or HDR, linear) used for every direction it sees as sky"},

@@ -262,7 +262,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
 
     rs_gather_ctx g = {scene, &env, &cap, ids->data, (int)rs_config_int(cfg, "irradiance", "samples"),
                     (int)rs_config_int(cfg, "irradiance", "sky_samples"), sun_samples, (uint32_t)rs_config_int(cfg, "irradiance", "seed"),
-                    rs_config_real(cfg, "irradiance", "sun_target_error")};
+                    rs_config_real(cfg, "irradiance", "sun_target_error"), rs_config_bool(cfg, "irradiance", "skip_convex")};
     fg = calloc(nf, sizeof *fg);
     if (!fg) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu facets", nf);
@@ -291,7 +291,11 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     if (gs.gathered < nf)
         rs_report_skip(rep, "gather of unseen facets", "%zu facets that no camera sees light no facet it sees "
                        "(closure of the light paths in %d waves)", nf - gs.gathered, gs.waves);
+    if (gs.sees_nothing)
+        rs_report_skip(rep, "tracing of convex facets", "%zu facets have the whole model below their plane: "
+                       "their rays escape without tracing", gs.sees_nothing);
     rs_json_set_int(rep->metrics, "facets_gathered", (long long)gs.gathered);
+    rs_json_set_int(rep->metrics, "facets_seeing_nothing", (long long)gs.sees_nothing);
     double rays = gs.rays;
     rs_json_set_num(rep->metrics, "rays", rays);
     rs_json_set_num(rep->metrics, "rays_per_second", gather_s > 0 ? rays / gather_s : 0);
