@@ -58,40 +58,6 @@ void rs_calib_sym_eigen(int n, double *a, double *evals, double *evecs)
     }
 }
 
-int rs_calib_solve(int n, double *a, double *b)
-{
-    double scale = 0;
-    for (int i = 0; i < n * n; i++) scale = fmax(scale, fabs(a[i]));
-    if (!(scale > 0)) return -1;
-    for (int col = 0; col < n; col++) {
-        int piv = col;
-        for (int r = col + 1; r < n; r++)
-            if (fabs(a[r * n + col]) > fabs(a[piv * n + col])) piv = r;
-        if (!(fabs(a[piv * n + col]) > 1e-14 * scale)) return -1;
-        if (piv != col) {
-            for (int k = 0; k < n; k++) {
-                double t = a[col * n + k];
-                a[col * n + k] = a[piv * n + k];
-                a[piv * n + k] = t;
-            }
-            double t = b[col];
-            b[col] = b[piv];
-            b[piv] = t;
-        }
-        for (int r = col + 1; r < n; r++) {
-            double f = a[r * n + col] / a[col * n + col];
-            for (int k = col; k < n; k++) a[r * n + k] -= f * a[col * n + k];
-            b[r] -= f * b[col];
-        }
-    }
-    for (int r = n - 1; r >= 0; r--) {
-        double s = b[r];
-        for (int k = r + 1; k < n; k++) s -= a[r * n + k] * b[k];
-        b[r] = s / a[r * n + r];
-    }
-    return 0;
-}
-
 void rs_calib_rot_exp(const double w[3], double r[9])
 {
     double th = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);

@@ -1,5 +1,6 @@
 /* calib_math: the small dense linear algebra calibration needs (symmetric eigenproblems up to
- * 4 x 4, small linear systems, rotations from axis-angle, Horn/Umeyama absolute orientation). */
+ * 4 x 4, rotations from axis-angle, Horn/Umeyama absolute orientation; linear systems are
+ * common/linsolve.h's). */
 #ifndef RS_CALIB_MATH_H
 #define RS_CALIB_MATH_H
 
@@ -9,10 +10,6 @@
  * Jacobi rotations: eigenvalues in descending order into evals, unit eigenvectors as the
  * columns of evecs (row-major n x n). */
 void rs_calib_sym_eigen(int n, double *a, double *evals, double *evecs);
-
-/* Solves a x = b for the n x n row-major a (destroyed) by Gaussian elimination with partial
- * pivoting; x overwrites b. Returns -1 when a is singular to working precision. */
-int rs_calib_solve(int n, double *a, double *b);
 
 /* Rotation matrix (row-major) of the axis-angle vector w (radians): exp([w]x). */
 void rs_calib_rot_exp(const double w[3], double r[9]);

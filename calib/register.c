@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "calib_math.h"
+#include "linsolve.h"
 
 rs_v3 rs_pair_bearing(double col, double row, int width, int height)
 {
@@ -238,7 +239,7 @@ static void refine_lm(rs_pose *pose, const rs_v3 *b, const rs_v3 *x, const uint8
                 a[7 * k] += lambda * (jtj[7 * k] > 0 ? jtj[7 * k] : 1);
                 delta[k] = -jtr[k];
             }
-            if (rs_calib_solve(6, a, delta) != 0) {
+            if (rs_solve_dense(a, delta, 6) != 0) {
                 lambda *= 10;
                 continue;
             }

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "calib_math.h"
+#include "linsolve.h"
 #include "pano.h"
 
 #define MIN_OVERLAP_PX 64      /* fewer shared pixels say too little about a gain ratio */
@@ -80,7 +81,7 @@ static int solve_gains(int n, const double *sum, const double *count, double *ga
     double lam = wsum > 0 ? wsum / n : 1;
     for (int i = 0; i < n; i++)
         for (int j = 0; j < n; j++) a[i * n + j] += lam / n + (i == j ? 1e-9 * lam : 0);
-    int rc = rs_calib_solve(n, a, b);
+    int rc = rs_solve_dense(a, b, (size_t)n);
     for (int i = 0; i < n; i++) gains[i] = rc == 0 ? exp(-b[i]) : 1;
     free(a);
     free(b);
