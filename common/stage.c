@@ -270,6 +270,23 @@ int rs_stdout_check(const char *prog)
     return 2;
 }
 
+rs_config *rs_program_config(const char *path, const char *const *sets, int *exit_code)
+{
+    rs_err err;
+    rs_err_clear(&err);
+    rs_config *cfg = rs_config_load(path, sets, &err);
+    if (!cfg) {
+        rs_log_error(&err);
+        *exit_code = err.kind ? (int)err.kind : 1;
+        return NULL;
+    }
+#ifdef _OPENMP
+    long threads = rs_config_int(cfg, "pipeline", "threads");
+    if (threads > 0) omp_set_num_threads((int)threads);
+#endif
+    return cfg;
+}
+
 int rs_stage_main(const char *stage, int argc, char **argv)
 {
     char prog[128];
@@ -306,15 +323,12 @@ int rs_stage_main(const char *stage, int argc, char **argv)
         free(sets);
         return 1;
     }
+    int rc = 0;
+    rs_config *cfg = rs_program_config(config, sets, &rc);
+    free(sets);
+    if (!cfg) return rc;
     rs_err err;
     rs_err_clear(&err);
-    rs_config *cfg = rs_config_load(config, sets, &err);
-    free(sets);
-    if (!cfg) {
-        rs_log_error(&err);
-        return err.kind ? (int)err.kind : 1;
-    }
-    int rc = 0;
     if (print_config) {
         char words[256];
         snprintf(words, sizeof words, "%s", def->sections);
@@ -325,10 +339,6 @@ int rs_stage_main(const char *stage, int argc, char **argv)
         }
         rc = rs_stdout_check(prog);
     } else {
-#ifdef _OPENMP
-        long threads = rs_config_int(cfg, "pipeline", "threads");
-        if (threads > 0) omp_set_num_threads((int)threads);
-#endif
         if (rs_stage_execute(def, cfg, &err) != 0) {
             rs_log_error(&err);
             rc = err.kind ? (int)err.kind : 3;

@@ -59,6 +59,10 @@ int rs_stage_up_to_date(const rs_stage_def *def, const rs_config *cfg, char *why
  * when the data did not all get out (a full disk, /dev/full, a closed pipe). */
 int rs_stdout_check(const char *prog);
 
+/* A program's config: loads path with the --set overrides and applies [pipeline] threads.
+ * NULL after logging the error, with *exit_code set to the error's exit code. */
+rs_config *rs_program_config(const char *path, const char *const *sets, int *exit_code);
+
 /* Shared program entry for rhoscan-<stage>: options --set section.key=value (repeatable),
  * --print-config, --quiet, --verbose, --help; CONFIG anywhere among them. Returns the exit code. */
 int rs_stage_main(const char *stage, int argc, char **argv);

@@ -4,9 +4,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 #include "fileio.h"
 #include "log.h"
 #include "stage.h"
@@ -147,19 +144,12 @@ int main(int argc, char **argv)
         free(sets);
         return 1;
     }
+    int rc = 0;
+    rs_config *cfg = rs_program_config(config, sets, &rc);
+    free(sets);
+    if (!cfg) return rc;
     rs_err err;
     rs_err_clear(&err);
-    rs_config *cfg = rs_config_load(config, sets, &err);
-    free(sets);
-    if (!cfg) {
-        rs_log_error(&err);
-        return err.kind ? (int)err.kind : 1;
-    }
-#ifdef _OPENMP
-    long threads = rs_config_int(cfg, "pipeline", "threads");
-    if (threads > 0) omp_set_num_threads((int)threads);
-#endif
-    int rc = 0;
     if (run_pipeline(cfg, from, only, force, &err) != 0) {
         rs_log_error(&err);
         rc = err.kind ? (int)err.kind : 3;
