@@ -342,7 +342,7 @@ static void usage(FILE *f)
           "  --sweep      full: samples, sun rays, methods (paper up to 4000 facets); scale: one row (default:\n"
           "               full up to 20000 facets, scale above)\n"
           "  --rows       row names (see SWEEP in bench/bench.c), comma-separated; overrides --sweep\n"
-          "  --sky        an equirectangular HDR sky (e.g. /work/shared/skies/pmndrs_park.hdr), or 'overcast'\n"
+          "  --sky        an equirectangular HDR sky (e.g. ../shared/skies/pmndrs_park.hdr), or 'overcast'\n"
           "               (CIE overcast, no sun); default: a clear analytic sky with a sun\n"
           "  --width      panorama width (default 2048; height = width / 2)\n"
           "  --truth-factor  truth kernel samples as a multiple of the sweep's largest (default 16)\n",
