@@ -88,6 +88,19 @@ void rs_bench_truth_free(rs_bench_truth *t)
     free(t);
 }
 
+/* The 2 x 2 rays per pixel of panorama row r (pose: identity rotation at camera). */
+static void row_rays(rs_v3 camera, int w, int h, int r, rs_ray *rays)
+{
+    for (int c = 0; c < w; c++)
+        for (int s = 0; s < 4; s++) {
+            rs_ray *ray = &rays[4 * c + s];
+            ray->org = camera;
+            ray->dir = rs_pano_uv_to_dir((c + 0.25 + 0.5 * (s & 1)) / w, (r + 0.25 + 0.5 * (s >> 1)) / h);
+            ray->tnear = 0;
+            ray->tfar = INFINITY;
+        }
+}
+
 /* Facets that the camera's rays (the 2 x 2 per pixel of rs_bench_render) hit first. */
 static void camera_facets(const rs_scene *scene, rs_v3 camera, int w, int h, uint8_t *seen)
 {
@@ -98,14 +111,7 @@ static void camera_facets(const rs_scene *scene, rs_v3 camera, int w, int h, uin
 #pragma omp for schedule(dynamic, 4)
         for (int r = 0; r < h; r++) {
             if (!rays || !hits) continue;
-            for (int c = 0; c < w; c++)
-                for (int s = 0; s < 4; s++) {
-                    rs_ray *ray = &rays[4 * c + s];
-                    ray->org = camera;
-                    ray->dir = rs_pano_uv_to_dir((c + 0.25 + 0.5 * (s & 1)) / w, (r + 0.25 + 0.5 * (s >> 1)) / h);
-                    ray->tnear = 0;
-                    ray->tfar = INFINITY;
-                }
+            row_rays(camera, w, h, r, rays);
             rs_scene_intersect(scene, rays, hits, (size_t)w * 4);
             for (int k = 0; k < 4 * w; k++)
                 if (hits[k].face != RS_NO_HIT) seen[hits[k].face] = 1;   /* same value from any thread */
@@ -215,14 +221,7 @@ rs_image *rs_bench_render(const rs_bench_scene *sc, const rs_bench_truth *t, con
 #pragma omp for schedule(dynamic, 4)
         for (int r = 0; r < h; r++) {
             if (!rays || !hits) continue;
-            for (int c = 0; c < w; c++)
-                for (int s = 0; s < 4; s++) {
-                    rs_ray *ray = &rays[4 * c + s];
-                    ray->org = sc->camera;
-                    ray->dir = rs_pano_uv_to_dir((c + 0.25 + 0.5 * (s & 1)) / w, (r + 0.25 + 0.5 * (s >> 1)) / h);
-                    ray->tnear = 0;
-                    ray->tfar = INFINITY;
-                }
+            row_rays(sc->camera, w, h, r, rays);
             rs_scene_intersect(scene, rays, hits, (size_t)w * 4);
             for (int c = 0; c < w; c++) {
                 double acc[3] = {0, 0, 0};

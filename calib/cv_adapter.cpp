@@ -29,6 +29,22 @@ void set_msg(char *msg, size_t n, const std::string &s)
     for (size_t k = std::strlen(msg); k > 0 && (msg[k - 1] == '\n' || msg[k - 1] == ' '); k--) msg[k - 1] = 0;
 }
 
+// The one place that turns the exception in flight into a message: the extern "C" entries end
+// in catch (...) { return fail_with_current_exception(msg, msg_size); }.
+int fail_with_current_exception(char *msg, size_t msg_size)
+{
+    try {
+        throw;
+    } catch (const cv::Exception &e) {
+        set_msg(msg, msg_size, std::string("OpenCV: ") + e.what());
+    } catch (const std::exception &e) {
+        set_msg(msg, msg_size, e.what());
+    } catch (...) {
+        set_msg(msg, msg_size, "unknown exception");
+    }
+    return -1;
+}
+
 // A matrix field read into doubles: returns the number of entries (0 when the field is absent).
 int read_matrix(const cv::FileNode &cam, const char *key, int index, double *out, int max_entries)
 {
@@ -150,14 +166,9 @@ extern "C" int rs_cv_image_read(const char *path, float **data, int *width, int 
         *height = f.rows;
         *channels = f.channels();
         return 0;
-    } catch (const cv::Exception &e) {
-        set_msg(msg, msg_size, std::string("OpenCV: ") + e.what());
-    } catch (const std::exception &e) {
-        set_msg(msg, msg_size, e.what());
     } catch (...) {
-        set_msg(msg, msg_size, "unknown exception");
+        return fail_with_current_exception(msg, msg_size);
     }
-    return -1;
 }
 
 extern "C" int rs_cv_merge_debevec(const unsigned char *const *images, const float *times_s, int count, int width,
@@ -189,14 +200,9 @@ extern "C" int rs_cv_merge_debevec(const unsigned char *const *images, const flo
         cv::Mat outm(height, width, CV_32FC3, out);
         hdr.convertTo(outm, CV_32FC3);
         return 0;
-    } catch (const cv::Exception &e) {
-        set_msg(msg, msg_size, std::string("OpenCV: ") + e.what());
-    } catch (const std::exception &e) {
-        set_msg(msg, msg_size, e.what());
     } catch (...) {
-        set_msg(msg, msg_size, "unknown exception");
+        return fail_with_current_exception(msg, msg_size);
     }
-    return -1;
 }
 
 extern "C" int rs_cv_project(int fisheye, const double *camera_matrix, const double *dist, int n,
@@ -214,14 +220,9 @@ extern "C" int rs_cv_project(int fisheye, const double *camera_matrix, const dou
         out.convertTo(o64, CV_64FC2);
         std::memcpy(pixels, o64.ptr<double>(), static_cast<size_t>(n) * 2 * sizeof(double));
         return 0;
-    } catch (const cv::Exception &e) {
-        set_msg(msg, msg_size, std::string("OpenCV: ") + e.what());
-    } catch (const std::exception &e) {
-        set_msg(msg, msg_size, e.what());
     } catch (...) {
-        set_msg(msg, msg_size, "unknown exception");
+        return fail_with_current_exception(msg, msg_size);
     }
-    return -1;
 }
 
 extern "C" void rs_cv_free(void *p)

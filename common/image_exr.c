@@ -208,7 +208,7 @@ static int exr_decode_chunk(exr_reader *rd, const exr_chunk_info_t *ci, int64_t 
                           "EXR compression %s cannot be decoded by this OpenEXR C library (%s): "
                           "expected NONE, RLE, ZIPS, ZIP, PIZ, PXR24, B44 or B44A; re-save the "
                           "image with ZIP compression", known ? names[comp] : "?",
-                          rd->io.msg[0] ? rd->io.msg : "not implemented");
+                          rd->io.msg[0] ? rd->io.msg : "the library has no decoder for it");
     }
     if (rv != EXR_ERR_SUCCESS) return exr_fail(&rd->io, rv, rd->name, "cannot decode pixels", err);
 
