@@ -1,5 +1,5 @@
-# Reference-scene generator: builds a scene of Lambertian boxes under an HDR sky from a JSON
-# description and writes the panorama, its Cycles passes, the truth mesh, poses and a simulated PTX scan.
+# Reference-scene generator: builds a scene of Lambertian parts (boxes, extruded polygons, imported meshes)
+# under an HDR sky from a JSON description and writes the panorama, its passes, the truth, a PTX scan, rig frames.
 # SPDX-License-Identifier: MIT
 """Run inside Blender 3.4 (needs numpy, from Debian's python3-numpy):
 
@@ -7,7 +7,8 @@
         [--samples N] [--seed S] [--threads T] [--no-render]
 
 Writes into OUTDIR: pano.exr, env.exr, pano_diffcol.exr, pano_diffdir.exr, pano_diffind.exr,
-truth.ply, truth.json, scan.ptx (see tools/refscene/README.md for the schema and conventions).
+truth.ply, truth.json, scan.ptx, and with a rig rig.yaml and cam_K.exr (see tools/refscene/README.md
+for the schema and conventions).
 Exit code 0 on success, 1 on a bad scene description or arguments, 2 when a file cannot be
 written, 3 on an internal error.
 """
@@ -23,6 +24,11 @@ import numpy as np
 from mathutils import Matrix, Vector
 from mathutils.bvhtree import BVHTree
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import geom        # noqa: E402  (beside this script; Blender does not put it on the path)
+import rigsim      # noqa: E402
+import scenedesc   # noqa: E402
+
 PROG = "refscene"
 PANO_CONVENTION = ("u=(c+.5)/W, v=(r+.5)/H, azimuth=pi*(1-2u)=atan2(y,x), "
                    "polar=pi*v from +Z, local frame")
@@ -34,150 +40,26 @@ HALF_MAX = 65504.0
 PANO_TO_CAMERA = Matrix(((0.0, -1.0, 0.0), (0.0, 0.0, 1.0), (-1.0, 0.0, 0.0)))
 
 
-class SceneError(Exception):
-    """A bad scene description or command line (exit code 1)."""
+SceneError = scenedesc.SceneError
 
 
-# ---------------------------------------------------------------- scene description
-
-def _vec(obj, key, n, where, path):
-    v = obj.get(key)
-    if (not isinstance(v, list) or len(v) != n
-            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-                       for x in v)):
-        raise SceneError("%s: %s.%s = %s: expected a list of %d finite numbers"
-                         % (path, where, key, json.dumps(v), n))
-    return [float(x) for x in v]
-
-
-def _ints(obj, key, n, where, path):
-    v = _vec(obj, key, n, where, path)
-    if not all(x.is_integer() for x in v):
-        raise SceneError("%s: %s.%s = %s: expected %d integers" % (path, where, key, json.dumps(obj[key]), n))
-    return [int(x) for x in v]
-
-
-def _num(obj, key, where, path, default=None, lo=None, integer=False):
-    v = obj.get(key, default)
-    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-    if ok and integer:
-        ok = float(v).is_integer()
-    if ok and lo is not None:
-        ok = v >= lo
-    if not ok:
-        raise SceneError("%s: %s.%s = %s: expected %s%s" % (
-            path, where, key, json.dumps(v), "an integer" if integer else "a number",
-            "" if lo is None else " >= %g" % lo))
-    return int(v) if integer else float(v)
-
-
-def resolve_path(spec, json_path):
-    """blender-data:NAME, shared:PATH or a path relative to the JSON file."""
-    if spec.startswith("blender-data:"):
-        name = spec[len("blender-data:"):]
-        roots = [os.environ.get("RS_BLENDER_WORLDS", ""),
-                 os.path.join(bpy.utils.system_resource('DATAFILES'), "studiolights", "world"),
-                 "/usr/share/blender/datafiles/studiolights/world"]
-        for root in roots:
-            if root and os.path.isfile(os.path.join(root, name)):
-                return os.path.join(root, name)
-        return os.path.join(roots[-1], name)
-    if spec.startswith("shared:"):
-        # The shared folder sits beside the repository unless RHOSCAN_SHARED says otherwise.
-        repo = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-        root = os.environ.get("RHOSCAN_SHARED", os.path.join(os.path.dirname(repo), "shared"))
-        return os.path.join(root, spec[len("shared:"):])
-    return os.path.join(os.path.dirname(os.path.abspath(json_path)), spec)
-
-
-def load_scene(path):
-    """Reads and checks the scene description; returns a dict with defaults filled in."""
-    try:
-        with open(path, encoding="utf-8") as f:
-            sc = json.load(f)
-    except OSError as e:
-        raise SceneError("%s: cannot read: %s" % (path, e.strerror))
-    except ValueError as e:
-        raise SceneError("%s: not valid JSON: %s" % (path, e))
-    if not isinstance(sc, dict):
-        raise SceneError("%s: expected a JSON object at the top level" % path)
-    for key in ("parts", "env", "camera", "scanner"):
-        if key not in sc:
-            raise SceneError("%s: missing key \"%s\"" % (path, key))
-    parts = sc["parts"]
-    if not isinstance(parts, list) or not parts:
-        raise SceneError("%s: parts: expected a non-empty list of boxes" % path)
-    for i, p in enumerate(parts):
-        where = "parts[%d]" % i
-        if not isinstance(p, dict):
-            raise SceneError("%s: %s: expected an object with min, max, albedo" % (path, where))
-        lo, hi = _vec(p, "min", 3, where, path), _vec(p, "max", 3, where, path)
-        if not all(a < b for a, b in zip(lo, hi)):
-            raise SceneError("%s: %s: min %s, max %s: expected min < max on every axis"
-                             % (path, where, lo, hi))
-        alb = _vec(p, "albedo", 3, where, path)
-        if not all(0.0 <= a <= 1.0 for a in alb):
-            raise SceneError("%s: %s.albedo = %s: expected values in 0..1" % (path, where, alb))
-    env = sc["env"]
-    if not isinstance(env, dict) or not isinstance(env.get("file"), str):
-        raise SceneError("%s: env: expected an object with a \"file\" string" % path)
-    env_file = resolve_path(env["file"], path)
-    if not os.path.isfile(env_file):
-        raise SceneError("%s: env.file = \"%s\": no such file (%s)" % (path, env["file"], env_file))
-    cam, scn = sc["camera"], sc["scanner"]
-    if not isinstance(cam, dict) or not isinstance(scn, dict):
-        raise SceneError("%s: camera and scanner: expected objects" % path)
-    out = {
-        "parts": parts,
-        "env": env,
-        "env_path": env_file,
-        "env_strength": _num(env, "strength", "env", path, 1.0, lo=0.0),
-        "env_rot_deg": _num(env, "rotation_z_deg", "env", path, 0.0),
-        "cam_pos": _vec(cam, "position", 3, "camera", path),
-        "cam_yaw_deg": _num(cam, "yaw_deg", "camera", path, 0.0),
-        "scan_pos": _vec(scn, "position", 3, "scanner", path),
-        "scan_grid": _ints(scn, "grid", 2, "scanner", path),
-        "scan_el_deg": _vec(scn, "elevation_deg", 2, "scanner", path),
-        "scan_noise_m": _num(scn, "range_noise_m", "scanner", path, 0.003, lo=0.0),
-        "samples": _num(sc, "samples", "scene", path, 256, lo=1, integer=True),
-        "env_samples": _num(sc, "env_samples", "scene", path, 16, lo=1, integer=True),
-        "pano_size": _ints(sc, "pano_size", 2, "scene", path) if "pano_size" in sc else [1024, 512],
-        "seed": _num(sc, "seed", "scene", path, 0, lo=0, integer=True),
-        "exr_half": sc.get("exr_half", True),
-        "sun": sc.get("sun"),
-    }
-    cols, rows = out["scan_grid"]
-    if cols < 1 or rows < 2 or cols * rows > 50_000_000:
-        raise SceneError("%s: scanner.grid = %s: expected [cols >= 1, rows >= 2], at most 5e7 points"
-                         % (path, out["scan_grid"]))
-    el0, el1 = out["scan_el_deg"]
-    if not -90.0 <= el0 < el1 <= 90.0:
-        raise SceneError("%s: scanner.elevation_deg = %s: expected -90 <= low < high <= 90"
-                         % (path, out["scan_el_deg"]))
-    w, h = out["pano_size"]
-    if w != 2 * h or h < 2 or w > 65536:
-        raise SceneError("%s: pano_size = %s: expected [2 H, H] with H >= 2" % (path, out["pano_size"]))
-    if not isinstance(out["exr_half"], bool):
-        raise SceneError("%s: exr_half = %s: expected true or false" % (path, json.dumps(out["exr_half"])))
-    if out["sun"] is not None:
-        sun = out["sun"]
-        if not isinstance(sun, dict):
-            raise SceneError("%s: sun: expected an object or null" % path)
-        out["sun_dir_deg"] = _vec(sun, "direction_deg", 2, "sun", path)
-        out["sun_strength"] = _num(sun, "strength", "sun", path, lo=0.0)
-        out["sun_angle_deg"] = _num(sun, "angle_deg", "sun", path, 0.53, lo=0.0)
-        out["sun_color"] = _vec(sun, "color", 3, "sun", path) if "color" in sun else [1.0, 1.0, 1.0]
-    return out
+def blender_worlds():
+    """Where this Blender keeps its bundled skies (the blender-data: prefix of env.file)."""
+    return [os.path.join(bpy.utils.system_resource('DATAFILES'), "studiolights", "world")]
 
 
 # ---------------------------------------------------------------- geometry
 
-def build_bmesh(parts):
-    """One triangulated mesh of all boxes, in part order; face material_index = part index.
-    Vertex order and triangle split follow Blender's cube primitive + bmesh triangulate,
-    which is how the shared reference truth.ply files were made."""
+def build_bmesh(sc):
+    """One triangulated mesh of all parts; face material_index = part index. Boxes come first,
+    in part order, with the vertex order and triangle split of Blender's cube primitive + bmesh
+    triangulate (how the shared reference truth.ply files were made, so box-only scenes stay
+    byte-identical); then the triangles of extrusions and meshes, in part order, as
+    scenedesc made them (outward, counter-clockwise)."""
     bm = bmesh.new()
-    for i, p in enumerate(parts):
+    for i, p in enumerate(sc["parts"]):
+        if sc["kinds"][i] != "box":
+            continue
         lo, hi = Vector(p["min"]), Vector(p["max"])
         res = bmesh.ops.create_cube(bm, size=2.0)
         for v in res["verts"]:
@@ -186,6 +68,29 @@ def build_bmesh(parts):
             f.material_index = i
     bm.faces.ensure_lookup_table()
     bmesh.ops.triangulate(bm, faces=bm.faces[:])
+    for i, solid in enumerate(sc["solids"]):
+        if solid is None:
+            continue
+        verts, tris = solid
+        bv = [bm.verts.new(co) for co in verts]
+        skipped = 0
+        for t in tris:
+            try:
+                f = bm.faces.new((bv[t[0]], bv[t[1]], bv[t[2]]))
+            except ValueError:        # the same three vertices twice: one face is enough
+                skipped += 1
+                continue
+            f.material_index = i
+        closed, consistent, vol = geom.mesh_check(verts, tris)
+        name = sc["parts"][i].get("name", "part%d" % i)
+        log("part %d (%s, %s): %d triangles%s, %s" % (
+            i, name, sc["kinds"][i], len(tris) - skipped,
+            "" if not skipped and not sc["dropped_faces"][i]
+            else " (%d degenerate or repeated faces left out)" % (skipped + sc["dropped_faces"][i]),
+            "closed, volume %.4g m3" % vol if closed else
+            "open" + ("" if consistent else ", inconsistently wound")))
+        if closed and vol < 0:
+            log("part %d (%s): the mesh encloses a negative volume: its faces point inward" % (i, name))
     bm.verts.ensure_lookup_table()
     bm.faces.ensure_lookup_table()
     bm.verts.index_update()
@@ -463,6 +368,101 @@ def write_ptx(path, pts, scan_pos):
     write_text(path, "\n".join(head) + "\n" + "\n".join(lines.tolist()) + "\n")
 
 
+# ---------------------------------------------------------------- rig
+
+def rig_truth(rig, samples):
+    yaw = math.radians(rig["yaw_deg"])
+    cams = []
+    for k, c in enumerate(rig["cameras"]):
+        cams.append({"name": c["name"], "frame": "cam_%d.exr" % k, "image_size": c["size"], "K": c["K"],
+                     "dist": c["dist"], "R_rig_cam": c["R"], "t_rig_cam": c["t"]})
+    return {"file": "rig.yaml", "position": rig["position"], "yaw_deg": rig["yaw_deg"],
+            "rotation_local_to_world": [[math.cos(yaw), -math.sin(yaw), 0.0],
+                                        [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]],
+            "samples": samples, "preset": rig["preset"], "cameras": cams}
+
+
+def render_rig(rig, samples, outdir, half):
+    """One frame per rig camera, cam_K.exr: Cycles renders an undistorted pinhole view wide
+    enough for the frame (square pixels, optical axis at the centre), then every frame pixel is
+    undistorted (Newton, rigsim.undistort) and the render sampled there bilinearly. Pixels
+    outside the lens's usable field (where calib/rig.c stops too) are black with alpha 0."""
+    scene = bpy.context.scene
+    scene.cycles.samples = samples
+    # Only the camera changes between these renders: keep Cycles' scene (BVH, sky importance
+    # map) instead of rebuilding it each time, which costs more than a small frame's samples.
+    scene.render.use_persistent_data = True
+    tmpdir = os.path.join(outdir, ".rig-tmp%d" % os.getpid())
+    for k, c in enumerate(rig["cameras"]):
+        t0 = time.time()
+        a, b, ok = rigsim.frame_rays(c)
+        try:
+            f, (wi, hi) = rigsim.ideal_view(c, a, b, ok, rig["oversample"])
+        except ValueError as e:
+            raise SceneError("rig camera %d: %s" % (k, e))
+        camd = bpy.data.cameras.new("rig_" + c["name"])
+        camd.type = 'PERSP'
+        camd.sensor_fit = 'HORIZONTAL'      # the focal applies to the width, whatever the aspect
+        camd.sensor_width = 36.0
+        camd.lens = f * 36.0 / wi
+        camd.shift_x = camd.shift_y = 0.0
+        camd.clip_start = 1e-3
+        camd.clip_end = 1e6
+        ob = bpy.data.objects.new("rig_" + c["name"], camd)
+        r_cv, centre = rigsim.camera_world(c, rig["position"], rig["yaw_deg"])
+        # Blender's camera looks along its -Z with +Y up: OpenCV's frame with y and z negated.
+        r_bl = r_cv @ np.diag([1.0, -1.0, -1.0])
+        ob.matrix_world = Matrix([[r_bl[i][0], r_bl[i][1], r_bl[i][2], centre[i]] for i in range(3)]
+                                 + [[0.0, 0.0, 0.0, 1.0]])
+        scene.collection.objects.link(ob)
+        scene.camera = ob
+        scene.render.resolution_x, scene.render.resolution_y = wi, hi
+        render_files(tmpdir, {"ideal": "Image"}, False)
+        ideal = read_exr(os.path.join(tmpdir, "ideal.exr"))
+        frame = np.zeros(ok.shape + (4,), dtype=np.float32)
+        frame[..., :3] = rigsim.remap(ideal[..., :3], f, a, b, ok)
+        frame[..., 3] = ok
+        write_exr(frame, os.path.join(outdir, "cam_%d.exr" % k), half)
+        log("rig camera %d (%s): %d x %d from a %d x %d render (focal %.1f px), %d samples, %.1f%% of the "
+            "pixels inside the usable field, %.1f s" % (k, c["name"], c["size"][0], c["size"][1], wi, hi, f,
+                                                        samples, 100.0 * ok.mean(), time.time() - t0))
+    remove_tree(tmpdir)
+
+
+def read_exr(path):
+    """H x W x 4 float32, rows top first."""
+    img = bpy.data.images.load(path, check_existing=False)
+    try:
+        w, h = img.size
+        px = np.empty(w * h * 4, dtype=np.float32)
+        img.pixels.foreach_get(px)
+    finally:
+        bpy.data.images.remove(img)
+    return px.reshape(h, w, 4)[::-1]
+
+
+def write_exr(rgba, path, half):
+    """Writes H x W x 4 (rows top first) as a ZIP EXR, half float unless that would clip."""
+    h, w = rgba.shape[:2]
+    if half and not np.all(np.abs(rgba) < HALF_MAX):
+        log("%s: values beyond the half-float range: written as 32-bit float" % os.path.basename(path))
+        half = False
+    img = bpy.data.images.new(os.path.basename(path), w, h, alpha=True, float_buffer=True)
+    try:
+        img.colorspace_settings.name = 'Linear'
+        img.pixels.foreach_set(np.ascontiguousarray(rgba[::-1], dtype=np.float32).ravel())
+        st = bpy.context.scene.render.image_settings
+        st.file_format = 'OPEN_EXR'
+        st.color_depth = '16' if half else '32'
+        st.exr_codec = 'ZIP'
+        st.color_mode = 'RGBA'
+        tmp = path + ".tmp%d.exr" % os.getpid()
+        img.save_render(tmp, scene=bpy.context.scene)
+        os.replace(tmp, path)
+    finally:
+        bpy.data.images.remove(img)
+
+
 # ---------------------------------------------------------------- main
 
 def log(msg):
@@ -497,13 +497,13 @@ def parse_args(argv):
 
 def run(argv):
     scene_path, outdir, opts = parse_args(argv)
-    sc = load_scene(scene_path)
+    sc = scenedesc.load_scene(scene_path, blender_worlds())
     samples = opts["samples"] or sc["samples"]
     seed = sc["seed"] if opts["seed"] is None else opts["seed"]
     os.makedirs(outdir, exist_ok=True)
     t_start = time.time()
     clear_scene()
-    bm = build_bmesh(sc["parts"])
+    bm = build_bmesh(sc)
     model = make_model(bm, sc["parts"])
     cam = make_camera(sc["cam_pos"], sc["cam_yaw_deg"])
     make_world(sc["env_path"], sc["env_strength"], sc["env_rot_deg"])
@@ -535,6 +535,11 @@ def run(argv):
         "sun": sc["sun"],
         "samples": samples,
     }
+    rig = sc["rig"]
+    if rig is not None:
+        rig_samples = opts["samples"] or rig["samples"]
+        truth["rig"] = rig_truth(rig, rig_samples)
+        write_text(os.path.join(outdir, "rig.yaml"), rigsim.rig_yaml(rig["cameras"]))
     write_text(os.path.join(outdir, "truth.json"), json.dumps(truth, indent=1) + "\n")
 
     if opts["render"]:
@@ -550,6 +555,9 @@ def run(argv):
         t0 = time.time()
         render_files(outdir, {"env": "Image"}, sc["exr_half"])
         log("env %d samples, %.1f s" % (sc["env_samples"], time.time() - t0))
+        if rig is not None:
+            model.hide_render = False
+            render_rig(rig, rig_samples, outdir, sc["exr_half"])
     bm.free()
     log("done in %.1f s" % (time.time() - t_start))
 
