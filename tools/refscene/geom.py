@@ -42,6 +42,10 @@ def _segments_cross(p, q, r, s):
     return on(r, s, p, d1) or on(r, s, q, d2) or on(p, q, r, d3) or on(p, q, s, d4)
 
 
+def _pt(p):
+    return "(%g, %g)" % (p[0], p[1])
+
+
 def _point_in_loop(pt, loop):
     """Even-odd test; points on the boundary count as outside for no particular side."""
     x, y = pt
@@ -66,7 +70,8 @@ def check_polygon(outline, holes):
             raise GeomError("%s encloses no area" % name)
         for i in range(len(loop)):
             if loop[i] == loop[(i + 1) % len(loop)]:
-                raise GeomError("%s: points %d and %d coincide" % (name, i, (i + 1) % len(loop)))
+                raise GeomError("%s: points %d and %d coincide at %s: expected distinct neighbours"
+                                % (name, i, (i + 1) % len(loop), _pt(loop[i])))
     edges = []
     for n, loop in enumerate(loops):
         for i in range(len(loop)):
@@ -80,11 +85,12 @@ def check_polygon(outline, holes):
             if _segments_cross(p, q, r, s):
                 wa = "outline" if na == 0 else "holes[%d]" % (na - 1)
                 wb = "outline" if nb == 0 else "holes[%d]" % (nb - 1)
-                raise GeomError("%s edge %d and %s edge %d touch or cross: expected simple loops that do not "
-                                "touch (an opening that reaches the edge belongs in the outline)" % (wa, ia, wb, ib))
+                raise GeomError("%s edge %d %s-%s and %s edge %d %s-%s touch or cross: expected simple loops "
+                                "that do not touch (an opening that reaches the edge belongs in the outline)"
+                                % (wa, ia, _pt(p), _pt(q), wb, ib, _pt(r), _pt(s)))
     for n, hole in enumerate(holes):
         if not _point_in_loop(hole[0], outline):
-            raise GeomError("holes[%d] lies outside the outline" % n)
+            raise GeomError("holes[%d] (first point %s) lies outside the outline" % (n, _pt(hole[0])))
         for m, other in enumerate(holes):
             if m != n and _point_in_loop(hole[0], other):
                 raise GeomError("holes[%d] lies inside holes[%d]: expected separate holes" % (n, m))

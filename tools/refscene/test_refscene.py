@@ -70,6 +70,23 @@ class Triangulation(unittest.TestCase):
         holes = [[(0.5, 0.5), (1.0, 0.5), (1.0, 1.5), (0.5, 1.5)], [(2.0, 0.5), (2.5, 0.5), (2.5, 1.5), (2.0, 1.5)]]
         self.check_cover(outline, holes)
 
+    def test_window_grid_and_random_stars(self):
+        # Holes in rows and columns share their largest x: the bridges must still not cross.
+        grid = [[(1 + 3 * i, 1 + 3 * j), (2 + 3 * i, 1 + 3 * j), (2 + 3 * i, 2 + 3 * j), (1 + 3 * i, 2 + 3 * j)]
+                for i in range(3) for j in range(3)]
+        self.check_cover([(0, 0), (10, 0), (10, 10), (0, 10)], grid)
+
+        def circle(cx, cy, r, n):
+            return [(cx + r * math.cos(2 * math.pi * k / n), cy + r * math.sin(2 * math.pi * k / n)) for k in range(n)]
+        rng = np.random.default_rng(7)
+        for _ in range(150):
+            n = int(rng.integers(3, 41))
+            radius = 1 + 2 * rng.random(n)     # star-shaped about the origin: simple, often very concave
+            star = [(radius[k] * math.cos(2 * math.pi * k / n), radius[k] * math.sin(2 * math.pi * k / n))
+                    for k in range(n)]
+            self.check_cover(star, [])
+            self.check_cover(star, [circle(0.4, 0, 0.3, 7), circle(-0.4, 0.1, 0.3, 5)])
+
     def test_bad_polygons(self):
         bowtie = [(0, 0), (2, 2), (2, 0), (0, 3)]
         with self.assertRaisesRegex(geom.GeomError, "touch or cross"):
