@@ -72,6 +72,9 @@ const rs_cfg_key rs_cfg_keys[] = {
      "one image per rig camera, in the order of the rig file's cameras (EXR, HDR, PNG, JPEG, TIFF)"},
     {"rig", "exposure_times_s", RS_CFG_STRING, NULL, 0, 0, NULL, "s", "calib",
      "exposure brackets: times of each camera's 8-bit exposures; frames then lists them camera by camera (Debevec merge)"},
+    {"rig", "response_file", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib",
+     "with exposure_times_s: camera response, 256 lines (code 0..255) of 1 or 3 linear exposures > 0, non-decreasing; "
+     "replaces CalibrateDebevec"},
     {"rig", "width", RS_CFG_INT, "0", 0, 65536, NULL, "px", "calib",
      "stitched panorama width (height = width / 2); 0: from the finest camera's pixel angle"},
     {"rig", "feather_px", RS_CFG_REAL, "32", 0.5, 10000, NULL, "px", "calib",
@@ -85,6 +88,10 @@ const rs_cfg_key rs_cfg_keys[] = {
      "registration: random samples of 3 pairs tried before refinement"},
     {"calib", "seed", RS_CFG_INT, "1", 0, 2147483647, NULL, "", "calib",
      "registration: seed of the RANSAC samples"},
+    {"calib", "grey_card_region", RS_CFG_STRING, NULL, 0, 0, NULL, "px", "reflectance",
+     "radiometric check: x0 y0 x1 y1, the capture panorama's pixels on a grey card (columns x0..x1-1, rows y0..y1-1)"},
+    {"calib", "grey_card_albedo", RS_CFG_REAL, "0.18", 0.001, 1, NULL, "", "reflectance",
+     "the grey card's known albedo; reflectance.json reports pi L / (E_sky + G) over the region against it"},
 
     {"observe", "min_pixels", RS_CFG_INT, "3", 1, 1000000, NULL, "px", "observe",
      "pure pixels (not on a facet border) needed to average a facet's radiance from pixels"},
@@ -136,6 +143,11 @@ const rs_cfg_key rs_cfg_keys[] = {
      "site longitude, east positive (with datetime)"},
     {"sky", "north_deg", RS_CFG_REAL, "90", -360, 360, NULL, "deg", "irradiance",
      "world azimuth atan2(y, x) of geographic north (90: +Y is north)"},
+    {"sky", "sun_irradiance", RS_CFG_REAL, NULL, 0, 1e12, NULL, "pano x sr", "irradiance",
+     "clipped sun: its direct normal irradiance in the panorama's radiance unit x sr (W m^-2 for W m^-2 sr^-1), "
+     "e.g. from a pyrheliometer; the disc leaves the sky map and each facet gets DNI max(0, n.s) V"},
+    {"sky", "sun_clip_level", RS_CFG_REAL, NULL, 0, 1e30, NULL, "pano", "irradiance",
+     "with sun_irradiance: luminance from which sky pixels are the clipped disc; default 0.9 x the brightest near the sun"},
     {"sky", "sun_mask_deg", RS_CFG_REAL, "4", 0, 45, NULL, "deg", "irradiance",
      "model fill: sky within this angle of the sun is left out of the fit"},
     {"sky", "sh_order", RS_CFG_INT, "2", -1, 4, NULL, "", "irradiance",

@@ -13,6 +13,7 @@
 #include "cv_adapter.h"
 #include "stitch.h"
 #include "hdr.h"
+#include "response.h"
 #include "stages.h"
 
 /* Solves the pose of [capture] from its pairs file on a width x height panorama and records the
@@ -170,7 +171,7 @@ static int exposure_times(const rs_config *cfg, double *times, int max, rs_err *
 /* Camera cam's brackets (frames cam * n .. cam * n + n - 1, 8-bit files read as stored codes)
  * merged into radiance; the clipping is reported. */
 static rs_image *merge_brackets(const rs_config *cfg, const rs_rig_camera *c, int cam, const double *times, int n,
-                                rs_report *rep, rs_json *hdr_json, rs_err *err)
+                                const float *response, rs_report *rep, rs_json *hdr_json, rs_err *err)
 {
     rs_image *shots[16] = {NULL}, *merged = NULL;
     char path[4096], msg[512];
@@ -202,7 +203,7 @@ static rs_image *merge_brackets(const rs_config *cfg, const rs_rig_camera *c, in
         }
     }
     rs_hdr_report hr;
-    if (rs_hdr_merge((const rs_image *const *)shots, times, n, NULL, &merged, &hr, err) != 0) goto out;
+    if (rs_hdr_merge((const rs_image *const *)shots, times, n, response, &merged, &hr, err) != 0) goto out;
     rs_json *o = rs_json_set_obj(hdr_json, c->name);
     rs_json_set_int(o, "clipped_pixels", (long long)hr.clipped_px);
     rs_json_set_bool(o, "sun_clipped", hr.sun_clipped);
@@ -258,9 +259,15 @@ static int stitch_rig(const rs_config *cfg, const char *out_path, rs_report *rep
         goto out;
     }
     rs_json *hdr_json = nexp ? rs_json_set_obj(rep->metrics, "hdr") : NULL;
+    /* [rig] response_file: one measured curve for every camera instead of Debevec's fit. */
+    float response[256 * 3];
+    int have_response = nexp && rs_config_path(cfg, "rig", "response_file", path, sizeof path);
+    if (have_response && rs_response_read(path, response, err) != 0) goto out;
+    if (have_response) rs_json_set_str(hdr_json, "response_file", path);
     for (int i = 0; i < rig.count; i++) {
         rs_config_path_at(cfg, "rig", "frames", nexp ? i * nexp : i, path, sizeof path);
-        frames[i] = nexp ? merge_brackets(cfg, &rig.cams[i], i, times, nexp, rep, hdr_json, err) : read_frame(path, err);
+        frames[i] = nexp ? merge_brackets(cfg, &rig.cams[i], i, times, nexp,
+                                            have_response ? response : NULL, rep, hdr_json, err) : read_frame(path, err);
         if (!frames[i]) goto out;
         if (frames[i]->width != rig.cams[i].width || frames[i]->height != rig.cams[i].height) {
             rs_err_set(err, RS_ERR_INPUT, path, 0, "frame is %d x %d but camera %d (%s) of %s is %d x %d",

@@ -20,6 +20,7 @@
 #include "gather.h"
 #include "skyenv.h"
 #include "solar.h"
+#include "sunsource.h"
 #include "stages.h"
 
 static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_facet_gather *fg,
@@ -156,6 +157,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     uint8_t *other_masks[RS_SKYENV_MAX_OTHERS];
     int nothers = 0;
     rs_skyenv env = {0};
+    rs_sunsource sun = {0};   /* [sky] sun_irradiance: the sun as an explicit source */
     rs_skyenv_info info;
     uint8_t *sky_mask = NULL;
     rs_scene *scene = NULL;
@@ -200,8 +202,10 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     so.max_sr = 2 * M_PI * (1 - cos(cone));
     so.explicit_sun = sun_samples > 0 || rs_config_int(cfg, "irradiance", "sky_samples") > 0;
     if (sky_fill_options(cfg, &so.fill, err) != 0) goto out;
+    if (rs_sunsource_setup(cfg, &cap, ids->data, &so.fill, &sun, err) != 0) goto out;
     if (rs_config_has(cfg, "sky", "panorama")) {
         if (rs_capture_load(cfg, "sky", &sky, err) != 0) goto out;
+        rs_sunsource_remove(&sun, &sky, NULL, 0);
         if (!(sky_mask = malloc((size_t)sky.pano->width * sky.pano->height))) {
             rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky panorama's mask");
             goto out;
@@ -216,6 +220,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     for (int i = 0; i < nsec && i < RS_SKYENV_MAX_OTHERS + 1; i++) {
         if (strcmp(sections[i], "capture") == 0 || nothers == RS_SKYENV_MAX_OTHERS) continue;
         if (rs_capture_load(cfg, sections[i], &others[nothers], err) != 0) goto out;
+        rs_sunsource_remove(&sun, &others[nothers], NULL, 0);
         nothers++;
         size_t n = (size_t)others[nothers - 1].pano->width * others[nothers - 1].pano->height;
         if (!(other_masks[nothers - 1] = malloc(n))) {
@@ -284,7 +289,8 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_progress_end(prog);
     double gather_s = rs_now() - t0;
     rs_report_time(rep, "gather", gather_s);
-    if (failed) {
+    if (failed || rs_sunsource_add(&sun, scene, sun_samples, (uint32_t)rs_config_int(cfg, "irradiance", "seed"), nf,
+                                   fg) != 0) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory during the gather");
         goto out;
     }
@@ -310,6 +316,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_num(rep->metrics, "sky_cv_rel_model", info.fill.cv_rel_model);
     rs_json_set_int(rep->metrics, "sky_cv_blocks", info.fill.cv_folds);
     rs_json_set_str(rep->metrics, "sun_source", sun_source_name(info.fill.sun_source));
+    rs_sunsource_report(&sun, rep->metrics);
     rs_json *sd = rs_json_set_arr(rep->metrics, "sun_direction");
     rs_json_push_num(sd, info.fill.sun_dir.x);
     rs_json_push_num(sd, info.fill.sun_dir.y);

@@ -14,6 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "faceprop.h"
+#include "greycard.h"
 #include "image.h"
 #include "log.h"
 #include "paper.h"
@@ -265,6 +266,7 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         goto out;
     }
     rs_report_time(rep, "solve", rs_now() - t0);
+    if (rs_greycard_report(cfg, nf, esky, ro.G, ro.rho, ro.estimable, rep->metrics, err) != 0) goto out;
     size_t nobs = 0, nest = 0, blow = 0;
     for (size_t f = 0; f < nf; f++) {
         nobs += flags[f];

@@ -323,6 +323,56 @@ static void test_brackets(void **state)
         if (isfinite(pano->data[k])) sum_rel += fabs(pano->data[k] / truth->data[k] / scale - 1);
     print_message("brackets: scale %g, mean relative error %.4f over %zu values\n", scale, sum_rel / m, m);
     assert_true(sum_rel / m < 0.03);
+
+    /* [rig] response_file: the known gamma curve (code i <- exposure (i / 255)^2.2 / 60, the
+     * brackets' own scale) inverts the brackets to the true radiance, scale included. */
+    char resp[256 * 24 + 64] = "# gamma 2.2, sensor full scale at radiance x time = 1 / 60\n";
+    for (int i = 0; i < 256; i++)
+        snprintf(resp + strlen(resp), sizeof resp - strlen(resp), "%.9g\n", pow(fmax(i, 0.25) / 255, 2.2) / 60);
+    rs_test_write(rs_test_path(dir, "gamma.txt"), resp);
+    char extra[256];
+    snprintf(extra, sizeof extra, "exposure_times_s = 0.005 0.02 0.08\nresponse_file = gamma.txt\n");
+    write_config(dir, list, extra);
+    rc = run_calib(rs_test_path(dir, "calib.ini"), &out);
+    if (rc != 0) print_message("%s", out);
+    assert_int_equal(rc, 0);
+    free(out);
+    rs_image_free(pano);
+    pano = rs_image_read(rs_test_path(dir, "out/" RS_CALIB_PANO_FILE), &err);
+    assert_non_null(pano);
+    m = 0;
+    sum_rel = 0;
+    for (size_t k = 0; k < n; k++)
+        if (isfinite(pano->data[k])) {
+            ratio[m++] = pano->data[k] / truth->data[k];
+            sum_rel += fabs(pano->data[k] / truth->data[k] - 1);
+        }
+    qsort(ratio, m, sizeof *ratio, cmp_double);
+    print_message("response file: scale %g, mean relative error %.4f (no scale fitted)\n", ratio[m / 2], sum_rel / m);
+    assert_true(fabs(ratio[m / 2] - 1) < 0.01);
+    assert_true(sum_rel / m < 0.02);
+    /* A linear curve in its place does not invert the gamma: the test can tell. */
+    resp[0] = 0;
+    for (int i = 0; i < 256; i++) snprintf(resp + strlen(resp), sizeof resp - strlen(resp), "%.9g\n", (i + 0.25) / 255 / 60);
+    rs_test_write(rs_test_path(dir, "linear.txt"), resp);
+    snprintf(extra, sizeof extra, "exposure_times_s = 0.005 0.02 0.08\nresponse_file = linear.txt\n");
+    write_config(dir, list, extra);
+    assert_int_equal(run_calib(rs_test_path(dir, "calib.ini"), &out), 0);
+    free(out);
+    rs_image_free(pano);
+    pano = rs_image_read(rs_test_path(dir, "out/" RS_CALIB_PANO_FILE), &err);
+    sum_rel = 0;
+    for (size_t k = 0; k < n; k++)
+        if (isfinite(pano->data[k])) sum_rel += fabs(pano->data[k] / truth->data[k] - 1);
+    print_message("linear response file: mean relative error %.4f\n", sum_rel / m);
+    assert_true(sum_rel / m > 0.1);
+    /* A curve that falls, and one short of 256 codes. */
+    rs_test_write(rs_test_path(dir, "bad.txt"), "# R G B\n1 1 1\n2 2 2\n3 1.5 3\n");
+    snprintf(extra, sizeof extra, "exposure_times_s = 0.005 0.02 0.08\nresponse_file = bad.txt\n");
+    write_config(dir, list, extra);
+    expect_failure(dir, "bad.txt:4: code 2, channel 1: 1.5 is below code 1's 2");
+    rs_test_write(rs_test_path(dir, "bad.txt"), "1\n2\n3\n");
+    expect_failure(dir, "3 values: expected 256");
     /* Brackets that do not add up. */
     write_config(dir, "cam0_e0.png cam0_e1.png", "exposure_times_s = 0.005 0.02 0.08\n");
     expect_failure(dir, "exposure_times_s gives 3 exposures: expected 18 frames");

@@ -1,0 +1,88 @@
+/* response: response-curve files (see response.h). A curve measured once (in the lab, or
+ * calibrated from a well-exposed scene) is more trustworthy than one fitted to every capture. */
+#include "response.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "fileio.h"
+
+int rs_response_read(const char *path, float *out, rs_err *err)
+{
+    char *text = NULL;
+    size_t size = 0;
+    if (rs_read_file(path, &text, &size, err) != 0) return -1;
+    int code = 0, rc = -1;
+    long line = 0;
+    for (char *p = text; *p;) {
+        char *eol = strchr(p, '\n');
+        if (eol) *eol = 0;
+        line++;
+        char *s = p;
+        p = eol ? eol + 1 : p + strlen(p);
+        while (*s == ' ' || *s == '\t' || *s == '\r') s++;
+        if (!*s || *s == '#') continue;
+        double v[4];
+        int n = 0;
+        for (char *q = s; *q;) {
+            while (*q == ' ' || *q == '\t' || *q == ',' || *q == '\r') q++;
+            if (!*q) break;
+            char *end;
+            double x = strtod(q, &end);
+            if (end == q || n == 4) {
+                rs_err_set(err, RS_ERR_INPUT, path, line, "\"%s\": expected 1 or 3 numbers (linear exposure of "
+                           "code %d for all channels, or for R G B)", s, code);
+                goto out;
+            }
+            v[n++] = x;
+            q = end;
+        }
+        if (n != 1 && n != 3) {
+            rs_err_set(err, RS_ERR_INPUT, path, line, "\"%s\" has %d numbers: expected 1 (all channels) or 3 (R G B)",
+                       s, n);
+            goto out;
+        }
+        if (code == 256) {
+            rs_err_set(err, RS_ERR_INPUT, path, line, "a 257th value: expected 256 lines, one per 8-bit code");
+            goto out;
+        }
+        for (int ch = 0; ch < 3; ch++) {
+            double x = v[n == 1 ? 0 : ch];
+            if (!(x > 0) || x > 1e30) {
+                rs_err_set(err, RS_ERR_INPUT, path, line, "code %d: %g: expected a linear exposure > 0 (the merge "
+                           "takes its logarithm)", code, x);
+                goto out;
+            }
+            if (code > 0 && x < out[3 * (code - 1) + ch]) {
+                rs_err_set(err, RS_ERR_INPUT, path, line, "code %d, channel %d: %g is below code %d's %g: expected a "
+                           "response that does not decrease", code, ch, x, code - 1, out[3 * (code - 1) + ch]);
+                goto out;
+            }
+            out[3 * code + ch] = (float)x;
+        }
+        code++;
+    }
+    if (code != 256) {
+        rs_err_set(err, RS_ERR_INPUT, path, 0, "%d values: expected 256, one per 8-bit code", code);
+        goto out;
+    }
+    rc = 0;
+out:
+    free(text);
+    return rc;
+}
+
+int rs_response_write(const char *path, const float *response, const char *comment, rs_err *err)
+{
+    size_t cap = 256 * 64 + 1024, len = 0;
+    char *buf = malloc(cap);
+    if (!buf) return rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
+    len += (size_t)snprintf(buf + len, cap - len, "# %.200s\n# code i: linear exposure R G B giving 8-bit code i\n",
+                            comment ? comment : "camera response");
+    for (int i = 0; i < 256 && len < cap; i++)
+        len += (size_t)snprintf(buf + len, cap - len, "%.9g %.9g %.9g\n", response[3 * i], response[3 * i + 1],
+                                response[3 * i + 2]);
+    int rc = rs_write_file_atomic(path, buf, len, err);
+    free(buf);
+    return rc;
+}

@@ -1,0 +1,18 @@
+/* response: a camera's response curve from a text file ([rig] response_file), used instead of
+ * calibrating one from the brackets (Debevec). Exports rs_response_read and rs_response_write. */
+#ifndef RS_RESPONSE_H
+#define RS_RESPONSE_H
+
+#include "err.h"
+
+/* The file: 256 data lines, line i for 8-bit code i, each with one number (all channels) or three
+ * (R G B), separated by spaces, tabs or commas; blank lines and lines starting with '#' are
+ * skipped. A number is the linear exposure (radiance x time, any common scale) that gives code
+ * i: > 0 (MergeDebevec takes its logarithm) and non-decreasing with the code. out: 256 x 3,
+ * R G B interleaved (rs_hdr_merge's response). Errors name the file, the line and the value. */
+int rs_response_read(const char *path, float *out, rs_err *err);
+
+/* Writes a response (256 x 3) in that format, atomically: a calibrated curve to reuse. */
+int rs_response_write(const char *path, const float *response, const char *comment, rs_err *err);
+
+#endif

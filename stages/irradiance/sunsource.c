@@ -1,0 +1,225 @@
+/* sunsource: the sun as an explicit source of given irradiance (see sunsource.h). A clipped
+ * sun's pixels hold a lower bound of its radiance; they are replaced by a measured DNI. */
+#include "sunsource.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include "log.h"
+#include "sampling.h"
+#include "skyenv.h"
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static int is_sky(const rs_capture *c, const float *facet_id, size_t k)
+{
+    return (!facet_id || facet_id[k] < 0) && rs_capture_pixel_ok(c->pano->data + 3 * k);
+}
+
+/* World direction of the solid-angle-weighted centroid of the largest blob (8-connected,
+ * wrapping in azimuth, by solid angle) of sky pixels at or above level. 0 when there is none. */
+static int largest_blob_dir(const rs_capture *c, const float *facet_id, double level, rs_v3 *dir)
+{
+    int w = c->pano->width, h = c->pano->height;
+    size_t n = (size_t)w * h;
+    uint8_t *seen = calloc(n, 1);
+    uint32_t *stack = malloc(n * sizeof *stack);
+    double best = 0;
+    if (!seen || !stack) {
+        free(seen);
+        free(stack);
+        return 0;
+    }
+    for (size_t s = 0; s < n; s++) {
+        if (seen[s] || !is_sky(c, facet_id, s) || rs_skyenv_luminance(c->pano->data + 3 * s) < level) continue;
+        size_t top = 0;
+        double om_sum = 0;
+        rs_v3 sum = {0, 0, 0};
+        stack[top++] = (uint32_t)s;
+        seen[s] = 1;
+        while (top) {
+            uint32_t k = stack[--top];
+            int x = (int)(k % (uint32_t)w), y = (int)(k / (uint32_t)w);
+            double om = rs_pano_pixel_solid_angle(w, h, y);
+            om_sum += om;
+            sum = rs_v3_add(sum, rs_v3_scale(rs_pano_pixel_dir(w, h, x, y), om));
+            for (int dy = -1; dy <= 1; dy++)
+                for (int dx = -1; dx <= 1; dx++) {
+                    int yy = y + dy, xx = (x + dx + w) % w;
+                    if (yy < 0 || yy >= h) continue;
+                    size_t q = (size_t)yy * w + xx;
+                    if (seen[q] || !is_sky(c, facet_id, q) || rs_skyenv_luminance(c->pano->data + 3 * q) < level)
+                        continue;
+                    seen[q] = 1;
+                    stack[top++] = (uint32_t)q;
+                }
+        }
+        if (om_sum > best && rs_v3_len(sum) > 0) {
+            best = om_sum;
+            *dir = rs_v3_norm(rs_pose_dir_to_world(&c->pose, sum));
+        }
+    }
+    free(seen);
+    free(stack);
+    return best > 0;
+}
+
+int rs_sunsource_setup(const rs_config *cfg, rs_capture *cap, const float *facet_id, rs_skyfill_opts *fill,
+                       rs_sunsource *sun, rs_err *err)
+{
+    memset(sun, 0, sizeof *sun);
+    if (!rs_config_has(cfg, "sky", "sun_irradiance")) return 0;
+    sun->active = 1;
+    sun->dni = rs_config_real(cfg, "sky", "sun_irradiance");
+    sun->halo_factor = rs_config_real(cfg, "irradiance", "sun_threshold");
+    sun->cone_rad = rs_config_real(cfg, "irradiance", "sun_max_cone_deg") * M_PI / 180;
+    size_t npx = (size_t)cap->pano->width * cap->pano->height;
+    double brightest = 0;
+    if (fill->sun_given) {
+        sun->dir_world = rs_v3_norm(fill->sun_dir);
+        sun->dir_from = rs_config_has(cfg, "sky", "sun_azimuth_deg") ? "config" : "solar position";
+    }
+    /* The default clip level: clipped pixels all sit near the brightest value (the shortest
+     * exposure's saturation), blending across seams pulls some of them down a little. Near a
+     * given sun only: a specular glint elsewhere must not set it. */
+    for (size_t k = 0; k < npx; k++) {
+        if (!is_sky(cap, facet_id, k)) continue;
+        int col = (int)(k % (size_t)cap->pano->width), row = (int)(k / (size_t)cap->pano->width);
+        rs_v3 d = rs_pose_dir_to_world(&cap->pose, rs_pano_pixel_dir(cap->pano->width, cap->pano->height, col, row));
+        if (fill->sun_given && rs_v3_dot(d, sun->dir_world) < cos(sun->cone_rad)) continue;
+        brightest = fmax(brightest, rs_skyenv_luminance(cap->pano->data + 3 * k));
+    }
+    sun->clip_level = rs_config_has(cfg, "sky", "sun_clip_level") ? rs_config_real(cfg, "sky", "sun_clip_level")
+                                                                   : 0.9 * brightest;
+    if (!fill->sun_given) {
+        if (!(sun->clip_level > 0) || !largest_blob_dir(cap, facet_id, sun->clip_level, &sun->dir_world))
+            return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                              "[sky] sun_irradiance is set but no sky pixel of %s reaches the clip level %g: "
+                              "expected [sky] sun_azimuth_deg and sun_elevation_deg, or datetime, to place the sun",
+                              cap->path, sun->clip_level);
+        sun->dir_from = "clipped disc";
+        fill->sun_given = 1;
+        fill->sun_dir = sun->dir_world;
+    }
+    rs_sunsource_remove(sun, cap, facet_id, 1);
+    double el = asin(fmax(-1, fmin(1, sun->dir_world.z))) * 180 / M_PI;
+    rs_log_info("irradiance: explicit sun of %g (DNI) at elevation %.2f deg (%s); %zu panorama pixels "
+                "(%.3g sr) of its disc and halo removed, holding %.3g of it", sun->dni, el, sun->dir_from,
+                sun->removed_px, sun->removed_sr, sun->removed_power);
+    if (sun->removed_px == 0)
+        rs_log_warn("irradiance: no bright sky pixel within %.2f deg of the given sun: is the sun hidden, or its "
+                    "direction wrong?", sun->cone_rad * 180 / M_PI);
+    else if (sun->removed_power > sun->dni)
+        rs_log_warn("irradiance: [sky] sun_irradiance = %g is less than the %.4g the panorama already holds "
+                    "around the sun: is it in the panorama's units (radiance x sr)?", sun->dni, sun->removed_power);
+    return 0;
+}
+
+size_t rs_sunsource_remove(rs_sunsource *sun, rs_capture *c, const float *facet_id, int count_power)
+{
+    if (!sun->active) return 0;
+    int w = c->pano->width, h = c->pano->height;
+    size_t npx = (size_t)w * h, nsky = 0, removed = 0;
+    double *lum = malloc((npx ? npx : 1) * sizeof *lum);
+    if (!lum) return 0;
+    for (size_t k = 0; k < npx; k++)
+        if (is_sky(c, facet_id, k)) lum[nsky++] = rs_skyenv_luminance(c->pano->data + 3 * k);
+    qsort(lum, nsky, sizeof *lum, cmp_double);
+    double median = nsky ? lum[nsky / 2] : 0;
+    free(lum);
+    double level = sun->halo_factor * median;
+    if (sun->clip_level > 0 && sun->clip_level < level) level = sun->clip_level;
+    if (!(level > 0)) return 0;               /* a black sky: nothing tells the sun from it */
+    double cos_cone = cos(sun->cone_rad);
+    for (size_t k = 0; k < npx; k++) {
+        if (!is_sky(c, facet_id, k)) continue;
+        int row = (int)(k / (size_t)w);
+        rs_v3 d = rs_pose_dir_to_world(&c->pose, rs_pano_pixel_dir(w, h, (int)(k % (size_t)w), row));
+        float *px = c->pano->data + 3 * k;
+        double y = rs_skyenv_luminance(px);
+        if (rs_v3_dot(d, sun->dir_world) < cos_cone || y < level) continue;
+        if (count_power) {
+            double om = rs_pano_pixel_solid_angle(w, h, row);
+            sun->removed_sr += om;
+            sun->removed_power += y * om;
+        }
+        px[0] = px[1] = px[2] = -1;          /* not ok: the sky map fills it as unseen sky */
+        removed++;
+    }
+    sun->removed_px += removed;
+    return removed;
+}
+
+int rs_sunsource_add(const rs_sunsource *sun, const rs_scene *scene, int rays, uint32_t seed, size_t nf,
+                     rs_facet_gather *fg)
+{
+    if (!sun->active) return 0;
+    if (rays < 1) rays = 1;
+    const rs_mesh *m = rs_scene_mesh(scene);
+    rs_v3 s = sun->dir_world, t1, t2;
+    t1 = rs_v3_norm(fabs(s.z) < 0.9 ? rs_v3_cross(s, rs_v3_make(0, 0, 1)) : rs_v3_cross(s, rs_v3_make(1, 0, 0)));
+    t2 = rs_v3_cross(s, t1);
+    int failed = 0;
+#pragma omp parallel
+    {
+        rs_ray *ray = malloc((size_t)rays * sizeof *ray);
+        uint8_t *occl = malloc((size_t)rays);
+        if (!ray || !occl) {
+#pragma omp atomic write
+            failed = 1;
+        }
+#pragma omp for schedule(dynamic, 64)
+        for (size_t f = 0; f < nf; f++) {
+            if (!ray || !occl || !fg[f].rays) continue;
+            rs_v3 n = rs_scene_normal(scene, (uint32_t)f);
+            double cosn = rs_v3_dot(n, s);
+            if (!(cosn > 0)) continue;
+            rs_v3 a = rs_mesh_vert(m, m->tris[3 * f]), b = rs_mesh_vert(m, m->tris[3 * f + 1]),
+                  c = rs_mesh_vert(m, m->tris[3 * f + 2]);
+            uint32_t fs = rs_hash_combine(rs_hash_combine(seed, (uint32_t)f), 0x5a11);
+            for (int i = 0; i < rays; i++) {
+                double px, py, u, v;
+                rs_sobol2_owen((uint32_t)i, rs_hash_combine(fs, 1), &px, &py);
+                rs_sobol2_owen((uint32_t)i, rs_hash_combine(fs, 2), &u, &v);
+                /* Uniform over the disc's cone (small angle: uniform over a flat disc). */
+                double r = RS_SUN_RADIUS_RAD * sqrt(u), phi = 2 * M_PI * v;
+                rs_v3 d = rs_v3_add(rs_v3_scale(s, cos(r)),
+                                    rs_v3_scale(rs_v3_add(rs_v3_scale(t1, cos(phi)), rs_v3_scale(t2, sin(phi))), sin(r)));
+                rs_v3 p = rs_triangle_point(a, b, c, px, py);
+                ray[i].org = rs_v3_add(p, rs_v3_scale(n, rs_scene_offset(scene, p)));
+                ray[i].dir = d;
+                ray[i].tnear = 0;
+                ray[i].tfar = INFINITY;
+            }
+            rs_scene_occluded(scene, ray, occl, (size_t)rays);
+            int open = 0;
+            for (int i = 0; i < rays; i++) open += !occl[i];
+            double e = sun->dni * cosn * open / rays;
+            for (int ch = 0; ch < 3; ch++) fg[f].esky[ch] += e;
+            fg[f].esky_lum += e;              /* a grey sun: its luminance is its value */
+        }
+        free(ray);
+        free(occl);
+    }
+    return failed ? -1 : 0;
+}
+
+void rs_sunsource_report(const rs_sunsource *sun, rs_json *metrics)
+{
+    if (!sun->active) return;
+    rs_json *o = rs_json_set_obj(metrics, "explicit_sun");
+    rs_json_set_num(o, "direct_normal_irradiance", sun->dni);
+    rs_json *d = rs_json_set_arr(o, "direction");
+    rs_json_push_num(d, sun->dir_world.x);
+    rs_json_push_num(d, sun->dir_world.y);
+    rs_json_push_num(d, sun->dir_world.z);
+    rs_json_set_str(o, "direction_from", sun->dir_from);
+    rs_json_set_num(o, "clip_level", sun->clip_level);
+    rs_json_set_int(o, "removed_pixels", (long long)sun->removed_px);
+    rs_json_set_num(o, "removed_solid_angle_sr", sun->removed_sr);
+    rs_json_set_num(o, "removed_power", sun->removed_power);
+}

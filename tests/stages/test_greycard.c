@@ -1,0 +1,120 @@
+/* [calib] grey_card_region: a grey floor of known albedo under a uniform sky. With the floor's
+ * pixels consistent with the sky, pi L / (E_sky + G) over the region is the albedo (ratio 1);
+ * with the object's pixels exposed 1.25 x brighter than the sky's, the ratio says 1.25. Bad
+ * regions give errors that name the key. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "image.h"
+#include "meshgen.h"
+#include "pano.h"
+#include "ply.h"
+#include "testutil.h"
+
+#define W 256
+#define ALBEDO 0.18
+
+/* A 40 x 40 m grey floor at z = 0; the camera 1.5 m above its centre; a uniform sky of radiance
+ * 1, the floor at ALBEDO x pi x 1 / pi times object_gain (lower hemisphere). */
+static void write_scene(const char *dir, double object_gain)
+{
+    rs_meshgen g = rs_meshgen_new(2000, 2000);
+    rs_meshgen_rect(&g, rs_v3_make(-20, -20, 0), rs_v3_make(40, 0, 0), rs_v3_make(0, 40, 0), 20, 20);
+    rs_mesh *m = rs_meshgen_done(&g);
+    rs_ply *ply = rs_ply_new();
+    rs_mesh_to_ply(m, ply);
+    rs_err err;
+    assert_int_equal(rs_ply_write(ply, rs_test_path(dir, "mesh.ply"), 1, &err), 0);
+    rs_ply_free(ply);
+    rs_mesh_free(m);
+    rs_image *img = rs_image_new(W, W / 2, 3);
+    for (int r = 0; r < W / 2; r++)
+        for (int c = 0; c < W; c++) {
+            float *px = rs_image_px(img, c, r);
+            double v = rs_pano_pixel_dir(W, W / 2, c, r).z > 0 ? 1.0 : ALBEDO * object_gain;
+            px[0] = px[1] = px[2] = (float)v;
+        }
+    static const char *const rgb[] = {"R", "G", "B"};
+    assert_int_equal(rs_image_write_exr(img, rs_test_path(dir, "pano.exr"), rgb, 0, NULL, &err), 0);
+    rs_image_free(img);
+}
+
+static int run(const char *dir, const char *region, char **out)
+{
+    char text[1024], cmd[4096];
+    snprintf(text, sizeof text,
+             "[pipeline]\nworkdir = work\n[mesh]\ninput_mesh = mesh.ply\n[capture]\npanorama = pano.exr\n"
+             "position = 0 0 1.5\n[irradiance]\nsamples = 64\nsky_samples = 64\nsun_samples = 0\n"
+             "[calib]\ngrey_card_region = %s\ngrey_card_albedo = %g\n", region, ALBEDO);
+    rs_test_write(rs_test_path(dir, "scene.ini"), text);
+    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/rhoscan' run scene.ini", dir, rs_test_bin_dir());
+    return rs_test_run(cmd, out);
+}
+
+/* The number after "key": in the JSON text (the first occurrence after "grey_card"). */
+static double json_num(const char *json, const char *key)
+{
+    const char *card = strstr(json, "\"grey_card\"");
+    assert_non_null(card);
+    char pat[128];
+    snprintf(pat, sizeof pat, "\"%s\":", key);
+    const char *p = strstr(card, pat);
+    assert_non_null(p);
+    return strtod(p + strlen(pat), NULL);
+}
+
+static const char *read_json(const char *dir)
+{
+    static char buf[1 << 16];
+    FILE *f = fopen(rs_test_path(dir, "work/reflectance.json"), "rb");
+    assert_non_null(f);
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = 0;
+    return buf;
+}
+
+static void test_grey_card(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("greycard");
+    /* The card: the floor within about 20 deg of the nadir (rows 110..127 of 128). */
+    char region[64];
+    snprintf(region, sizeof region, "0 %d %d %d", W / 2 - 14, W, W / 2);
+    char *out = NULL;
+    const double gains[2] = {1.0, 1.25};
+    for (int i = 0; i < 2; i++) {
+        write_scene(dir, gains[i]);
+        int rc = run(dir, region, &out);
+        if (rc != 0) print_message("%s\n", out);
+        assert_int_equal(rc, 0);
+        free(out);
+        const char *json = read_json(dir);
+        double implied = json_num(json, "albedo_implied_luminance"), ratio = json_num(json, "consistency_ratio");
+        double err_pp = json_num(json, "albedo_error_pp");
+        print_message("object gain %.2f: pi L / E = %.4f, ratio %.4f, pipeline albedo error %.3f pp\n", gains[i],
+                      implied, ratio, err_pp);
+        assert_true(fabs(implied - ALBEDO * gains[i]) < 0.01 * ALBEDO * gains[i]);
+        assert_true(fabs(ratio - gains[i]) < 0.01 * gains[i]);
+        assert_true(fabs(err_pp - 100 * ALBEDO * (gains[i] - 1)) < 0.5);
+        assert_true(json_num(json, "pixels") > 1000);
+    }
+    /* The region in the sky sees no facet; one past the panorama; one malformed. */
+    const char *bad[3][2] = {{"0 0 256 10", "none of its pixels"}, {"0 0 300 10", "expected x1 <= 256"},
+                             {"0 0 10", "expected 4 pixel indices"}};
+    for (int i = 0; i < 3; i++) {
+        assert_int_equal(run(dir, bad[i][0], &out), 1);
+        print_message("%s\n", out);
+        assert_non_null(strstr(out, "grey_card_region"));
+        assert_non_null(strstr(out, bad[i][1]));
+        free(out);
+    }
+    rs_test_rmtree(dir);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {cmocka_unit_test(test_grey_card)};
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
