@@ -102,6 +102,14 @@ rs_ply_prop *rs_ply_add_scalar(rs_ply_element *el, const char *name, rs_ply_type
     return p;
 }
 
+rs_ply_prop *rs_ply_declare_scalar(rs_ply_element *el, const char *name, rs_ply_type type)
+{
+    rs_ply_prop *p = new_prop(el, name, type);
+    if (!p) return NULL;
+    el->nprops++;
+    return p;
+}
+
 rs_ply_prop *rs_ply_add_scalar_f(rs_ply_element *el, const char *name, rs_ply_type type,
                                  const float *values)
 {
@@ -281,19 +289,33 @@ static int name_writable(const char *name)
     return 1;
 }
 
-/* Checks what the header cannot say: names with spaces, list counts beyond the count type. */
-static int check_writable(const rs_ply *ply, const char *path, rs_err *err)
+/* An element whose values come from a record callback: properties declared without data. */
+static int is_streamed(const rs_ply_element *el)
+{
+    return el->nprops > 0 && !el->props[0].data && !el->props[0].is_list;
+}
+
+/* Checks what the header cannot say: names with spaces, list counts beyond the count type;
+ * with a record callback (streaming), that streamed elements hold declared scalars only. */
+static int check_writable(const rs_ply *ply, const char *path, int streaming, rs_err *err)
 {
     for (int e = 0; e < ply->nelements; e++) {
         const rs_ply_element *el = &ply->elements[e];
         if (!name_writable(el->name))
             return rs_err_set(err, RS_ERR_INTERNAL, path, 0,
                               "element %d: name must be 1..63 characters without spaces", e);
+        int streamed = streaming && is_streamed(el);
         for (int i = 0; i < el->nprops; i++) {
             const rs_ply_prop *p = &el->props[i];
             if (!name_writable(p->name) || !rs_ply_type_valid((int)p->type))
                 return rs_err_set(err, RS_ERR_INTERNAL, path, 0,
                                   "element '%s' property %d: bad name or type", el->name, i);
+            if (streamed) {
+                if (p->data || p->is_list)
+                    return rs_err_set(err, RS_ERR_INTERNAL, path, 0, "element '%s' property '%s': a streamed "
+                                      "element takes declared scalar properties only", el->name, p->name);
+                continue;
+            }
             if (el->count && !p->data && (!p->is_list || !p->offsets))
                 return rs_err_set(err, RS_ERR_INTERNAL, path, 0,
                                   "element '%s' property '%s': no data", el->name, p->name);
@@ -348,6 +370,24 @@ static int write_header(out_buf *o, const rs_ply *ply, int binary)
     return out_str(o, "end_header\n");
 }
 
+/* Records from the callback: one values array, reused, so nothing grows with the count. */
+static int write_streamed(out_buf *o, const rs_ply_element *el, int binary, rs_ply_record_fn fn, void *ctx)
+{
+    double *v = malloc((size_t)el->nprops * sizeof *v);
+    if (!v) return rs_err_set(o->err, RS_ERR_SYSTEM, NULL, 0, "out of memory writing element '%s'", el->name);
+    int rc = 0;
+    for (size_t k = 0; k < el->count && rc == 0; k++) {
+        if ((rc = fn(ctx, el, k, v, o->err)) != 0) break;
+        for (int i = 0; i < el->nprops && rc == 0; i++) {
+            if ((rc = out_room(o, VALUE_TEXT_MAX)) != 0) break;
+            if (binary) put_binary(o, v[i], el->props[i].type);
+            else put_ascii(o, v[i], el->props[i].type, i + 1 < el->nprops ? ' ' : '\n');
+        }
+    }
+    free(v);
+    return rc;
+}
+
 static int write_element(out_buf *o, const rs_ply_element *el, int binary)
 {
     for (size_t k = 0; k < el->count; k++) {
@@ -374,11 +414,11 @@ static int write_element(out_buf *o, const rs_ply_element *el, int binary)
     return 0;
 }
 
-int rs_ply_write(const rs_ply *ply, const char *path, int binary, rs_err *err)
+static int write_ply(const rs_ply *ply, const char *path, int binary, rs_ply_record_fn fn, void *ctx, rs_err *err)
 {
     if (!ply || !path)
         return rs_err_set(err, RS_ERR_INTERNAL, path, 0, "rs_ply_write: no ply or path");
-    if (check_writable(ply, path, err)) return -1;
+    if (check_writable(ply, path, fn != NULL, err)) return -1;
     out_buf o = {.err = err};
     if (!(o.buf = malloc(OUT_CAP)))
         return rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory for the output buffer");
@@ -388,10 +428,23 @@ int rs_ply_write(const rs_ply *ply, const char *path, int binary, rs_err *err)
     }
     int rc = write_header(&o, ply, binary);
     for (int e = 0; rc == 0 && e < ply->nelements; e++)
-        rc = write_element(&o, &ply->elements[e], binary);
+        rc = fn && is_streamed(&ply->elements[e]) ? write_streamed(&o, &ply->elements[e], binary, fn, ctx)
+                                                   : write_element(&o, &ply->elements[e], binary);
     if (rc == 0) rc = out_flush(&o);
     if (rc == 0) rc = rs_atomic_commit(&o.f, err);
     if (rc != 0) rs_atomic_abort(&o.f);
     free(o.buf);
     return rc;
+}
+
+int rs_ply_write(const rs_ply *ply, const char *path, int binary, rs_err *err)
+{
+    return write_ply(ply, path, binary, NULL, NULL, err);
+}
+
+int rs_ply_write_records(const rs_ply *ply, const char *path, int binary, rs_ply_record_fn fn, void *ctx,
+                         rs_err *err)
+{
+    if (!fn) return rs_err_set(err, RS_ERR_INTERNAL, path, 0, "rs_ply_write_records: no record callback");
+    return write_ply(ply, path, binary, fn, ctx, err);
 }

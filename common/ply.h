@@ -61,6 +61,23 @@ rs_ply_prop *rs_ply_add_list_fixed(rs_ply_element *el, const char *name, rs_ply_
                                    rs_ply_type item_type, int n, const double *items);
 int rs_ply_add_comment(rs_ply *ply, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 
+/* Streaming, for elements too big to hold as doubles (the transport kernel: 10^7 to 10^8
+ * records). A record callback gets or gives the values of element el's record k, one per
+ * property in declaration order (scalar properties only); it returns 0, or -1 with err set. */
+typedef int (*rs_ply_record_fn)(void *ctx, const rs_ply_element *el, size_t k, double *values, rs_err *err);
+/* Declares a scalar property whose values rs_ply_write_records asks of its callback: no data. */
+rs_ply_prop *rs_ply_declare_scalar(rs_ply_element *el, const char *name, rs_ply_type type);
+/* As rs_ply_write, but the records of every element whose properties were declared without data
+ * come from fn, one at a time, in order; the bytes written are the same as rs_ply_write's. */
+int rs_ply_write_records(const rs_ply *ply, const char *path, int binary, rs_ply_record_fn fn, void *ctx,
+                         rs_err *err);
+/* Reads a file record by record, handing each to fn (values: one double per property, in order)
+ * without keeping them: a binary file of scalar properties is read in blocks, never whole. Other
+ * files (ascii, list properties) are read whole and then handed over, so any valid PLY works.
+ * header (may be NULL) receives the header (elements, properties, comments; no data), which
+ * the caller frees. The same checks and messages as rs_ply_read. */
+int rs_ply_read_records(const char *path, rs_ply_record_fn fn, void *ctx, rs_ply **header, rs_err *err);
+
 /* Look-ups; NULL when absent. */
 rs_ply_element *rs_ply_find_element(const rs_ply *ply, const char *name);
 rs_ply_prop *rs_ply_find_prop(const rs_ply_element *el, const char *name);

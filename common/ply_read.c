@@ -7,6 +7,7 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "fileio.h"
 #include "ply_internal.h"
@@ -467,4 +468,130 @@ rs_ply *rs_ply_read(const char *path, rs_err *err)
     rs_ply *ply = rs_ply_read_mem(data, size, path, err);
     free(data);
     return ply;
+}
+
+/* ---- record by record (rs_ply_read_records) ---- */
+
+#define HEAD_MAX ((size_t)1 << 20)    /* a header longer than this is read the whole-file way */
+#define BLOCK_BYTES ((size_t)1 << 20)
+
+static int has_lists(const rs_ply_element *el)
+{
+    for (int i = 0; i < el->nprops; i++)
+        if (el->props[i].is_list) return 1;
+    return 0;
+}
+
+/* The fallback: the whole file in memory, then its scalar elements handed over and dropped;
+ * elements with lists keep their data in the header. */
+static int records_whole(const char *path, rs_ply_record_fn fn, void *ctx, rs_ply **header, rs_err *err)
+{
+    rs_ply *ply = rs_ply_read(path, err);
+    if (!ply) return -1;
+    int rc = 0;
+    for (int e = 0; e < ply->nelements && rc == 0; e++) {
+        rs_ply_element *el = &ply->elements[e];
+        if (el->nprops == 0 || has_lists(el)) continue;
+        double *v = malloc((size_t)el->nprops * sizeof *v);
+        if (!v) {
+            rc = rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
+            break;
+        }
+        for (size_t k = 0; k < el->count && rc == 0; k++) {
+            for (int i = 0; i < el->nprops; i++) v[i] = el->props[i].data[k];
+            rc = fn(ctx, el, k, v, err);
+        }
+        free(v);
+        for (int i = 0; i < el->nprops; i++) {
+            free(el->props[i].data);
+            el->props[i].data = NULL;
+        }
+    }
+    if (rc == 0 && header) *header = ply;
+    else rs_ply_free(ply);
+    return rc;
+}
+
+/* One binary element of scalars, read in blocks of records and decoded into doubles. */
+static int records_binary(reader *r, FILE *fp, rs_ply_element *el, size_t *left, rs_ply_record_fn fn, void *ctx)
+{
+    size_t rec = 0;
+    for (int i = 0; i < el->nprops; i++) rec += rs_ply_type_size[el->props[i].type];
+    if (rec == 0 || el->count == 0) return 0;
+    if (el->count > *left / rec) {         /* the same message as the whole-file reader's */
+        size_t k = *left / rec, rem = *left - k * rec, i = 0, at = 0;
+        while (at + rs_ply_type_size[el->props[i].type] <= rem) at += rs_ply_type_size[el->props[i++].type];
+        return truncated(r, el, k, &el->props[i]);
+    }
+    size_t per_block = BLOCK_BYTES / rec ? BLOCK_BYTES / rec : 1;
+    unsigned char *block = malloc(per_block * rec);
+    double *v = malloc((size_t)el->nprops * sizeof *v);
+    int rc = 0;
+    if (!block || !v) rc = rs_err_set(r->err, RS_ERR_SYSTEM, r->name, 0, "out of memory");
+    for (size_t k0 = 0; rc == 0 && k0 < el->count; k0 += per_block) {
+        size_t n = el->count - k0 < per_block ? el->count - k0 : per_block;
+        if (fread(block, rec, n, fp) != n) {
+            rc = rs_err_errno(r->err, r->name, "read failed");
+            break;
+        }
+        const unsigned char *p = block;
+        for (size_t k = 0; k < n && rc == 0; k++) {
+            for (int i = 0; i < el->nprops; i++) {
+                v[i] = load_binary(p, el->props[i].type, r->swap);
+                p += rs_ply_type_size[el->props[i].type];
+            }
+            rc = fn(ctx, el, k0 + k, v, r->err);
+        }
+    }
+    *left -= el->count * rec;
+    free(block);
+    free(v);
+    return rc;
+}
+
+int rs_ply_read_records(const char *path, rs_ply_record_fn fn, void *ctx, rs_ply **header, rs_err *err)
+{
+    if (header) *header = NULL;
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return rs_err_errno(err, path, "cannot open");
+    struct stat st;
+    if (fstat(fileno(fp), &st) != 0 || !S_ISREG(st.st_mode)) {
+        fclose(fp);
+        return rs_err_set(err, RS_ERR_INPUT, path, 0, "not a regular file");
+    }
+    size_t size = (size_t)st.st_size, head = size < HEAD_MAX ? size : HEAD_MAX;
+    unsigned char *buf = malloc(head + 1);
+    rs_ply *ply = rs_ply_new();
+    if (!buf || !ply) {
+        free(buf);
+        rs_ply_free(ply);
+        fclose(fp);
+        return rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
+    }
+    /* The header from the first block; anything unusual (a bad header, ascii, lists) goes the
+     * whole-file way, whose reader gives the messages. */
+    rs_err quiet = {0};
+    reader r = {.name = path, .err = &quiet, .p = buf, .end = buf + head};
+    int stream = head == 0 || fread(buf, 1, head, fp) == head;
+    stream = stream && read_header(&r, ply) == 0 && r.format != FMT_ASCII;
+    for (int e = 0; stream && e < ply->nelements; e++) stream = !has_lists(&ply->elements[e]);
+    size_t offset = (size_t)(r.p - buf);
+    free(buf);
+    if (!stream || fseeko(fp, (off_t)offset, SEEK_SET) != 0) {
+        rs_ply_free(ply);
+        fclose(fp);
+        return records_whole(path, fn, ctx, header, err);
+    }
+    const uint16_t one = 1;
+    unsigned char host_little;
+    memcpy(&host_little, &one, 1);
+    r.swap = (r.format == FMT_BINARY_LE) != (host_little == 1);
+    r.err = err;
+    size_t left = size - offset;
+    int rc = 0;
+    for (int e = 0; e < ply->nelements && rc == 0; e++) rc = records_binary(&r, fp, &ply->elements[e], &left, fn, ctx);
+    fclose(fp);
+    if (rc == 0 && header) *header = ply;
+    else rs_ply_free(ply);
+    return rc;
 }

@@ -7,55 +7,91 @@
 #include "ply.h"
 #include "vec.h"
 
+/* Record by record from the file (rs_ply_read_records): the kernel is held once, as
+ * uint32 / float columns, never as the PLY module's doubles (4e7 entries at 10^6 facets). */
+typedef struct {
+    rs_transport *t;
+    const char *path;
+    int row, col, k, ku;       /* property indices in the element */
+    double last_row;
+} read_ctx;
+
+static int expected_props(const char *path, rs_err *err)
+{
+    return rs_err_set(err, RS_ERR_INPUT, path, 0, "expected element 'transport' with properties row, col, k, k_unseen");
+}
+
+static int find_props(read_ctx *c, const rs_ply_element *el)
+{
+    c->row = c->col = c->k = c->ku = -1;
+    for (int i = 0; i < el->nprops; i++) {
+        const char *n = el->props[i].name;
+        int *slot = !strcmp(n, "row") ? &c->row : !strcmp(n, "col") ? &c->col : !strcmp(n, "k") ? &c->k
+                  : !strcmp(n, "k_unseen") ? &c->ku : NULL;
+        if (slot && !el->props[i].is_list) *slot = i;
+    }
+    return c->row >= 0 && c->col >= 0 && c->k >= 0 && c->ku >= 0 ? 0 : -1;
+}
+
+static int read_entry(void *ctx, const rs_ply_element *el, size_t e, double *v, rs_err *err)
+{
+    read_ctx *c = ctx;
+    rs_transport *t = c->t;
+    if (strcmp(el->name, "transport") != 0) return 0;
+    if (e == 0) {
+        size_t n = el->count;
+        if (find_props(c, el) != 0) return expected_props(c->path, err);
+        if (!(t->col = malloc(n * sizeof *t->col)) || !(t->k = malloc(n * sizeof *t->k)) ||
+            !(t->k_unseen = malloc(n * sizeof *t->k_unseen)))
+            return rs_err_set(err, RS_ERR_SYSTEM, c->path, 0, "out of memory for %zu entries", n);
+        t->nentries = n;
+    }
+    double r = v[c->row], col = v[c->col], k = v[c->k], ku = v[c->ku];
+    size_t nfaces = t->nfaces;
+    if (!(r >= 0 && r < (double)nfaces && col >= 0 && col < (double)nfaces) || r < c->last_row)
+        return rs_err_set(err, RS_ERR_INPUT, c->path, 0,
+                          "entry %zu: row %.0f, col %.0f: expected indices below %zu with rows in order "
+                          "(rerun irradiance)", e, r, col, nfaces);
+    if (!(isfinite(k) && k >= 0 && isfinite(ku) && ku >= 0))
+        return rs_err_set(err, RS_ERR_INPUT, c->path, 0, "entry %zu: weights must be finite and >= 0", e);
+    c->last_row = r;
+    t->row_start[(size_t)r + 1]++;
+    t->col[e] = (uint32_t)col;
+    t->k[e] = (float)k;
+    t->k_unseen[e] = (float)ku;
+    return 0;
+}
+
 rs_transport *rs_transport_read(const char *path, size_t nfaces, rs_err *err)
 {
-    rs_ply *ply = rs_ply_read(path, err);
-    if (!ply) return NULL;
-    rs_transport *t = NULL;
-    rs_ply_element *el = rs_ply_find_element(ply, "transport");
-    rs_ply_prop *row = el ? rs_ply_find_prop(el, "row") : NULL, *col = el ? rs_ply_find_prop(el, "col") : NULL,
-                *k = el ? rs_ply_find_prop(el, "k") : NULL, *ku = el ? rs_ply_find_prop(el, "k_unseen") : NULL;
-    if (!row || !col || !k || !ku || row->is_list || col->is_list || k->is_list || ku->is_list) {
-        rs_err_set(err, RS_ERR_INPUT, path, 0, "expected element 'transport' with properties row, col, k, k_unseen");
-        goto out;
-    }
-    size_t n = el->count;
-    t = calloc(1, sizeof *t);
-    if (!t || !(t->row_start = calloc(nfaces + 1, sizeof *t->row_start)) ||
-        !(t->col = malloc((n ? n : 1) * sizeof *t->col)) || !(t->k = malloc((n ? n : 1) * sizeof *t->k)) ||
-        !(t->k_unseen = malloc((n ? n : 1) * sizeof *t->k_unseen))) {
-        rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory for %zu entries", n);
-        goto fail;
+    rs_transport *t = calloc(1, sizeof *t);
+    if (!t || !(t->row_start = calloc(nfaces + 1, sizeof *t->row_start))) {
+        free(t);
+        rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory for %zu facets", nfaces);
+        return NULL;
     }
     t->nfaces = nfaces;
-    t->nentries = n;
-    double last_row = 0;
-    for (size_t e = 0; e < n; e++) {
-        double r = row->data[e], c = col->data[e];
-        if (!(r >= 0 && r < (double)nfaces && c >= 0 && c < (double)nfaces) || r < last_row) {
-            rs_err_set(err, RS_ERR_INPUT, path, 0,
-                       "entry %zu: row %.0f, col %.0f: expected indices below %zu with rows in order "
-                       "(rerun irradiance)", e, r, c, nfaces);
-            goto fail;
-        }
-        if (!(isfinite(k->data[e]) && k->data[e] >= 0 && isfinite(ku->data[e]) && ku->data[e] >= 0)) {
-            rs_err_set(err, RS_ERR_INPUT, path, 0, "entry %zu: weights must be finite and >= 0", e);
-            goto fail;
-        }
-        last_row = r;
-        t->row_start[(size_t)r + 1]++;
-        t->col[e] = (uint32_t)c;
-        t->k[e] = (float)k->data[e];
-        t->k_unseen[e] = (float)ku->data[e];
+    read_ctx c = {t, path, -1, -1, -1, -1, 0};
+    rs_ply *head = NULL;
+    if (rs_ply_read_records(path, read_entry, &c, &head, err) != 0) goto fail;
+    /* An empty or missing element never reached the callback: check the header. */
+    const rs_ply_element *el = rs_ply_find_element(head, "transport");
+    if (!el || find_props(&c, el) != 0) {
+        expected_props(path, err);
+        goto fail;
+    }
+    if (!t->col && (!(t->col = malloc(sizeof *t->col)) || !(t->k = malloc(sizeof *t->k)) ||
+                    !(t->k_unseen = malloc(sizeof *t->k_unseen)))) {
+        rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
+        goto fail;
     }
     for (size_t f = 0; f < nfaces; f++) t->row_start[f + 1] += t->row_start[f];
-    goto out;
-fail:
-    rs_transport_free(t);
-    t = NULL;
-out:
-    rs_ply_free(ply);
+    rs_ply_free(head);
     return t;
+fail:
+    rs_ply_free(head);
+    rs_transport_free(t);
+    return NULL;
 }
 
 void rs_transport_free(rs_transport *t)

@@ -18,6 +18,7 @@
 #include "sampling.h"
 #include "scene.h"
 #include "gather.h"
+#include "kernel_out.h"
 #include "skyenv.h"
 #include "solar.h"
 #include "sunsource.h"
@@ -28,20 +29,16 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
                          rs_err *err)
 {
     size_t nf = mesh->nfaces, ne = 0;
-    for (size_t f = 0; f < nf; f++) ne += fg[f].nentries;
     double *esky = malloc(3 * nf * sizeof *esky), *g = malloc(3 * nf * sizeof *g),
            *gseen = malloc(3 * nf * sizeof *gseen), *filled = malloc(nf * sizeof *filled),
            *sigma = malloc(nf * sizeof *sigma);
-    double *row = malloc((ne ? ne : 1) * sizeof *row), *col = malloc((ne ? ne : 1) * sizeof *col),
-           *kt = malloc((ne ? ne : 1) * sizeof *kt), *ku = malloc((ne ? ne : 1) * sizeof *ku);
-    rs_ply *ply = rs_ply_new(), *tp = rs_ply_new();
+    rs_ply *ply = rs_ply_new();
     int rc = -1;
     char path[4096];
-    if (!esky || !g || !gseen || !filled || !sigma || !row || !col || !kt || !ku || !ply || !tp) {
+    if (!esky || !g || !gseen || !filled || !sigma || !ply) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory writing the irradiance outputs");
         goto out;
     }
-    size_t e = 0;
     for (size_t f = 0; f < nf; f++) {
         for (int ch = 0; ch < 3; ch++) {
             esky[3 * f + ch] = fg[f].esky[ch];
@@ -52,12 +49,8 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
         /* The fill's error is a smooth bias over neighbouring directions, not noise that
          * averages out: the filled light is uncertain by fill_sigma as a whole. */
         sigma[f] = fill_sigma * fg[f].filled_lum;
-        for (uint32_t q = 0; q < fg[f].nentries; q++, e++) {
+        for (uint32_t q = 0; q < fg[f].nentries; q++) {
             const rs_kentry *en = &fg[f].entries[q];
-            row[e] = (double)f;
-            col[e] = en->col;
-            kt[e] = en->k;
-            ku[e] = en->k_unseen;
             if (observed[en->col])      /* unobserved facets are the reflectance stage's job */
                 for (int ch = 0; ch < 3; ch++) g[3 * f + ch] += en->k_unseen * radiance[3 * en->col + ch];
         }
@@ -77,30 +70,18 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
                             "standard uncertainty of E_sky's luminance = %.4g x its filled part", fill_sigma);
     if (rs_ply_write(ply, rs_work_path(cfg, "irradiance.ply", path, sizeof path), 1, err) != 0) goto out;
 
-    rs_ply_element *tr = rs_ply_add_element(tp, "transport", ne);
-    if (!tr || !rs_ply_add_scalar(tr, "row", RS_PLY_UINT32, row) ||
-        !rs_ply_add_scalar(tr, "col", RS_PLY_UINT32, col) || !rs_ply_add_scalar(tr, "k", RS_PLY_FLOAT32, kt) ||
-        !rs_ply_add_scalar(tr, "k_unseen", RS_PLY_FLOAT32, ku)) {
-        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory building transport.ply");
-        goto out;
-    }
-    rs_ply_add_comment(tp, "rhoscan %s sparse interreflection kernel: G_i = sum_j k L_j (k in sr)", RHOSCAN_VERSION);
-    rs_ply_add_comment(tp, "rhoscan_facets %zu", nf);
-    if (rs_ply_write(tp, rs_work_path(cfg, "transport.ply", path, sizeof path), 1, err) != 0) goto out;
+    rs_ply_free(ply);          /* before the kernel's file, streamed from the rows (kernel_out.c) */
+    ply = NULL;
+    if (rs_kernel_write(rs_work_path(cfg, "transport.ply", path, sizeof path), fg, nf, &ne, err) != 0) goto out;
     rs_json_set_int(rep->metrics, "kernel_entries", (long long)ne);
     rc = 0;
 out:
     rs_ply_free(ply);
-    rs_ply_free(tp);
     free(esky);
     free(g);
     free(gseen);
     free(filled);
     free(sigma);
-    free(row);
-    free(col);
-    free(kt);
-    free(ku);
     return rc;
 }
 
