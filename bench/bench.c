@@ -318,13 +318,14 @@ static int bench_size(const bench_opts *o, size_t facets, FILE *csv)
         double rays = json_num(jp, "rays"), rps = json_num(jp, "rays_per_second");
         double peak = fmax(fmax(m_obs, mi), fmax(mr, mn)), total = t_obs + ti + tr + tn;
         fprintf(csv, "%zu,%s,%s,%d,%d,%d,%s,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.1f,%.0f,%.4g,%.5f,%.5f,"
-                     "%.5f,%.4f\n", nf, row->name, row->method, row->samples, row->sky, row->sun,
+                     "%.5f,%.4f,%.1f,%.1f,%.1f,%.1f\n", nf, row->name, row->method, row->samples, row->sky, row->sun,
                 row->extra[0] ? row->extra : "-", o->threads, t_obs, ti, tr, tn, total, c_obs, ci, cr, cn, peak, rays,
-                rps, e.albedo_err, e.albedo_p90, e.irr_err, e.estimable_share);
+                rps, e.albedo_err, e.albedo_p90, e.irr_err, e.estimable_share, m_obs, mi, mr, mn);
         fflush(csv);
         fprintf(stderr, "rhoscan-bench: %zu facets %-12s total %7.2f s (obs %.2f irr %.2f refl %.2f render %.2f; cpu %.2f) "
-                        "peak %.0f MB  albedo err %.4f  E err %.4f\n",
-                nf, row->name, total, t_obs, ti, tr, tn, c_obs + ci + cr + cn, peak, e.albedo_err, e.irr_err);
+                        "peak %.0f MB (obs %.0f irr %.0f refl %.0f render %.0f)  albedo err %.4f  E err %.4f\n",
+                nf, row->name, total, t_obs, ti, tr, tn, c_obs + ci + cr + cn, peak, m_obs, mi, mr, mn, e.albedo_err,
+                e.irr_err);
     }
     rc = 0;
 out:
@@ -396,7 +397,7 @@ int main(int argc, char **argv)
     if (fresh)
         fputs("facets,row,method,samples,sky_samples,sun_samples,extra,threads,t_observe,t_irradiance,"
               "t_reflectance,t_render,t_total,cpu_observe,cpu_irradiance,cpu_reflectance,cpu_render,peak_mb,rays,rays_per_s,albedo_err,albedo_err_p90,irradiance_err,"
-              "estimable_share\n", csv);
+              "estimable_share,peak_observe_mb,peak_irradiance_mb,peak_reflectance_mb,peak_render_mb\n", csv);
     int rc = 0;
     char *save = NULL;
     for (char *tok = strtok_r(facets, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
