@@ -64,31 +64,37 @@ pcl::PointCloud<pcl::PointNormal>::Ptr to_pcl_normals(const float *xyz, const fl
 }
 
 // PCL's Poisson code (3rdparty/poisson4) printf()s diagnostics such as "Vertex pair not in
-// list" to stdout, which carries data or nothing in rhoscan's programs: stdout points at
-// /dev/null while it runs (restored by the destructor, exceptions included).
+// list" to stdout, which carries data or nothing in rhoscan's programs, and "[WARNING] Initial
+// residual too low" to stderr, which is the log's: both point at /dev/null while it runs
+// (restored by the destructor, exceptions included).
 class StdoutMuted {
   public:
     StdoutMuted()
     {
         std::fflush(stdout);
-        saved_ = dup(1);
+        std::fflush(stderr);
         int null = open("/dev/null", O_WRONLY);
-        if (saved_ >= 0 && null >= 0) dup2(null, 1);
+        for (int fd = 1; fd <= 2; fd++) {
+            saved_[fd - 1] = dup(fd);
+            if (saved_[fd - 1] >= 0 && null >= 0) dup2(null, fd);
+        }
         if (null >= 0) close(null);
     }
     ~StdoutMuted()
     {
         std::fflush(stdout);
-        if (saved_ >= 0) {
-            dup2(saved_, 1);
-            close(saved_);
-        }
+        std::fflush(stderr);
+        for (int fd = 1; fd <= 2; fd++)
+            if (saved_[fd - 1] >= 0) {
+                dup2(saved_[fd - 1], fd);
+                close(saved_[fd - 1]);
+            }
     }
     StdoutMuted(const StdoutMuted &) = delete;
     StdoutMuted &operator=(const StdoutMuted &) = delete;
 
   private:
-    int saved_;
+    int saved_[2];
 };
 
 // Turns any exception into an rs_err; returns -1.

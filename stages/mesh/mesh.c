@@ -317,7 +317,11 @@ static rs_mesh *build_surface(const rs_config *cfg, const rs_cloud *c, int *nadi
         rs_json_set_num(rep->metrics, "spacing_p90_m", us.spacing_p90_m);
         rs_json_set_int(rep->metrics, "points_no_normal", (long long)us.points_no_normal);
         rs_json_set_int(rep->metrics, "faces_reconstructed", (long long)us.faces_raw);
-        if (uo.poisson) rs_json_set_int(rep->metrics, "faces_trimmed", (long long)us.faces_trimmed);
+        if (uo.poisson) {
+            rs_json_set_num(rep->metrics, "poisson_cell_m", us.cell_m);
+            rs_json_set_int(rep->metrics, "faces_trimmed", (long long)us.faces_trimmed);
+            rs_json_set_int(rep->metrics, "faces_small_pieces", (long long)us.faces_pieces);
+        }
         else rs_json_set_num(rep->metrics, "max_edge_m", us.max_edge_m);
         rs_log_info("%zu unorganized points (spacing median %.3g m, p90 %.3g m): %zu triangles", us.points,
                     us.spacing_median_m, us.spacing_p90_m, m->nfaces);
@@ -381,6 +385,40 @@ static int report_quality(const rs_config *cfg, const rs_cloud *c, const rs_mesh
     return 0;
 }
 
+/* Positions that later stages read from the config ([capture] position, the calib stage's
+ * correspondences) are in the frame of cloud.ply and mesh.ply: the world frame minus
+ * rhoscan_origin when the ingest recentred a georeferenced scan (the ingest's own
+ * [ingest] scanner_position is read before that, in the world frame). A [capture] position
+ * nearer the model's world place than its recentred one was given in the world frame: every
+ * ray from it would miss the model, so this stops with the position to give instead. */
+static int check_capture_frame(const rs_config *cfg, const rs_cloud *c, rs_err *err)
+{
+    double cam[3];
+    if ((c->origin[0] == 0 && c->origin[1] == 0 && c->origin[2] == 0) ||
+        rs_config_reals(cfg, "capture", "position", cam) != 0)
+        return 0;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t i = 0; i < c->npoints; i++)
+        if (c->valid[i])
+            for (int j = 0; j < 3; j++) {
+                lo[j] = fmin(lo[j], c->xyz[3 * i + j]);
+                hi[j] = fmax(hi[j], c->xyz[3 * i + j]);
+            }
+    double d_local = 0, d_world = 0;
+    for (int j = 0; j < 3; j++) {
+        double centre = lo[j] <= hi[j] ? 0.5 * (lo[j] + hi[j]) : 0;
+        d_local += (cam[j] - centre) * (cam[j] - centre);
+        d_world += (cam[j] - centre - c->origin[j]) * (cam[j] - centre - c->origin[j]);
+    }
+    if (d_world < d_local)
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                          "[capture] position %.10g %.10g %.10g is in the georeferenced frame, but the scan was "
+                          "recentred by rhoscan_origin %.10g %.10g %.10g (cloud.ply): expected the position in the "
+                          "recentred frame, %.10g %.10g %.10g", cam[0], cam[1], cam[2], c->origin[0], c->origin[1],
+                          c->origin[2], cam[0] - c->origin[0], cam[1] - c->origin[1], cam[2] - c->origin[2]);
+    return 0;
+}
+
 /* Meshing of cloud.ply (grids or unorganized points), simplification, report. */
 static int run_scan(const rs_config *cfg, rs_report *rep, rs_err *err)
 {
@@ -395,6 +433,7 @@ static int run_scan(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_report_time(rep, "read", rs_now() - t0);
     rs_json *origin = rs_json_set_arr(rep->metrics, "origin_m");
     for (int j = 0; j < 3; j++) rs_json_push_num(origin, c->origin[j]);
+    if (check_capture_frame(cfg, c, err) != 0) goto out;
 
     int nadir_done;
     const char *source = "scan grids";

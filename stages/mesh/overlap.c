@@ -10,6 +10,8 @@
 
 #define BLOCK 1024
 #define MAX_ATTEMPTS 3
+/* Faces a dedup line may cross within the tolerance before it gives up. */
+#define MAX_CROSSINGS 8
 /* Two sheets are one surface only when they face the same way: cos 45 degrees. */
 #define COS_SAME_FACING 0.7071
 
@@ -202,24 +204,28 @@ int rs_overlap_dedup(rs_mesh *m, double tol_m, size_t *removed, rs_err *err)
         double area;
         rs_mesh_face(m, f, &c, &n, &area);
         if (!(area > 0)) continue;
-        rs_ray r[2];
-        rs_hit h[2];
-        for (int s = 0; s < 2; s++) {
-            rs_v3 d = rs_v3_scale(n, s ? -1.0 : 1.0);
-            r[s].org = rs_v3_add(c, rs_v3_scale(d, rs_scene_offset(sc, c)));
-            r[s].dir = d;
-            r[s].tnear = 0;
-            r[s].tfar = tol_m;
-        }
-        rs_scene_intersect(sc, r, h, 2);
-        for (int s = 0; s < 2; s++) {
-            uint32_t g = h[s].face;
-            if (g == RS_NO_HIT || g == f || parent[m->tris[3 * (size_t)g]] == parent[m->tris[3 * f]]) continue;
+        /* One ray along the normal line through the centroid, from tol_m behind to tol_m in
+         * front, taking every face it crosses in turn: sheets a fraction of a millimetre apart
+         * (two scans of the same ground) lie inside any offset a ray from the face would need
+         * to leave it, and the first face crossed may be of f's own sheet. */
+        rs_ray r;
+        r.org = rs_v3_sub(c, rs_v3_scale(n, tol_m));
+        r.dir = n;
+        r.tnear = 0;
+        r.tfar = 2 * tol_m;
+        for (int k = 0; k < MAX_CROSSINGS; k++) {
+            rs_hit h;
+            rs_scene_intersect(sc, &r, &h, 1);
+            uint32_t g = h.face;
+            if (g == RS_NO_HIT) break;
+            r.tnear = h.t + 1e-6;   /* 1 um past the face crossed: beyond float rounding of t */
+            if (g == f || parent[m->tris[3 * (size_t)g]] == parent[m->tris[3 * f]]) continue;
             if (rs_v3_dot(rs_scene_normal(sc, g), n) < COS_SAME_FACING) continue;
             double area_g;
             rs_mesh_face(m, g, NULL, NULL, &area_g);
-            /* Either side may see the pair (a centroid's ray can miss the other, larger face):
-             * mark the smaller one, whichever found it; the union does not depend on order. */
+            /* Either face's line may find the pair (a centroid's line can miss the other,
+             * larger face): mark the smaller one, whichever found it; the union does not
+             * depend on order. */
             size_t loser = area < area_g || (area == area_g && f > g) ? f : g;
 #pragma omp atomic write
             drop[loser] = 1;

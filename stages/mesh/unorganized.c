@@ -36,12 +36,19 @@ static int spacing(const float *xyz, size_t n, double *med, double *p90, rs_err 
     return rc;
 }
 
-/* Poisson closes the surface far beyond the data and bulges past the edges of open surfaces:
- * keep a face when its centroid lies within TRIM_SPACINGS local point spacings (the nearest
- * point's distance to its own nearest neighbour) of the nearest point. Returns the count of
- * faces removed, or (size_t)-1. */
-#define TRIM_SPACINGS 3.0
-static size_t trim(rs_mesh *m, const float *xyz, size_t n, rs_err *err)
+/* Poisson closes the surface far beyond the data and bulges past the edges of open surfaces.
+ * A face stays where its centroid lies near the data as the nearest point p saw it: within
+ * TRIM_REACH * r of p, r = max(p's distance to its own nearest neighbour, the octree cell: a
+ * denser cloud than the octree resolves must not cut the surface into pieces), and within
+ * TRIM_NORMAL * r of p's tangent plane (a bulge past an open edge curls away from the plane of
+ * the last points; between points the surface lies on it to the noise). Measured on the
+ * shuffled reference scans (docs/BENCHMARKS.md): a reach of 2.5 or less cuts step_park, whose
+ * spacing varies 1 to 4 cm with range, into pieces the simplifier cannot join; a tangent
+ * tolerance of 0.5 leaves two_planes_sky's bulges (p95 35 mm against 18 mm at 0.25). Returns
+ * the count of faces removed, or (size_t)-1. */
+#define TRIM_REACH 3.0
+#define TRIM_NORMAL 0.25
+static size_t trim(rs_mesh *m, const float *xyz, const float *nrm, size_t n, double cell_m, rs_err *err)
 {
     size_t nf = m->nfaces ? m->nfaces : 1;
     float *cen = malloc(nf * 3 * sizeof *cen), *d = malloc(nf * sizeof *d), *gap = malloc(n * sizeof *gap);
@@ -59,9 +66,14 @@ static size_t trim(rs_mesh *m, const float *xyz, size_t n, rs_err *err)
         rs_pcl_nearest(xyz, n, cen, m->nfaces, 0, d, near, err) != 0)
         goto out;
     size_t kept = 0;
-    for (size_t f = 0; f < m->nfaces; f++)
-        if (near[f] != UINT32_MAX && d[f] <= TRIM_SPACINGS * gap[near[f]])
+    for (size_t f = 0; f < m->nfaces; f++) {
+        if (near[f] == UINT32_MAX) continue;
+        const float *p = xyz + 3 * (size_t)near[f], *np = nrm + 3 * (size_t)near[f];
+        double r = gap[near[f]] > cell_m ? gap[near[f]] : cell_m, h = 0;
+        for (int j = 0; j < 3; j++) h += (cen[3 * f + j] - p[j]) * np[j];
+        if (d[f] <= TRIM_REACH * r && fabs(h) <= TRIM_NORMAL * r)
             memmove(m->tris + 3 * kept++, m->tris + 3 * f, 3 * sizeof *m->tris);
+    }
     removed = m->nfaces - kept;
     m->nfaces = kept;
 out:
@@ -69,6 +81,45 @@ out:
     free(d);
     free(gap);
     free(near);
+    return removed;
+}
+
+static uint32_t root(uint32_t *parent, uint32_t v)
+{
+    while (parent[v] != v) v = parent[v] = parent[parent[v]];
+    return v;
+}
+
+/* Trimming leaves crumbs: islands of a few faces off the data's edges. Drops every connected
+ * piece (faces sharing vertices) with fewer than min_faces faces. Returns the count of faces
+ * removed, or (size_t)-1. MIN_PIECE_FACES: some 5 x 5 octree cells, smaller than any part worth
+ * a facet of its own at survey facet sizes. */
+#define MIN_PIECE_FACES 50
+static size_t drop_pieces(rs_mesh *m, size_t min_faces, rs_err *err)
+{
+    uint32_t *parent = malloc((m->nverts ? m->nverts : 1) * sizeof *parent);
+    size_t *count = calloc(m->nverts ? m->nverts : 1, sizeof *count);
+    if (!parent || !count) {
+        free(parent);
+        free(count);
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+        return (size_t)-1;
+    }
+    for (size_t v = 0; v < m->nverts; v++) parent[v] = (uint32_t)v;
+    for (size_t f = 0; f < m->nfaces; f++)
+        for (int j = 1; j < 3; j++) {
+            uint32_t a = root(parent, m->tris[3 * f]), b = root(parent, m->tris[3 * f + j]);
+            if (a != b) parent[a < b ? b : a] = a < b ? a : b;
+        }
+    for (size_t f = 0; f < m->nfaces; f++) count[root(parent, m->tris[3 * f])]++;
+    size_t kept = 0;
+    for (size_t f = 0; f < m->nfaces; f++)
+        if (count[root(parent, m->tris[3 * f])] >= min_faces)
+            memmove(m->tris + 3 * kept++, m->tris + 3 * f, 3 * sizeof *m->tris);
+    size_t removed = m->nfaces - kept;
+    m->nfaces = kept;
+    free(parent);
+    free(count);
     return removed;
 }
 
@@ -145,9 +196,21 @@ rs_mesh *rs_unorg_mesh(const rs_cloud *c, const rs_unorg_opts *o, rs_unorg_stats
         if (rs_pcl_poisson(xyz, nrm, n, o->poisson_depth, &pv, &nv, &tris, &ntris, err) != 0) goto out;
         st->faces_raw = ntris;
         rs_mesh tmp = {nv, ntris, pv, tris};
-        size_t removed = trim(&tmp, xyz, n, err);
+        float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        for (size_t i = 0; i < n; i++)
+            for (int j = 0; j < 3; j++) {
+                lo[j] = fminf(lo[j], xyz[3 * i + j]);
+                hi[j] = fmaxf(hi[j], xyz[3 * i + j]);
+            }
+        /* PCL's octree spans 1.1 times the largest side of the bounding box. */
+        double side = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
+        st->cell_m = 1.1 * side / ldexp(1.0, o->poisson_depth);
+        size_t removed = trim(&tmp, xyz, nrm, n, st->cell_m, err);
         if (removed == (size_t)-1) goto out;
         st->faces_trimmed = removed;
+        removed = drop_pieces(&tmp, MIN_PIECE_FACES, err);
+        if (removed == (size_t)-1) goto out;
+        st->faces_pieces = removed;
         /* Poisson winds with its own convention: turn every face toward the scanner's side. */
         for (size_t f = 0; f < tmp.nfaces; f++) {
             rs_v3 cen, nf;

@@ -22,6 +22,8 @@ typedef struct rs_unorg_stats {
     double max_edge_m;         /* greedy: the search radius used */
     size_t faces_raw;          /* from PCL, before trimming */
     size_t faces_trimmed;      /* Poisson: faces far from every point, removed */
+    size_t faces_pieces;       /* Poisson: faces of small pieces left by the trim, removed */
+    double cell_m;             /* Poisson: the octree's finest cell */
     size_t points_no_normal;   /* too few neighbours for a normal */
 } rs_unorg_stats;
 
