@@ -2,7 +2,6 @@
  * calibrated from a well-exposed scene) is more trustworthy than one fitted to every capture. */
 #include "response.h"
 
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include "fileio.h"
@@ -69,20 +68,5 @@ int rs_response_read(const char *path, float *out, rs_err *err)
     rc = 0;
 out:
     free(text);
-    return rc;
-}
-
-int rs_response_write(const char *path, const float *response, const char *comment, rs_err *err)
-{
-    size_t cap = 256 * 64 + 1024, len = 0;
-    char *buf = malloc(cap);
-    if (!buf) return rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
-    len += (size_t)snprintf(buf + len, cap - len, "# %.200s\n# code i: linear exposure R G B giving 8-bit code i\n",
-                            comment ? comment : "camera response");
-    for (int i = 0; i < 256 && len < cap; i++)
-        len += (size_t)snprintf(buf + len, cap - len, "%.9g %.9g %.9g\n", response[3 * i], response[3 * i + 1],
-                                response[3 * i + 2]);
-    int rc = rs_write_file_atomic(path, buf, len, err);
-    free(buf);
     return rc;
 }

@@ -1,5 +1,5 @@
 /* response: a camera's response curve from a text file ([rig] response_file), used instead of
- * calibrating one from the brackets (Debevec). Exports rs_response_read and rs_response_write. */
+ * calibrating one from the brackets (Debevec). Exports rs_response_read. */
 #ifndef RS_RESPONSE_H
 #define RS_RESPONSE_H
 
@@ -11,8 +11,5 @@
  * i: > 0 (MergeDebevec takes its logarithm) and non-decreasing with the code. out: 256 x 3,
  * R G B interleaved (rs_hdr_merge's response). Errors name the file, the line and the value. */
 int rs_response_read(const char *path, float *out, rs_err *err);
-
-/* Writes a response (256 x 3) in that format, atomically: a calibrated curve to reuse. */
-int rs_response_write(const char *path, const float *response, const char *comment, rs_err *err);
 
 #endif

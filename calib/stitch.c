@@ -21,6 +21,12 @@ int rs_stitch_default_width(const rs_rig *rig)
     return w < 16 ? 16 : w > 65536 ? 65536 : w;
 }
 
+int rs_stitch_width(const rs_rig *rig, int configured_width)
+{
+    int w = configured_width > 0 ? configured_width : rs_stitch_default_width(rig);
+    return w + (w & 1);
+}
+
 /* Camera i's bilinear sample of the rig direction d and its blending weight; 0 when the
  * camera does not see d through the usable part of its lens. */
 static int sample_camera(const rs_rig_camera *c, const rs_image *img, rs_v3 d_rig, double feather, float rgb[3],

@@ -27,4 +27,8 @@ int rs_stitch(const rs_rig *rig, rs_image *const *frames, const rs_stitch_opts *
 /* The panorama width that matches the finest camera: 2 pi times its largest focal length, even. */
 int rs_stitch_default_width(const rs_rig *rig);
 
+/* The width of the panorama the calib stage stitches: configured_width ([rig] width) when > 0,
+ * else rs_stitch_default_width; made even. Stages before calib (the mesh's facet size) use it. */
+int rs_stitch_width(const rs_rig *rig, int configured_width);
+
 #endif

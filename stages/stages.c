@@ -5,7 +5,7 @@
 const rs_stage_def rs_stage_table[] = {
     {"ingest", rs_ingest_run, "ingest mesh", "", "cloud.ply",
      "read laser scans (PTX, PLY) into one point cloud"},
-    {"mesh", rs_mesh_run, "mesh capture", "cloud.ply", "mesh.ply",
+    {"mesh", rs_mesh_run, "mesh capture rig", "cloud.ply", "mesh.ply",
      "triangulate the scan grids and simplify to the facet size (or take [mesh] input_mesh)"},
     {"calib", rs_calib_run, "calib rig capture", "", "pano_stitched.exr capture_pose.txt",
      "stitch the rig's frames into the capture's panorama; solve the capture's pose from pairs"},

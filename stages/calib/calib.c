@@ -276,9 +276,7 @@ static int stitch_rig(const rs_config *cfg, const char *out_path, rs_report *rep
             goto out;
         }
     }
-    int width = (int)rs_config_int(cfg, "rig", "width");
-    if (width == 0) width = rs_stitch_default_width(&rig);
-    if (width % 2) width++;
+    int width = rs_stitch_width(&rig, (int)rs_config_int(cfg, "rig", "width"));
     rs_stitch_opts opts = {width, rs_config_real(cfg, "rig", "feather_px"), rs_config_bool(cfg, "rig", "gain")};
     rs_stitch_stats stats;
     if (rs_stitch(&rig, frames, &opts, &pano, gains, &stats, err) != 0) goto out;

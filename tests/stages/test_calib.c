@@ -12,6 +12,7 @@
 #include "image.h"
 #include "register.h"
 #include "rig.h"
+#include "stitch.h"
 #include "testutil.h"
 
 #define NCAM 6
@@ -383,8 +384,78 @@ static void test_brackets(void **state)
     rs_test_rmtree(dir);
 }
 
+/* The facet size of the mesh in rhoscan_facet_size of mesh.ply (0 when missing). */
+static double mesh_facet_size(const char *dir)
+{
+    FILE *f = fopen(rs_test_path(dir, "out/mesh.ply"), "rb");
+    assert_non_null(f);
+    char line[512];
+    double size = 0;
+    while (fgets(line, sizeof line, f) && strncmp(line, "end_header", 10) != 0)
+        if (sscanf(line, "comment rhoscan_facet_size %lf", &size) == 1) break;
+    fclose(f);
+    return size;
+}
+
+/* Runs ingest and mesh on scan.ptx with the [capture] or [rig] lines given; the facet size. */
+static double facet_size_with(const char *dir, const char *lines)
+{
+    char text[1024], cmd[4096], *out = NULL;
+    snprintf(text, sizeof text, "[pipeline]\nworkdir = out\n[ingest]\nscan = scan.ptx\n%s", lines);
+    rs_test_write(rs_test_path(dir, "mesh.ini"), text);
+    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/rhoscan-ingest' mesh.ini && '%s/rhoscan-mesh' mesh.ini", dir,
+             rs_test_bin_dir(), rs_test_bin_dir());
+    int rc = rs_test_run(cmd, &out);
+    if (rc != 0) print_message("%s\n", out);
+    assert_int_equal(rc, 0);
+    free(out);
+    return mesh_facet_size(dir);
+}
+
+/* With [rig] and no [capture] panorama, the mesh's facet size follows the panorama the rig will
+ * stitch: [rig] width, else the width from the rig's finest camera. */
+static void test_facet_size_from_rig(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("calibmesh");
+    /* A scan of a wall 5 m away (x = 5), 360 x 180 directions. */
+    FILE *f = fopen(rs_test_path(dir, "scan.ptx"), "w");
+    assert_non_null(f);
+    fprintf(f, "360\n180\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n");
+    for (int c = 0; c < 360; c++)
+        for (int r = 0; r < 180; r++) {
+            double az = 2 * M_PI * c / 360, el = (-80 + 160.0 * r / 179) * M_PI / 180;
+            rs_v3 d = rs_v3_make(cos(az) * cos(el), sin(az) * cos(el), sin(el));
+            if (d.x > 0.5) fprintf(f, "%.5f %.5f %.5f 0.5\n", 5.0, 5 * d.y / d.x, 5 * d.z / d.x);
+            else fprintf(f, "0 0 0 0.5\n");
+        }
+    fclose(f);
+    write_rig_file(rs_test_path(dir, "rig.yaml"), NCAM);
+    rs_image *img = rs_image_new(1024, 512, 3);
+    rs_err err = {0};
+    static const char *const rgb[] = {"R", "G", "B"};
+    assert_int_equal(rs_image_write_exr(img, rs_test_path(dir, "pano.exr"), rgb, 0, NULL, &err), 0);
+    rs_image_free(img);
+    double from_pano = facet_size_with(dir, "[capture]\npanorama = pano.exr\nposition = 0 0 0\n");
+    double from_rig = facet_size_with(dir, "[capture]\nposition = 0 0 0\n[rig]\nfile = rig.yaml\nwidth = 1024\n");
+    double from_rig_half = facet_size_with(dir, "[capture]\nposition = 0 0 0\n[rig]\nfile = rig.yaml\nwidth = 512\n");
+    double from_focal = facet_size_with(dir, "[capture]\nposition = 0 0 0\n[rig]\nfile = rig.yaml\n");
+    rs_rig rig;
+    assert_int_equal(rs_rig_load(rs_test_path(dir, "rig.yaml"), &rig, &err), 0);
+    int w = rs_stitch_default_width(&rig);
+    rs_rig_release(&rig);
+    print_message("facet size: panorama 1024 px %.5f m, rig width 1024 %.5f, 512 %.5f, from the focal (%d px) %.5f\n",
+                  from_pano, from_rig, from_rig_half, w, from_focal);
+    assert_true(from_pano > 0);
+    assert_true(fabs(from_rig - from_pano) < 1e-9 * from_pano);
+    assert_true(fabs(from_rig_half - 2 * from_pano) < 1e-6 * from_pano);
+    assert_true(fabs(from_focal - from_pano * 1024.0 / w) < 1e-6 * from_pano);
+    rs_test_rmtree(dir);
+}
+
 int main(void)
 {
-    const struct CMUnitTest tests[] = {cmocka_unit_test(test_stitch_and_register), cmocka_unit_test(test_brackets)};
+    const struct CMUnitTest tests[] = {cmocka_unit_test(test_stitch_and_register), cmocka_unit_test(test_brackets),
+                                       cmocka_unit_test(test_facet_size_from_rig)};
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
