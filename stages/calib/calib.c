@@ -218,7 +218,8 @@ static rs_image *merge_brackets(const rs_config *cfg, const rs_rig_camera *c, in
             rs_json_set_num(o, "sun_azimuth_deg_rig", atan2(dr.y, dr.x) * 180 / M_PI);
         }
         rs_report_skip(rep, "sun radiance", "camera %s: the sun is clipped in every exposure (%zu pixels "
-                       "around (%.1f, %.1f)): its radiance there is a lower bound", c->name, hr.sun_px, hr.sun_x,
+                       "around (%.1f, %.1f)): its radiance there is a lower bound; [sky] sun_irradiance (e.g. "
+                       "from a pyrheliometer) makes the sun an explicit source", c->name, hr.sun_px, hr.sun_x,
                        hr.sun_y);
     }
 out:
