@@ -251,14 +251,21 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
             double pdf_c = rs_v3_dot(rays[k].dir, n) / M_PI, pdf_e = Ne ? rs_skyenv_pdf(env, pix) : 0;
             double wgt = Nc * pdf_c / (Nc * pdf_c + Ne * pdf_e) * M_PI / Nc;  /* L cos / pdf_c = pi L */
             add_sky(env, pix, wgt, out);
+            double y = Nc * wgt * rs_skyenv_luminance(env->radiance + 3 * pix);
+            out->cos_sum += y;
+            out->cos_sum_sq += y * y;
             continue;
         }
         double L[3];
         rs_v3 x = rs_v3_add(rays[k].org, rs_v3_scale(rays[k].dir, hits[k].t));
         /* A back face is lit from the side nobody measured: it takes the facet's mean radiance. */
         int seen = !hits[k].backface && read_seen(g, hits[k].face, x, L);
-        if (seen)
+        if (seen) {
             for (int ch = 0; ch < 3; ch++) out->gseen[ch] += L[ch];
+            double y = M_PI * (0.2126 * L[0] + 0.7152 * L[1] + 0.0722 * L[2]);
+            out->cos_sum += y;
+            out->cos_sum_sq += y * y;
+        }
         refs[nrefs].face = hits[k].face;
         refs[nrefs].unseen = (uint8_t)!seen;
         nrefs++;
@@ -278,6 +285,7 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
         memset(&acc, 0, sizeof acc);
         rs_facet_gather *dst = adaptive ? &acc : out;
         double div = adaptive ? 1 : Ns, sum = 0, sum_sq = 0;
+        double y_sum = 0, y_sq = 0;                  /* each ray's value, for the noise estimate */
         while (done < goal) {
             int B = goal - done < M ? goal - done : M;     /* the scratch holds M rays */
             double *sp = s->samp;
@@ -312,6 +320,9 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
                 else                                         /* balance heuristic, already / Ne */
                     wgt = cosn / (Nc * cosn / M_PI + Ne * rs_skyenv_pdf(env, pix));
                 add_sky(env, pix, wgt, dst);
+                double y = (pass ? div : Ne) * wgt * lum;   /* this ray alone: its estimate of the whole */
+                y_sum += y;
+                y_sq += y * y;
                 sum += cosn * env->sun_power;                /* the ray's luminance contribution */
                 sum_sq += (cosn * env->sun_power) * (cosn * env->sun_power);
             }
@@ -320,6 +331,10 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
                 double mean = sum / done, se = sqrt(fmax(0, sum_sq / done - mean * mean) / done);
                 if (se > g->sun_target_error * (out->esky_lum + mean)) goal *= 2;
             }
+        }
+        if (done) {                                  /* rays that brought nothing count as 0 */
+            double mean = y_sum / done;
+            out->map_var += fmax(0, y_sq / done - mean * mean) / done;
         }
         if (adaptive) {
             for (int ch = 0; ch < 3; ch++) out->esky[ch] += acc.esky[ch] / done;
@@ -348,6 +363,97 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
     return 0;
 }
 
+
+double rs_gather_mc_sigma(const rs_facet_gather *fg, int samples, const double *radiance, const uint8_t *observed)
+{
+    if (!fg->rays || samples < 1) return 0;
+    /* A hit count k_unseen N / pi for each K entry: its rays' values are pi L_j each. */
+    double n = samples, s1 = fg->cos_sum, s2 = fg->cos_sum_sq;
+    for (uint32_t q = 0; radiance && q < fg->nentries; q++) {
+        const rs_kentry *en = &fg->entries[q];
+        if (observed && !observed[en->col]) continue;
+        const double *L = radiance + 3 * (size_t)en->col;
+        double y = M_PI * (0.2126 * L[0] + 0.7152 * L[1] + 0.0722 * L[2]), hits = en->k_unseen * n / M_PI;
+        s1 += hits * y;
+        s2 += hits * y * y;
+    }
+    double mean = s1 / n, var_cos = fmax(0, s2 / n - mean * mean) / n;
+    return sqrt(var_cos + fg->map_var);
+}
+
+/* Luminance of E_sky + G with G's K part from observed facets' radiance (as rs_gather_mc_sigma). */
+static double facet_lum(const rs_facet_gather *fg, const double *radiance, const uint8_t *observed)
+{
+    double e = fg->esky_lum + 0.2126 * fg->gseen[0] + 0.7152 * fg->gseen[1] + 0.0722 * fg->gseen[2];
+    for (uint32_t q = 0; radiance && q < fg->nentries; q++) {
+        const rs_kentry *en = &fg->entries[q];
+        if (observed && !observed[en->col]) continue;
+        const double *L = radiance + 3 * (size_t)en->col;
+        e += en->k_unseen * (0.2126 * L[0] + 0.7152 * L[1] + 0.0722 * L[2]);
+    }
+    return e;
+}
+
+int rs_gather_mc_calibration(const rs_gather_ctx *g, size_t nf, const rs_facet_gather *fg, const double *radiance,
+                             const uint8_t *observed, size_t max_facets, double *factor, size_t *used)
+{
+    *factor = 1;
+    if (used) *used = 0;
+    size_t n = 0;
+    for (size_t f = 0; f < nf; f++) n += fg[f].rays > 0;
+    if (!n || !max_facets) return 0;
+    size_t stride = (n + max_facets - 1) / max_facets, m = 0;
+    uint32_t *list = malloc(((n + stride - 1) / stride + 1) * sizeof *list);
+    double *z2 = calloc((n + stride - 1) / stride + 1, sizeof *z2);
+    if (!list || !z2) {
+        free(list);
+        free(z2);
+        return -1;
+    }
+    for (size_t f = 0, k = 0; f < nf; f++)
+        if (fg[f].rays > 0 && k++ % stride == 0) list[m++] = (uint32_t)f;
+    rs_gather_ctx g2 = *g;
+    g2.seed = g->seed ^ 0x5bd1e995u;                /* an independent scrambling */
+    size_t scratch = (size_t)g->samples;
+    if ((size_t)g->sky_samples > scratch) scratch = (size_t)g->sky_samples;
+    if ((size_t)g->sun_samples > scratch) scratch = (size_t)g->sun_samples;
+    int failed = 0;
+#pragma omp parallel
+    {
+        rs_gather_scratch *s = rs_gather_scratch_new(scratch);
+        int mine_failed = !s;
+#pragma omp for schedule(dynamic, 4)
+        for (size_t k = 0; k < m; k++) {
+            rs_facet_gather r;
+            z2[k] = -1;
+            if (mine_failed || rs_gather_facet(&g2, list[k], s, &r) != 0) {
+                mine_failed = 1;
+                continue;
+            }
+            const rs_facet_gather *a = &fg[list[k]];
+            double sa = rs_gather_mc_sigma(a, g->samples, radiance, observed);
+            double sb = rs_gather_mc_sigma(&r, g->samples, radiance, observed);
+            double d = facet_lum(a, radiance, observed) - facet_lum(&r, radiance, observed);
+            if (sa + sb > 0) z2[k] = d * d / (sa * sa + sb * sb);   /* var(E - E') = sa^2 + sb^2 */
+            free(r.entries);
+        }
+        if (mine_failed) {
+#pragma omp atomic write
+            failed = 1;
+        }
+        rs_gather_scratch_free(s);
+    }
+    double sum = 0;
+    size_t cnt = 0;
+    for (size_t k = 0; k < m; k++)
+        if (z2[k] >= 0) sum += z2[k], cnt++;
+    free(list);
+    free(z2);
+    if (failed) return -1;
+    if (cnt) *factor = sqrt(sum / cnt);
+    if (used) *used = cnt;
+    return 0;
+}
 
 /* Morton code of a point scaled into [0, 1)^3: 10 bits per axis, interleaved. */
 static uint32_t spread10(uint32_t v)

@@ -6,7 +6,8 @@
  * Where the camera sees a hit point, G reads the panorama there (sub-facet detail); elsewhere
  * it goes through K and the hit facet's mean radiance. The sky map takes [sky] panorama where it
  * sees sky, the capture's sky next, and fills the rest ([sky] fill, skyfill.h). Writes
- * irradiance.ply (mesh + E_sky, G, G from panorama readings, sky_filled, irradiance_sky_sigma)
+ * irradiance.ply (mesh + E_sky, G, G from panorama readings, sky_filled, irradiance_sky_sigma,
+ * irradiance_mc_sigma)
  * and transport.ply (the sparse K: per (i, j) the total
  * weight and the weight not read from the panorama). */
 #include <stdio.h>
@@ -25,17 +26,17 @@
 #include "stages.h"
 
 static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_facet_gather *fg,
-                         const double *radiance, const uint8_t *observed, double fill_sigma, rs_report *rep,
-                         rs_err *err)
+                         const double *radiance, const uint8_t *observed, double fill_sigma, double mc_factor,
+                         rs_report *rep, rs_err *err)
 {
     size_t nf = mesh->nfaces, ne = 0;
     double *esky = malloc(3 * nf * sizeof *esky), *g = malloc(3 * nf * sizeof *g),
            *gseen = malloc(3 * nf * sizeof *gseen), *filled = malloc(nf * sizeof *filled),
-           *sigma = malloc(nf * sizeof *sigma);
+           *sigma = malloc(nf * sizeof *sigma), *mc = malloc(nf * sizeof *mc);
     rs_ply *ply = rs_ply_new();
     int rc = -1;
     char path[4096];
-    if (!esky || !g || !gseen || !filled || !sigma || !ply) {
+    if (!esky || !g || !gseen || !filled || !sigma || !mc || !ply) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory writing the irradiance outputs");
         goto out;
     }
@@ -49,6 +50,10 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
         /* The fill's error is a smooth bias over neighbouring directions, not noise that
          * averages out: the filled light is uncertain by fill_sigma as a whole. */
         sigma[f] = fill_sigma * fg[f].filled_lum;
+        /* Monte Carlo noise of E_sky + G (rays toward unobserved facets count 0 here), the
+         * independent-sample formula scaled by what a second seed showed (rs_gather_mc_calibration). */
+        mc[f] = mc_factor *
+                rs_gather_mc_sigma(&fg[f], (int)rs_config_int(cfg, "irradiance", "samples"), radiance, observed);
         for (uint32_t q = 0; q < fg[f].nentries; q++) {
             const rs_kentry *en = &fg[f].entries[q];
             if (observed[en->col])      /* unobserved facets are the reflectance stage's job */
@@ -60,7 +65,8 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
         rs_faceprop_add_rgb(faces, "irradiance_inter", g) != 0 ||
         rs_faceprop_add_rgb(faces, "irradiance_inter_seen", gseen) != 0 ||
         !rs_ply_add_scalar(faces, "sky_filled", RS_PLY_FLOAT32, filled) ||
-        !rs_ply_add_scalar(faces, "irradiance_sky_sigma", RS_PLY_FLOAT32, sigma)) {
+        !rs_ply_add_scalar(faces, "irradiance_sky_sigma", RS_PLY_FLOAT32, sigma) ||
+        !rs_ply_add_scalar(faces, "irradiance_mc_sigma", RS_PLY_FLOAT32, mc)) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory building irradiance.ply");
         goto out;
     }
@@ -68,6 +74,9 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
                             "irradiance_inter counts observed facets only", RHOSCAN_VERSION);
     rs_ply_add_comment(ply, "sky_filled: luminance share of E_sky from filled-in directions; irradiance_sky_sigma: "
                             "standard uncertainty of E_sky's luminance = %.4g x its filled part", fill_sigma);
+    rs_ply_add_comment(ply, "irradiance_mc_sigma: standard error of the luminance of E_sky + G from the gather's "
+                            "own sample spread times %.4g, the ratio of the actual spread between two seeds to it on "
+                            "sampled facets (Monte Carlo noise; rays toward unobserved facets count 0)", mc_factor);
     if (rs_ply_write(ply, rs_work_path(cfg, "irradiance.ply", path, sizeof path), 1, err) != 0) goto out;
 
     rs_ply_free(ply);          /* before the kernel's file, streamed from the rows (kernel_out.c) */
@@ -82,6 +91,7 @@ out:
     free(gseen);
     free(filled);
     free(sigma);
+    free(mc);
     return rc;
 }
 
@@ -323,7 +333,27 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         el += a * fg[f].esky_lum;
     }
     rs_json_set_num(rep->metrics, "sky_filled_share", el > 0 ? fl / el : 0);
-    rc = write_outputs(cfg, mesh, fg, radiance, observed, env.fill_sigma, rep, err);
+    /* The fill's uncertainty from the largest held-out error (rs_skyfill_sigma_from_blocks), not
+     * env.fill_sigma (their RMS, kept in the metrics for comparison). */
+    int use_model = so.fill.method == RS_SKYFILL_MODEL && info.fill.fit_samples;
+    double fill_unc = rs_skyfill_sigma_from_blocks(info.fill.cv_folds, use_model ? info.fill.cv_max_model
+                                                                              : info.fill.cv_max_row);
+    rs_json_set_num(rep->metrics, "sky_fill_sigma_used", fill_unc);
+    rs_json_set_num(rep->metrics, "sky_cv_max_row", info.fill.cv_max_row);
+    rs_json_set_num(rep->metrics, "sky_cv_max_model", info.fill.cv_max_model);
+    double mc_factor;
+    size_t mc_facets;
+    t0 = rs_now();
+    if (rs_gather_mc_calibration(&g, nf, fg, radiance, observed, 512, &mc_factor, &mc_facets) != 0) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory measuring the gather's noise");
+        goto out;
+    }
+    rs_report_time(rep, "mc_calibration", rs_now() - t0);
+    rs_json_set_num(rep->metrics, "mc_sigma_factor", mc_factor);
+    rs_json_set_int(rep->metrics, "mc_calibration_facets", (long long)mc_facets);
+    rs_log_info("irradiance: Monte Carlo noise from %zu facets gathered twice: %.3g x the independent-sample formula",
+                mc_facets, mc_factor);
+    rc = write_outputs(cfg, mesh, fg, radiance, observed, fill_unc, mc_factor, rep, err);
 out:
     if (fg)
         for (size_t f = 0; f < nf; f++) free(fg[f].entries);

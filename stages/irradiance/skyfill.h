@@ -29,6 +29,8 @@ typedef struct rs_skyfill_report {
     rs_skymodel model;         /* the final fit (method model) */
     double cv_rel_row, cv_rel_model;   /* RMS over held-out blocks of the relative error of
                                           their integrated luminance; -1 when not computed */
+    double cv_max_row, cv_max_model;   /* the largest |relative error| over those blocks (the
+                                          model's at its chosen order); -1 when not computed */
     int cv_folds;              /* held-out blocks with enough sky */
     double fill_sigma;         /* cv of the method used: relative uncertainty of filled light
                                   (1 when no held-out block could be measured) */
@@ -46,6 +48,13 @@ typedef struct rs_skyfill_report {
  * Model: above the horizon the fitted Perez + harmonics model; below, the mean of the source
  * pixels in the same world elevation band (the nearest band that has some), else
  * ground_albedo * E_horizontal / pi from the completed sky. Returns 0, -1 out of memory. */
+/* The standard uncertainty (relative) of filled light from the held-out blocks: the hidden
+ * directions are one more block whose error is one more draw. The largest |error| of n blocks
+ * exceeds a new draw with probability n / (n + 1) whatever their distribution; under a normal
+ * error that is the two-sided quantile z with P(|N(0, 1)| <= z) = n / (n + 1), so
+ * sigma = largest / z. 1 (100 %) when no block was measured. */
+double rs_skyfill_sigma_from_blocks(int blocks, double largest_error);
+
 int rs_skyfill_run(int w, int h, const rs_pose *pose, float *radiance, const uint8_t *src,
                    const uint8_t *fill, const uint8_t *sun, const rs_skyfill_opts *o,
                    rs_skyfill_report *rep);

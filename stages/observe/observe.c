@@ -2,8 +2,10 @@
  * Large facets: the footprint-weighted mean of their pure pixels (pixels whose four guard rays,
  * [observe] guard_px from the centre, all hit the facet, so no mixed pixels on borders). Small facets (fewer pure pixels
  * than [observe] min_pixels): points sampled on the facet that the camera sees, each reading
- * the pixel that holds it if that pixel lies wholly on one surface. Writes observe.ply (mesh + radiance_*, observed, observe_pixels)
+ * the pixel that holds it if that pixel lies wholly on one surface. Writes observe.ply (mesh + radiance_*, observed, observe_pixels,
+ * radiance_sigma_rel: the relative standard error of the facet's L from the pixels' noise, pixel_noise_variance)
  * and facet_id.exr (channel Y: facet index, -1 where the camera sees no facet). */
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include "capture.h"
@@ -13,6 +15,12 @@
 #include "sampling.h"
 #include "scene.h"
 #include "stages.h"
+
+static int cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
 
 typedef struct {
     uint32_t face;             /* facet hit by the pixel's centre ray, RS_NO_HIT if none */
@@ -114,9 +122,31 @@ static void trace_pixels(const rs_scene *scene, const rs_capture *cap, double co
  * camera sees from the front, each reading the pixel that holds it when that pixel lies wholly on
  * the same surface (smooth), so that sky or another surface across a silhouette or crease never
  * leaks in. Returns the number of usable points; *visible_share the share the camera sees. */
-static int small_facet_radiance(const rs_scene *scene, const rs_capture *cap, const pixel_hit *px, uint32_t f,
-                                int npoints, double cos_max_view, double rgb[3], double *visible_share)
+static int cmp_u32(const void *a, const void *b)
 {
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return (x > y) - (x < y);
+}
+
+/* Relative variance of the mean of n readings of pixels pix[0..n) (repeats allowed: a pixel read
+ * c times weighs c): sum over distinct pixels of c^2 noise^2, over n^2. Sorts pix. */
+static double mean_noise_var(uint32_t *pix, int n, const float *noise2)
+{
+    qsort(pix, (size_t)n, sizeof *pix, cmp_u32);
+    double v = 0;
+    for (int k = 0; k < n;) {
+        int first = k;
+        while (k < n && pix[k] == pix[first]) k++;
+        v += (double)(k - first) * (k - first) * noise2[pix[first]];
+    }
+    return n ? v / ((double)n * n) : 0;
+}
+
+static int small_facet_radiance(const rs_scene *scene, const rs_capture *cap, const pixel_hit *px, uint32_t f,
+                                int npoints, double cos_max_view, const float *noise2, double rgb[3],
+                                double *visible_share, double *var_rel)
+{
+    uint32_t pix[4096];        /* [observe] facet_points is at most 4096 */
     const rs_mesh *m = rs_scene_mesh(scene);
     rs_v3 a = rs_mesh_vert(m, m->tris[3 * f]), b = rs_mesh_vert(m, m->tris[3 * f + 1]),
           c = rs_mesh_vert(m, m->tris[3 * f + 2]);
@@ -141,12 +171,75 @@ static int small_facet_radiance(const rs_scene *scene, const rs_capture *cap, co
         const float *v = cap->pano->data + 3 * k2;
         if (!px[k2].smooth || !rs_capture_pixel_ok(v)) continue;
         for (int ch = 0; ch < 3; ch++) rgb[ch] += v[ch];
+        if (used < 4096) pix[used] = (uint32_t)k2;
         used++;
     }
     *visible_share = (double)seen / npoints;
+    *var_rel = mean_noise_var(pix, used < 4096 ? used : 4096, noise2);
     if (used)
         for (int ch = 0; ch < 3; ch++) rgb[ch] /= used;
     return used;
+}
+
+/* Each pixel's relative noise variance (mean over channels), from differences to the pixels two
+ * away along its row and column that lie on the same plane: for two pixels of one smooth
+ * surface, E[((a - b) / ((a + b) / 2))^2] = 2 sigma_rel^2 plus the true gradient, which is small
+ * over two pixels except at shadow edges (where the estimate then errs high). Two pixels apart,
+ * not one, because a camera's demosaicing and a renderer's pixel filter correlate neighbours.
+ * Pixels with no such pair get -1; returns the median over those with one (0 if none). */
+static double pixel_noise(const rs_scene *scene, const rs_capture *cap, const pixel_hit *px, float *noise2)
+{
+    int w = cap->pano->width, h = cap->pano->height;
+    size_t npx = (size_t)w * h;
+#pragma omp parallel for schedule(dynamic, 8)
+    for (int r = 0; r < h; r++)
+        for (int c = 0; c < w; c++) {
+            size_t k = (size_t)r * w + c;
+            noise2[k] = -1;
+            const float *a = cap->pano->data + 3 * k;
+            if (px[k].face == RS_NO_HIT || !px[k].smooth || !rs_capture_pixel_ok(a)) continue;
+            rs_v3 n = rs_scene_normal(scene, px[k].face);
+            rs_v3 x = rs_v3_scale(rs_pose_dir_to_world(&cap->pose, rs_pano_uv_to_dir((c + 0.5) / w, (r + 0.5) / h)),
+                                  px[k].depth);
+            const int nb[4][2] = {{0, 2}, {0, -2}, {2, 0}, {-2, 0}};
+            double acc = 0;
+            int pairs = 0;
+            for (int q = 0; q < 4; q++) {
+                int r2 = r + nb[q][0], c2 = (c + nb[q][1] + w) % w;
+                if (r2 < 0 || r2 >= h) continue;
+                size_t k2 = (size_t)r2 * w + c2;
+                const float *b = cap->pano->data + 3 * k2;
+                if (px[k2].face == RS_NO_HIT || !px[k2].smooth || !rs_capture_pixel_ok(b)) continue;
+                if (rs_v3_dot(n, rs_scene_normal(scene, px[k2].face)) < 0.999) continue;
+                rs_v3 x2 = rs_v3_scale(rs_pose_dir_to_world(&cap->pose, rs_pano_uv_to_dir((c2 + 0.5) / w, (r2 + 0.5) / h)),
+                                       px[k2].depth);
+                if (fabs(rs_v3_dot(n, rs_v3_sub(x2, x))) > 0.01 * px[k].depth) continue;
+                double d2 = 0;
+                int chs = 0;
+                for (int ch = 0; ch < 3; ch++) {
+                    double m = 0.5 * ((double)a[ch] + b[ch]);
+                    if (!(m > 0)) continue;
+                    d2 += ((double)a[ch] - b[ch]) * ((double)a[ch] - b[ch]) / (m * m);
+                    chs++;
+                }
+                if (!chs) continue;
+                acc += d2 / chs / 2;
+                pairs++;
+            }
+            if (pairs) noise2[k] = (float)(acc / pairs);
+        }
+    float *vals = malloc((npx ? npx : 1) * sizeof *vals);
+    size_t nv = 0;
+    if (!vals) return 0;
+    for (size_t k = 0; k < npx; k++)
+        if (noise2[k] >= 0) vals[nv++] = noise2[k];
+    double med = 0;
+    if (nv) {
+        qsort(vals, nv, sizeof *vals, cmp_float);
+        med = vals[nv / 2];
+    }
+    free(vals);
+    return med;
 }
 
 static int write_facet_ids(const rs_config *cfg, const rs_capture *cap, const pixel_hit *px, rs_err *err)
@@ -171,7 +264,8 @@ int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_capture cap = {0};
     rs_scene *scene = NULL;
     pixel_hit *px = NULL;
-    double *rgb = NULL, *wsum = NULL, *npix = NULL;
+    double *rgb = NULL, *wsum = NULL, *npix = NULL, *var_rel = NULL;
+    float *noise2 = NULL;
     uint8_t *observed = NULL;
     rs_ply *out = NULL;
     rs_mesh *mesh = rs_mesh_read(rs_work_path(cfg, "mesh.ply", path, sizeof path), NULL, err);
@@ -195,13 +289,20 @@ int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     wsum = calloc(nf, sizeof *wsum);
     npix = calloc(nf, sizeof *npix);
     observed = calloc(nf, 1);
-    if (!px || !rgb || !wsum || !npix || !observed) {
+    var_rel = calloc(nf, sizeof *var_rel);
+    noise2 = malloc(npx * sizeof *noise2);
+    if (!px || !rgb || !wsum || !npix || !observed || !var_rel || !noise2) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu pixels and %zu facets", npx, nf);
         goto out;
     }
     t0 = rs_now();
     trace_pixels(scene, &cap, cos_max_view, rs_config_real(cfg, "observe", "guard_px"), px);
     rs_report_time(rep, "trace_pixels", rs_now() - t0);
+    t0 = rs_now();
+    double noise_median = pixel_noise(scene, &cap, px, noise2);
+    for (size_t k = 0; k < npx; k++)       /* no same-surface pair: the image's typical noise */
+        if (noise2[k] < 0) noise2[k] = (float)noise_median;
+    rs_report_time(rep, "pixel_noise", rs_now() - t0);
 
     /* Serial accumulation in pixel order: the sums do not depend on the thread count. */
     size_t model_px = 0, bad_px = 0;
@@ -217,6 +318,7 @@ int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         uint32_t f = px[k].face;
         for (int ch = 0; ch < 3; ch++) rgb[3 * f + ch] += (double)px[k].weight * v[ch];
         wsum[f] += px[k].weight;
+        var_rel[f] += (double)px[k].weight * px[k].weight * noise2[k];   /* / wsum^2 below */
         npix[f] += 1;
     }
 
@@ -227,18 +329,22 @@ int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     for (size_t f = 0; f < nf; f++) {
         if (npix[f] >= (double)min_pixels) {
             for (int ch = 0; ch < 3; ch++) rgb[3 * f + ch] /= wsum[f];
+            var_rel[f] /= wsum[f] * wsum[f];
             observed[f] = 1;
             by_pixels++;
             continue;
         }
-        double share, l[3];
+        double share, l[3], v;
+        var_rel[f] = 0;
         if (rs_v3_len(rs_scene_normal(scene, (uint32_t)f)) == 0) {
             rgb[3 * f] = rgb[3 * f + 1] = rgb[3 * f + 2] = 0;
             continue;      /* degenerate facet */
         }
-        int used = small_facet_radiance(scene, &cap, px, (uint32_t)f, facet_points, cos_max_view, l, &share);
+        int used = small_facet_radiance(scene, &cap, px, (uint32_t)f, facet_points, cos_max_view, noise2, l, &share,
+                                        &v);
         if (used > 0 && share >= min_visible) {
             for (int ch = 0; ch < 3; ch++) rgb[3 * f + ch] = l[ch];
+            var_rel[f] = v;
             observed[f] = 1;
             by_points++;
         } else {
@@ -274,11 +380,16 @@ int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         goto out;
     }
     for (size_t f = 0; f < nf; f++) wsum[f] = observed[f];   /* wsum is free now: the flag as doubles */
-    if (!rs_ply_add_scalar(faces, "observed", RS_PLY_UINT8, wsum)) {
+    for (size_t f = 0; f < nf; f++) var_rel[f] = observed[f] ? sqrt(var_rel[f]) : 0;
+    if (!rs_ply_add_scalar(faces, "observed", RS_PLY_UINT8, wsum) ||
+        !rs_ply_add_scalar(faces, "radiance_sigma_rel", RS_PLY_FLOAT32, var_rel)) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory building observe.ply");
         goto out;
     }
     rs_ply_add_comment(out, "rhoscan %s observe: radiance_* is the observed radiance of each facet", RHOSCAN_VERSION);
+    rs_ply_add_comment(out, "radiance_sigma_rel: relative standard error of radiance_* from the pixels' noise (each "
+                            "pixel's from its same-surface neighbours two pixels away; median pixel noise %.4g)",
+                       sqrt(noise_median));
     if (rs_ply_write(out, rs_work_path(cfg, "observe.ply", path, sizeof path), 1, err) != 0) goto out;
 
     rs_json_set_int(rep->metrics, "pixels", (long long)npx);
@@ -290,6 +401,7 @@ int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_int(rep->metrics, "observed_by_points", (long long)by_points);
     rs_json_set_int(rep->metrics, "unobserved", (long long)(nf - by_pixels - by_points));
     rs_json_set_num(rep->metrics, "observed_share_of_seen_area", area_seen > 0 ? area_obs / area_seen : 0);
+    rs_json_set_num(rep->metrics, "pixel_noise_rel_median", sqrt(noise_median));
     if (nf - by_pixels - by_points)
         rs_report_skip(rep, "unobserved facets", "%zu facets are hidden from the camera or seen too little",
                        nf - by_pixels - by_points);
@@ -302,6 +414,8 @@ out:
     free(rgb);
     free(wsum);
     free(npix);
+    free(var_rel);
+    free(noise2);
     free(observed);
     rs_scene_free(scene);
     rs_capture_release(&cap);

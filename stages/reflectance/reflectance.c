@@ -7,10 +7,15 @@
  * rho_fill (E_sky + G) / pi, rho_fill being [reflectance] unobserved_albedo or the
  * area-weighted mean albedo of the estimable facets, solved together by fixed-point iteration.
  * Writes albedo.ply with the face properties of DESIGN.md section 2, plus the sky completion's
- * share (sky_filled), E_sky's uncertainty (irradiance_sky_sigma) and the albedo uncertainty it
- * leads to: albedo_sigma_rel = sqrt(floor^2 + (irradiance_sky_sigma / E)^2), E = E_sky + G in
- * luminance, floor = [reflectance] albedo_sigma_floor (the error left with a fully measured
- * sky); albedo_sigma = albedo_sigma_rel times the facet's mean albedo over the channels. */
+ * share (sky_filled), E_sky's fill uncertainty (irradiance_sky_sigma) and the albedo's standard
+ * uncertainty, independent sources in quadrature:
+ *   albedo_sigma_rel = sqrt(floor^2 + radiance_sigma_rel^2
+ *                           + (irradiance_sky_sigma^2 + irradiance_mc_sigma^2) / E^2),
+ * E = E_sky + G in luminance; radiance_sigma_rel is the observation noise of L (observe.ply),
+ * irradiance_mc_sigma the gather's Monte Carlo noise, floor = [reflectance] albedo_sigma_floor
+ * (what is not modelled: mesh, calibration). albedo_bound80_rel = 1.2816 albedo_sigma_rel
+ * bounds the error with 80 % probability (two-sided, normal error); albedo_sigma is
+ * albedo_sigma_rel times the facet's mean albedo over the channels. */
 #include <stdlib.h>
 #include <string.h>
 #include "faceprop.h"
@@ -24,7 +29,8 @@
 typedef struct {
     size_t nf;
     const double *area, *L, *esky, *gseen;
-    const double *sky_filled, *esky_sigma;   /* from irradiance.ply */
+    const double *sky_filled, *esky_sigma, *mc_sigma;   /* from irradiance.ply */
+    const double *L_sigma_rel;               /* from observe.ply */
     double sigma_floor;
     const uint8_t *observed;
     const rs_transport *K;     /* gather kernel (interreflection) */
@@ -42,6 +48,9 @@ typedef struct {
     int iterations;
     size_t blowups;            /* paper: rows whose kernel sums past pi */
 } refl_out;
+
+/* P(|N(0, 1)| <= 1.2816) = 0.80: the two-sided 80 % bound of a normal error, in sigmas. */
+#define RS_NORMAL_Z80 1.2816
 
 static double lum3(const double *v) { return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; }
 
@@ -163,14 +172,22 @@ static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in
         rs_faceprop_add_rgb(faces, "irradiance_inter", out->G) != 0)
         goto oom;
     if (!rs_ply_add_scalar(faces, "sky_filled", RS_PLY_FLOAT32, in->sky_filled) ||
-        !rs_ply_add_scalar(faces, "irradiance_sky_sigma", RS_PLY_FLOAT32, in->esky_sigma))
+        !rs_ply_add_scalar(faces, "irradiance_sky_sigma", RS_PLY_FLOAT32, in->esky_sigma) ||
+        !rs_ply_add_scalar(faces, "irradiance_mc_sigma", RS_PLY_FLOAT32, in->mc_sigma) ||
+        !rs_ply_add_scalar(faces, "radiance_sigma_rel", RS_PLY_FLOAT32, in->L_sigma_rel))
         goto oom;
-    /* Relative uncertainty: the sky fill's (through E) and the floor, for estimable facets. */
+    /* Relative uncertainty of rho = pi L / E, for estimable facets: L's observation noise, E's
+     * fill and Monte Carlo errors, and the floor, in quadrature (independent sources). */
     for (size_t i = 0; i < nf; i++) {
-        double E = lum3(in->esky + 3 * i) + lum3(out->G + 3 * i), r = in->esky_sigma[i] / E;
-        tmp[i] = out->estimable[i] && E > 0 ? sqrt(in->sigma_floor * in->sigma_floor + r * r) : 0;
+        double E = lum3(in->esky + 3 * i) + lum3(out->G + 3 * i);
+        double rE2 = (in->esky_sigma[i] * in->esky_sigma[i] + in->mc_sigma[i] * in->mc_sigma[i]) / (E * E);
+        tmp[i] = out->estimable[i] && E > 0 ? sqrt(in->sigma_floor * in->sigma_floor +
+                                                   in->L_sigma_rel[i] * in->L_sigma_rel[i] + rE2) : 0;
     }
     if (!rs_ply_add_scalar(faces, "albedo_sigma_rel", RS_PLY_FLOAT32, tmp)) goto oom;
+    for (size_t i = 0; i < nf; i++) tmp[i] *= RS_NORMAL_Z80;
+    if (!rs_ply_add_scalar(faces, "albedo_bound80_rel", RS_PLY_FLOAT32, tmp)) goto oom;
+    for (size_t i = 0; i < nf; i++) tmp[i] /= RS_NORMAL_Z80;
     for (size_t i = 0; i < nf; i++) tmp[i] *= (alb[3 * i] + alb[3 * i + 1] + alb[3 * i + 2]) / 3;
     if (!rs_ply_add_scalar(faces, "albedo_sigma", RS_PLY_FLOAT32, tmp)) goto oom;
     for (size_t i = 0; i < nf; i++) tmp[i] = in->observed[i];
@@ -189,6 +206,11 @@ static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in
                             "%.4f %.4f %.4f", RHOSCAN_VERSION, rs_config_string(cfg, "reflectance", "method"),
                        out->fill[0], out->fill[1], out->fill[2]);
     rs_ply_add_comment(ply, "rhoscan_fill_albedo %.9g %.9g %.9g", out->fill[0], out->fill[1], out->fill[2]);
+    rs_ply_add_comment(ply, "albedo_sigma_rel: standard (1 sigma) relative uncertainty of the albedo = sqrt(%.4g^2 + "
+                            "radiance_sigma_rel^2 + (irradiance_sky_sigma^2 + irradiance_mc_sigma^2) / (E_sky + G)^2); "
+                            "albedo_bound80_rel = %.4f x albedo_sigma_rel: |relative error| below it with 80 %% "
+                            "probability (two-sided, normal); albedo_sigma = albedo_sigma_rel x mean albedo",
+                       in->sigma_floor, RS_NORMAL_Z80);
     char path[4096];
     rc = rs_ply_write(ply, rs_work_path(cfg, "albedo.ply", path, sizeof path), 1, err);
     goto done;
@@ -201,6 +223,17 @@ done:
     return rc;
 }
 
+/* An uncertainty term from an earlier stage's file; files written without it (other tools,
+ * older runs) give 0 for that term, and the log says the uncertainty lacks it. */
+static int optional_prop(const rs_ply *ply, const char *file, const char *name, size_t nf, double *out, rs_err *err)
+{
+    const rs_ply_element *faces = rs_ply_find_element(ply, "face");
+    if (faces && rs_ply_find_prop(faces, name)) return rs_faceprop_get(ply, file, name, nf, out, err);
+    memset(out, 0, nf * sizeof *out);
+    rs_log_warn("reflectance: %s has no face property %s: albedo_sigma_rel leaves that term out", file, name);
+    return 0;
+}
+
 int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
 {
     char path[4096];
@@ -211,7 +244,7 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_mesh *mesh = rs_mesh_read(rs_work_path(cfg, "mesh.ply", path, sizeof path), NULL, err);
     if (!mesh) return -1;
     size_t nf = mesh->nfaces;
-    double *buf = calloc(22 * nf + 1, sizeof *buf);
+    double *buf = calloc(24 * nf + 1, sizeof *buf);
     uint8_t *flags = calloc(2 * nf + 1, 1);
     if (!buf || !flags) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu facets", nf);
@@ -227,14 +260,16 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     int m = strcmp(method, "direct") == 0 ? 1 : (strcmp(method, "paper") == 0 ? 2 : 0);
     const char *op = rs_work_path(cfg, "observe.ply", path, sizeof path);
     if (!(obs = rs_ply_read(op, err)) || rs_faceprop_get_rgb(obs, op, "radiance", nf, L, err) != 0 ||
-        rs_faceprop_get(obs, op, "observed", nf, obsd, err) != 0)
+        rs_faceprop_get(obs, op, "observed", nf, obsd, err) != 0 ||
+        optional_prop(obs, op, "radiance_sigma_rel", nf, buf + 22 * nf, err) != 0)
         goto out;
     for (size_t f = 0; f < nf; f++) flags[f] = obsd[f] > 0;
     const char *ip = rs_work_path(cfg, "irradiance.ply", path, sizeof path);
     if (!(irr = rs_ply_read(ip, err)) || rs_faceprop_get_rgb(irr, ip, "irradiance_sky", nf, esky, err) != 0 ||
         rs_faceprop_get_rgb(irr, ip, "irradiance_inter_seen", nf, gseen, err) != 0 ||
         rs_faceprop_get(irr, ip, "sky_filled", nf, buf + 20 * nf, err) != 0 ||
-        rs_faceprop_get(irr, ip, "irradiance_sky_sigma", nf, buf + 21 * nf, err) != 0)
+        rs_faceprop_get(irr, ip, "irradiance_sky_sigma", nf, buf + 21 * nf, err) != 0 ||
+        optional_prop(irr, ip, "irradiance_mc_sigma", nf, buf + 23 * nf, err) != 0)
         goto out;
     double t0 = rs_now();
     if (m == 0) {
@@ -255,7 +290,7 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         rs_report_skip(rep, "interreflection", "method = direct ignores light from other facets");
     }
     rs_report_time(rep, "kernel", rs_now() - t0);
-    refl_in in = {nf, area, L, esky, gseen, buf + 20 * nf, buf + 21 * nf,
+    refl_in in = {nf, area, L, esky, gseen, buf + 20 * nf, buf + 21 * nf, buf + 23 * nf, buf + 22 * nf,
                   rs_config_real(cfg, "reflectance", "albedo_sigma_floor"), flags, K, dense, m,
                   rs_config_real(cfg, "reflectance", "min_irradiance"),
                   rs_config_has(cfg, "reflectance", "unobserved_albedo"), 0};

@@ -6,8 +6,9 @@ usage: fill_check.py --shared SHARED --scene NAME --filled ALBEDO.ply --true-sky
 ALBEDO.ply files are rhoscan's albedo.ply from the same work folder (same mesh), once with the sky
 filled ([sky] fill = model or row) and once with the true sky as [sky] panorama. Their per-facet
 relative albedo difference (mean over channels) is the error the fill causes (plus the gather's
-Monte Carlo noise, which differs between the runs); the sky part of the uncertainty is
-sqrt(albedo_sigma_rel^2 - floor^2), floor = [reflectance] albedo_sigma_floor (read from the comment).
+Monte Carlo noise, which differs between the runs); the uncertainty it is checked against is the
+fill's and both runs' Monte Carlo noise, sqrt(irradiance_sky_sigma^2 + irradiance_mc_sigma^2 (filled)
++ irradiance_mc_sigma^2 (true sky)) / (E_sky + G), all from the two albedo.ply files.
 """
 import argparse, os, sys
 
@@ -20,7 +21,6 @@ def main():
     ap.add_argument('--scene', required=True)
     ap.add_argument('--filled', required=True)
     ap.add_argument('--true-sky', required=True)
-    ap.add_argument('--floor', type=float, default=0.02)
     ap.add_argument('--out', required=True)
     a = ap.parse_args()
     sys.path.insert(0, os.path.join(a.shared, 'tools'))
@@ -30,14 +30,17 @@ def main():
     af = np.stack([f['albedo_' + c] for c in 'rgb'], 1)[sel]
     at = np.stack([t['albedo_' + c] for c in 'rgb'], 1)[sel]
     diff = (np.abs(af - at) / np.maximum(at, 1e-6)).mean(1)
-    sig = np.sqrt(np.maximum(f['albedo_sigma_rel'][sel] ** 2 - a.floor ** 2, 0))
+    lum = lambda p, n: 0.2126 * p[n + '_r'] + 0.7152 * p[n + '_g'] + 0.0722 * p[n + '_b']
+    E = np.maximum(lum(f, 'irradiance_sky') + lum(f, 'irradiance_inter'), 1e-30)
+    sig = (np.sqrt(f['irradiance_sky_sigma'] ** 2 + f['irradiance_mc_sigma'] ** 2 + t['irradiance_mc_sigma'] ** 2)
+           / E)[sel]
     filled = f['sky_filled'][sel]
     lines = ['\n## Fill error against the fill uncertainty: %s\n' % a.scene,
              'Per estimable facet: the relative albedo change from the true sky to the filled sky, against the '
-             'sky part of albedo_sigma_rel (`tools/skycompare/fill_check.py`).\n',
-             '| facets | share | median change | 80th pct change | median sky sigma | covered at 1 sigma | at 2 sigma |',
+             'fill and Monte Carlo part of the uncertainty (`tools/skycompare/fill_check.py`).\n',
+             '| facets | share | median change | 80th pct change | median fill+MC sigma | covered at 1 sigma | at 2 sigma |',
              '| --- | --- | --- | --- | --- | --- | --- |']
-    for name, m in (('sky_filled < 0.1 % (Monte Carlo noise alone)', filled < 0.001),
+    for name, m in (('sky_filled < 0.1 % (Monte Carlo noise mostly)', filled < 0.001),
                     ('all', np.ones_like(diff, bool)), ('sky_filled > 5 %', filled > 0.05),
                     ('sky_filled > 20 %', filled > 0.2), ('sky_filled > 50 %', filled > 0.5)):
         if m.sum() == 0:

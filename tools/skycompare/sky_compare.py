@@ -9,9 +9,11 @@ per method; no render) with [sky] fill = row, fill = model, and "true sky":
 env.exr (the sky alone, rendered from the camera with the model hidden) given as the [sky]
 panorama, placed 1 km above the camera so that only the model's ground hides any of it. The
 shared evaluator (SHARED/tools/eval_albedo.py) measures the area-weighted mean relative albedo
-error over interior facets, per part and overall. The per-facet uncertainty (albedo_sigma_rel) is
-checked against the per-facet actual error: the share of facets it covers at 1 and 2 sigma and
-the ratio of its median to the median actual error. Sky numbers come from irradiance.json.
+error over interior facets, per part and overall. The per-facet uncertainty is checked against the
+per-facet actual error (mean over channels of |relative error|, observed estimable facets): the
+share of facets that albedo_bound80_rel (the 80 % bound) covers and the ratio of its median to the
+median actual error (issue 8's bar: at least 80 %, at most 2), and the same for albedo_sigma_rel
+at 1 sigma. Sky numbers come from irradiance.json.
 """
 import argparse, json, os, shutil, subprocess, sys
 
@@ -49,7 +51,7 @@ def per_facet_error(shared, truth_ply, albedo_ply):
     t = talb[Sf[k]]
     rel = (np.abs(alb - t) / np.maximum(t, 1e-6)).mean(1)
     area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
-    return rel[sel], fp['albedo_sigma_rel'][sel], fp['sky_filled'][sel], area[sel]
+    return rel[sel], fp['albedo_sigma_rel'][sel], fp['albedo_bound80_rel'][sel], fp['sky_filled'][sel], area[sel]
 
 
 METHOD = """## How the sky is completed (stages/irradiance: skyenv.c, skyfill.c, skymodel.c, solar.c)
@@ -75,13 +77,23 @@ METHOD = """## How the sky is completed (stages/irradiance: skyenv.c, skyfill.c,
   horizon take the model. Hidden directions below the horizon take the mean visible ground of the
   same world elevation band (nearest band with any), and when no ground is visible at all
   `ground_albedo` x E_horizontal / pi of the completed sky.
-- Uncertainty: the measured sky above the horizon is split into 8 azimuth sectors and the lowest 20 %
-  (by solid angle); each block is held out in turn and predicted by both methods from the rest. The
-  RMS relative error of a block's integrated luminance is the method's `fill_sigma`; the model's
-  harmonic order is the one with the smallest. `irradiance_sky_sigma = fill_sigma x` (filled part of
-  E_sky), taken as one correlated error (a fill is off smoothly, not pixel by pixel).
-  `albedo_sigma_rel = sqrt(albedo_sigma_floor^2 + (irradiance_sky_sigma / (E_sky + G))^2)` in
-  albedo.ply, with `albedo_sigma` the same times the mean albedo.
+- Uncertainty of the fill: the measured sky above the horizon is split into 8 azimuth sectors and
+  the lowest 20 % (by solid angle); each block is held out in turn and predicted by both methods
+  from the rest (the model's harmonic order is the one with the smallest RMS error). The hidden
+  directions are one more block: the largest |relative error| of n blocks exceeds a new draw with
+  probability n / (n + 1) whatever the distribution, so the fill's standard uncertainty is that
+  largest error over the normal two-sided quantile z(n / (n + 1)) (1.64 for 9 blocks;
+  `sky_fill_sigma_used` in irradiance.json; the RMS, `sky_fill_sigma`, covered far too little).
+  `irradiance_sky_sigma` = that x the filled part of E_sky, one correlated error (a fill is off
+  smoothly, not pixel by pixel).
+- The albedo's standard uncertainty, independent sources in quadrature:
+  `albedo_sigma_rel = sqrt(albedo_sigma_floor^2 + radiance_sigma_rel^2 + (irradiance_sky_sigma^2 +
+  irradiance_mc_sigma^2) / (E_sky + G)^2)`, where `radiance_sigma_rel` is the standard error of the
+  facet's observed L from its pixels' noise (observe: each pixel's relative noise from same-surface
+  neighbours two pixels away, combined over the pixels the facet's mean reads), and
+  `irradiance_mc_sigma` the gather's Monte Carlo noise (the rays' own spread, scaled by the ratio of
+  the actual spread between two seeds to it on up to 512 facets gathered twice). `albedo_bound80_rel
+  = 1.2816 albedo_sigma_rel`.
 """
 
 
@@ -131,14 +143,15 @@ def main():
             ev = json.load(open(ej))
             irr = json.load(open(os.path.join(work, 'irradiance.json')))
             im = irr.get('metrics', irr)
-            rel, sig, filled, area = per_facet_error(a.shared, os.path.join(sdir, 'truth.ply'),
+            rel, sig, bound, filled, area = per_facet_error(a.shared, os.path.join(sdir, 'truth.ply'),
                                                      os.path.join(work, 'albedo.ply'))
             parts = {int(p): v['mean_rel'] for p, v in ev['parts'].items() if v}
             res[m] = {'interior': ev['interior']['mean_rel'], 'worst': max(parts.values()), 'parts': parts,
                       'filled': float((filled * area).sum() / area.sum()),
                       'cv_row': im.get('sky_cv_rel_row'), 'cv_model': im.get('sky_cv_rel_model'),
-                      'cover1': float((rel <= sig).mean()), 'cover2': float((rel <= 2 * sig).mean()),
-                      'med_sig': float(np.median(sig)), 'med_err': float(np.median(rel))}
+                      'cover1': float((rel <= sig).mean()), 'cover80': float((rel <= bound).mean()),
+                      'med_sig': float(np.median(sig)), 'med_bound': float(np.median(bound)),
+                      'med_err': float(np.median(rel)), 'mc_factor': im.get('mc_sigma_factor')}
             print('%s / %s: interior mean %.4f, worst part %.4f' % (name, m, res[m]['interior'], res[m]['worst']))
         rows.append((name, sdir, res))
     with open(a.out, 'w') as fh:
@@ -158,13 +171,21 @@ def main():
                     name, m, 100 * r['interior'], 100 * r['worst'], 100 * r['filled'],
                     '%.3f' % r['cv_row'] if r['cv_row'] is not None and r['cv_row'] >= 0 else '-',
                     '%.3f' % r['cv_model'] if r['cv_model'] is not None and r['cv_model'] >= 0 else '-'))
-        fh.write('\n## Uncertainty (albedo_sigma_rel) against the actual per-facet error\n\n'
-                 '| scene | method | covered at 1 sigma | covered at 2 sigma | median sigma | median error |\n'
-                 '| --- | --- | --- | --- | --- | --- |\n')
+        fh.write('\n## Uncertainty against the actual per-facet error\n\n'
+                 'Per observed, estimable facet: the actual error (mean over channels of |relative error|) against '
+                 '`albedo_bound80_rel` (= 1.2816 `albedo_sigma_rel`, the two-sided 80 % bound of a normal error). '
+                 '"covered" is the share of facets whose error is at most the bound; "ratio" is the median bound over '
+                 'the median error (issue 8 asks for at least 80 % and at most 2; a bound that is exactly right for '
+                 'normal errors of one size gives 80 % and 1.90). "MC factor" is the measured ratio of the gather\'s '
+                 'actual noise to the independent-sample formula (`mc_sigma_factor` in irradiance.json).\n\n'
+                 '| scene | method | covered by the 80 % bound | ratio | covered at 1 sigma | median bound | '
+                 'median error | MC factor |\n| --- | --- | --- | --- | --- | --- | --- | --- |\n')
         for name, sdir, res in rows:
             for m, r in res.items():
-                fh.write('| %s | %s | %.0f %% | %.0f %% | %.2f %% | %.2f %% |\n' % (
-                    name, m, 100 * r['cover1'], 100 * r['cover2'], 100 * r['med_sig'], 100 * r['med_err']))
+                fh.write('| %s | %s | %.0f %% | %.2f | %.0f %% | %.2f %% | %.2f %% | %s |\n' % (
+                    name, m, 100 * r['cover80'], r['med_bound'] / r['med_err'], 100 * r['cover1'],
+                    100 * r['med_bound'], 100 * r['med_err'],
+                    '%.2f' % r['mc_factor'] if r['mc_factor'] is not None else '-'))
         fh.write('\n' + METHOD)
     # Does the fill uncertainty cover the change the fill causes (against the true-sky run)?
     for name, sdir, res in rows:
