@@ -98,20 +98,84 @@ static int gap(const grid_ctx *g, size_t i, size_t j, double cos_max)
     return u[0] * v[0] + u[1] * v[1] + u[2] * v[2] < cos_max;
 }
 
-static int triangulate_scan(grid_ctx *g, const rs_scan *s, const rs_grid_opts *o, rs_grid_stats *st)
+/* Median of the ranges of at most about 20000 evenly spread valid points of s; 0 if none. */
+static double median_range(const grid_ctx *g, const rs_scan *s)
+{
+    size_t n = (size_t)s->cols * (size_t)s->rows, stride = n / 20000 + 1, k = 0;
+    double *r = malloc((n / stride + 1) * sizeof *r), med = 0;
+    if (!r) return 0;
+    for (size_t i = 0; i < n; i += stride)
+        if (g->range[s->first + i] > 0) r[k++] = g->range[s->first + i];
+    if (k) {
+        qsort(r, k, sizeof *r, cmp_double);
+        med = r[k / 2];
+    }
+    free(r);
+    return med;
+}
+
+int rs_grid_stride(const rs_cloud *c, int s, const rs_grid_opts *o, double col_step, double row_step,
+                   double median_range_m)
+{
+    const rs_scan *sc = &c->scans[s];
+    double k = 1;
+    /* About two triangles per cell with returns at full resolution, k^2 fewer at stride k. */
+    size_t n = (size_t)sc->cols * (size_t)sc->rows, valid = 0;
+    for (size_t i = sc->first; i < sc->first + n; i++) valid += c->valid[i] != 0;
+    double tris = 2.0 * (double)valid;
+    if (tris < RS_GRID_MIN_TRIANGLES) return 1;
+    if (o->target_faces > 0) {
+        k = floor(sqrt(tris / (RS_GRID_MARGIN * (double)o->target_faces)));
+    } else if (o->target_edge_m > 0 && median_range_m > 0 && fmax(col_step, row_step) > 0) {
+        /* Triangle count goes with the inverse square of the edge: sqrt(margin) shorter edges. */
+        k = floor(o->target_edge_m / (sqrt(RS_GRID_MARGIN) * median_range_m * fmax(col_step, row_step)));
+    }
+    k = fmin(k, floor(sqrt(tris / RS_GRID_MIN_TRIANGLES)));
+    int lim = sc->cols < sc->rows ? sc->cols : sc->rows;
+    if (!(k >= 1)) k = 1;
+    if (k > lim / 8.0) k = lim / 8 > 1 ? lim / 8 : 1;   /* keep a grid: at least 8 cells across */
+    return (int)k;
+}
+
+/* The grid lines used at stride k among n: 0, k, 2k, ... and the last one; returns the count. */
+static int lattice(int n, int k, int *out)
+{
+    int m = 0;
+    for (int i = 0; i < n; i += k) out[m++] = i;
+    if (n > 0 && out[m - 1] != n - 1) out[m++] = n - 1;
+    return m;
+}
+
+int rs_grid_lattice(int n, int k, int *out) { return lattice(n, k, out); }
+
+static int triangulate_scan(grid_ctx *g, const rs_scan *s, int sidx, const rs_grid_opts *o, rs_grid_stats *st)
 {
     g->o = s->position;
     double col_step = median_step(g, s, 1, 0), row_step = median_step(g, s, 0, 1);
-    double cos_col = col_step > 0 && o->max_gap_factor * col_step < M_PI ? cos(o->max_gap_factor * col_step) : -2;
-    double cos_row = row_step > 0 && o->max_gap_factor * row_step < M_PI ? cos(o->max_gap_factor * row_step) : -2;
+    int stride = rs_grid_stride(g->c, sidx, o, col_step, row_step, o->target_edge_m > 0 ? median_range(g, s) : 0);
+    st->stride = stride;
+    int *cl = malloc(((size_t)s->cols + 2) * sizeof *cl), *rl = malloc(((size_t)s->rows + 2) * sizeof *rl);
+    if (!cl || !rl) {
+        free(cl);
+        free(rl);
+        return -1;
+    }
+    int ncl = lattice(s->cols, stride, cl), nrl = lattice(s->rows, stride, rl);
     size_t R = (size_t)s->rows;
     /* The last column joins the first when the sweep closes (a full turn); otherwise the gap
-     * test drops that seam. */
-    int ncol_cells = s->cols >= 3 ? s->cols : s->cols - 1;
-    for (int c = 0; c < ncol_cells; c++) {
-        size_t c0 = s->first + (size_t)c * R, c1 = s->first + (size_t)((c + 1) % s->cols) * R;
-        for (size_t r = 0; r + 1 < R; r++) {
-            size_t q[4] = {c0 + r, c1 + r, c1 + r + 1, c0 + r + 1};   /* 00 10 11 01, around the cell */
+     * test drops that seam. A cell spans (next - this) grid steps: the gap limit scales with it. */
+    int ncol_cells = ncl >= 3 ? ncl : ncl - 1;
+    for (int ci = 0; ci < ncol_cells; ci++) {
+        int ca = cl[ci], cb = cl[(ci + 1) % ncl];
+        int span_c = ci + 1 < ncl ? cb - ca : 1;
+        double ac = o->max_gap_factor * span_c * col_step;
+        double cos_col = col_step > 0 && ac < M_PI ? cos(ac) : -2;
+        size_t c0 = s->first + (size_t)ca * R, c1 = s->first + (size_t)cb * R;
+        for (int ri = 0; ri + 1 < nrl; ri++) {
+            size_t r = (size_t)rl[ri], rn = (size_t)rl[ri + 1];
+            double ar = o->max_gap_factor * (double)(rn - r) * row_step;
+            double cos_row = row_step > 0 && ar < M_PI ? cos(ar) : -2;
+            size_t q[4] = {c0 + r, c1 + r, c1 + rn, c0 + rn};   /* 00 10 11 01, around the cell */
             int ok[4], nok = 0;
             for (int k = 0; k < 4; k++) nok += ok[k] = g->range[q[k]] > 0;
             st->cells++;
@@ -152,12 +216,18 @@ static int triangulate_scan(grid_ctx *g, const rs_scan *s, const rs_grid_opts *o
                 if (r2 == DROP_DEPTH) st->dropped_depth++;
                 if (r2 == DROP_GRAZING) st->dropped_grazing++;
                 if (r2 != KEEP) continue;
-                if (push_tri(g, t[best][k]) != 0) return -1;
+                if (push_tri(g, t[best][k]) != 0) {
+                    free(cl);
+                    free(rl);
+                    return -1;
+                }
                 st->triangles++;
                 st->flipped += flip[best][k];
             }
         }
     }
+    free(cl);
+    free(rl);
     return 0;
 }
 
@@ -196,7 +266,7 @@ rs_mesh *rs_grid_triangulate(const rs_cloud *c, const rs_grid_opts *o, rs_grid_s
         }
     }
     for (int s = 0; s < c->nscans; s++)
-        if (triangulate_scan(&g, &c->scans[s], o, st) != 0) goto nomem;
+        if (triangulate_scan(&g, &c->scans[s], s, o, st) != 0) goto nomem;
 
     /* Vertices: the points that some triangle uses, in point order. */
     remap = malloc((c->npoints ? c->npoints : 1) * sizeof *remap);

@@ -182,14 +182,38 @@ static int derive_facet_size(const rs_config *cfg, const rs_mesh *m, double *fac
     return 0;
 }
 
-/* Adds each scan's nadir cap to the grid mesh (see nadir.h); a scan whose ground below is not
- * flat is left open and the report says why. */
-static int fill_nadir(const rs_config *cfg, const rs_cloud *c, rs_mesh **grid, rs_report *rep, rs_err *err)
+/* The nadir cap's vertex spacing: a third of the facet edge the budget asks for ([mesh]
+ * facet_size, or from [mesh] facets and the area of grid as equilateral facets), so that the
+ * simplifier still has some triangles per facet there; 0 (the grid's own steps) otherwise: a
+ * size derived from the panorama shrinks near the camera, and the ground below is near. */
+static double cap_spacing(const rs_config *cfg, const rs_mesh *grid)
+{
+    double facet_m = 0;
+    if (rs_config_has(cfg, "mesh", "facet_size")) facet_m = rs_config_real(cfg, "mesh", "facet_size");
+    if (!(facet_m > 0) && rs_config_has(cfg, "mesh", "facets") && rs_config_int(cfg, "mesh", "facets") > 0) {
+        double area = 0;
+        for (size_t f = 0; f < grid->nfaces; f++) {
+            const uint32_t *t = grid->tris + 3 * f;
+            rs_v3 a = rs_mesh_vert(grid, t[0]), b = rs_mesh_vert(grid, t[1]), c = rs_mesh_vert(grid, t[2]);
+            area += 0.5 * rs_v3_len(rs_v3_cross(rs_v3_sub(b, a), rs_v3_sub(c, a)));
+        }
+        facet_m = sqrt(4 * area / (sqrt(3) * (double)rs_config_int(cfg, "mesh", "facets")));
+    }
+    return facet_m > 0 ? facet_m / 3 : 0;
+}
+
+/* Adds each scan's nadir cap to the grid mesh (see nadir.h) on the grid's lattice (stride),
+ * coarse when there is a budget; a scan whose ground below is not flat is left open and the
+ * report says why. */
+static int fill_nadir(const rs_config *cfg, const rs_cloud *c, int stride, rs_mesh **grid, rs_report *rep,
+                      rs_err *err)
 {
     size_t added = 0;
+    double spacing = cap_spacing(cfg, *grid);
     for (int s = 0; s < c->nscans; s++) {
         rs_nadir_stats ns;
-        rs_mesh *cap = rs_nadir_cap(c, s, rs_config_real(cfg, "mesh", "nadir_max_rms"), &ns, err);
+        rs_mesh *cap = rs_nadir_cap_coarse(c, s, rs_config_real(cfg, "mesh", "nadir_max_rms"), stride, spacing, &ns,
+                                           err);
         if (!cap) {
             if (!ns.why_not[0]) return -1;
             char what[64];
@@ -234,9 +258,13 @@ static rs_mesh *multi_scan(const rs_config *cfg, const rs_cloud *c, const rs_gri
         gs->dropped_depth += g1.dropped_depth;
         gs->dropped_grazing += g1.dropped_grazing;
         size_t nreal = grid->nfaces;
+        gs->stride = g1.stride;
         if (rs_config_bool(cfg, "mesh", "fill_nadir")) {
             rs_nadir_stats ns;
-            rs_mesh *cap = rs_nadir_cap(c, s, rs_config_real(cfg, "mesh", "nadir_max_rms"), &ns, err);
+            /* At the grid's own spacing: the overlap test keeps or drops whole cap faces, and
+             * coarse ones left duplicated sheets where another station saw the ground. */
+            rs_mesh *cap = rs_nadir_cap_coarse(c, s, rs_config_real(cfg, "mesh", "nadir_max_rms"), g1.stride, 0,
+                                               &ns, err);
             if (!cap && !ns.why_not[0]) {
                 rs_mesh_free(grid);
                 goto fail;
@@ -307,11 +335,12 @@ done:
 
 /* The surface of cloud.ply before simplification: its scan grids triangulated (nadir holes
  * closed: *nadir_done), or its unorganized points reconstructed. */
-static rs_mesh *build_surface(const rs_config *cfg, const rs_cloud *c, int *nadir_done, const char **source,
-                              rs_report *rep, rs_err *err)
+static rs_mesh *build_surface(const rs_config *cfg, const rs_cloud *c, int *nadir_done, int *stride,
+                              const char **source, rs_report *rep, rs_err *err)
 {
     double t0 = rs_now();
     *nadir_done = 0;
+    *stride = 1;
     if (c->nscans == 0) {
         rs_unorg_opts uo = {strcmp(rs_config_string(cfg, "mesh", "surface"), "poisson") == 0,
                             (int)rs_config_int(cfg, "mesh", "normal_neighbours"),
@@ -342,7 +371,10 @@ static rs_mesh *build_surface(const rs_config *cfg, const rs_cloud *c, int *nadi
     if (loose)
         rs_report_skip(rep, "unorganized points", "%zu points belong to no scan grid; the grids are meshed", loose);
     rs_grid_opts go = {rs_config_real(cfg, "mesh", "max_depth_ratio"),
-                       rs_config_real(cfg, "mesh", "max_grazing_deg") * M_PI / 180.0, MAX_GAP_STEPS};
+                       rs_config_real(cfg, "mesh", "max_grazing_deg") * M_PI / 180.0, MAX_GAP_STEPS, 0, 0};
+    /* A budget far below the grid's cells: every k-th row and column (grid.h). */
+    if (rs_config_has(cfg, "mesh", "facets")) go.target_faces = (size_t)rs_config_int(cfg, "mesh", "facets");
+    else if (rs_config_has(cfg, "mesh", "facet_size")) go.target_edge_m = rs_config_real(cfg, "mesh", "facet_size");
     rs_grid_stats gs;
     rs_mesh *grid;
     if (c->nscans == 1) {
@@ -352,11 +384,16 @@ static rs_mesh *build_surface(const rs_config *cfg, const rs_cloud *c, int *nadi
         *nadir_done = 1;
     }
     if (!grid) return NULL;
+    *stride = gs.stride;
     *source = "scan grids";
     rs_report_time(rep, "triangulate", rs_now() - t0);
     rs_json_set_str(rep->metrics, "source", "scan grids");
     rs_json_set_int(rep->metrics, "scans", c->nscans);
     rs_json_set_int(rep->metrics, "grid_cells", (long long)gs.cells);
+    rs_json_set_int(rep->metrics, "grid_stride", gs.stride);
+    if (gs.stride > 1)
+        rs_log_info("grid triangulated every %d rows and columns: the budget is over %g times below the cells",
+                    gs.stride, RS_GRID_MARGIN);
     rs_json_set_int(rep->metrics, "cells_no_return", (long long)gs.cells_no_return);
     rs_json_set_int(rep->metrics, "cells_dropped_gap", (long long)gs.dropped_gap);
     rs_json_set_int(rep->metrics, "triangles_dropped_depth", (long long)gs.dropped_depth);
@@ -446,9 +483,9 @@ static int run_scan(const rs_config *cfg, rs_report *rep, rs_err *err)
     for (int j = 0; j < 3; j++) rs_json_push_num(origin, c->origin[j]);
     if (check_capture_frame(cfg, c, err) != 0) goto out;
 
-    int nadir_done;
+    int nadir_done, stride;
     const char *source = "scan grids";
-    grid = build_surface(cfg, c, &nadir_done, &source, rep, err);
+    grid = build_surface(cfg, c, &nadir_done, &stride, &source, rep, err);
     if (!grid) {
         if (!err->file[0]) snprintf(err->file, sizeof err->file, "%.*s", (int)sizeof err->file - 1, path);
         goto out;
@@ -469,7 +506,7 @@ static int run_scan(const rs_config *cfg, rs_report *rep, rs_err *err)
 
     /* After the facet size: that is a property of what the scanner measured. */
     if (!nadir_done && c->nscans > 0 && rs_config_bool(cfg, "mesh", "fill_nadir") &&
-        fill_nadir(cfg, c, &grid, rep, err) != 0)
+        fill_nadir(cfg, c, stride, &grid, rep, err) != 0)
         goto out;
     rs_json_set_int(rep->metrics, "faces_in", (long long)grid->nfaces);
 

@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include "grid.h"
 #include "linsolve.h"
 #include "vec.h"
 
@@ -30,39 +31,68 @@ static int fit_plane(const rs_v3 *p, size_t n, double k[3])
 
 rs_mesh *rs_nadir_cap(const rs_cloud *c, int s, double max_rms_m, rs_nadir_stats *st, rs_err *err)
 {
+    return rs_nadir_cap_coarse(c, s, max_rms_m, 1, 0, st, err);
+}
+
+/* Index of the cap's vertex of lattice column i (or of group i / m inside) on ring r: with
+ * m == 1 column by column (K per column), else the rim first, then ring after ring. */
+static uint32_t vid(int m, int K, int ncl, int nin, int i, int r)
+{
+    if (m == 1) return (uint32_t)((size_t)i * K + r);
+    return r == 0 ? (uint32_t)i : (uint32_t)(ncl + (size_t)(r - 1) * nin + i / m);
+}
+
+/* Appends triangle (a, b, c) to cap, wound so that its normal faces P; drops it when degenerate. */
+static void add_tri(rs_mesh *cap, size_t *nf, rs_v3 P, uint32_t a, uint32_t b, uint32_t c)
+{
+    rs_v3 p0 = rs_mesh_vert(cap, a), p1 = rs_mesh_vert(cap, b), p2 = rs_mesh_vert(cap, c);
+    rs_v3 n = rs_v3_cross(rs_v3_sub(p1, p0), rs_v3_sub(p2, p0));
+    if (rs_v3_len(n) == 0) return;
+    uint32_t *out = cap->tris + 3 * (*nf)++;
+    int flip = rs_v3_dot(n, rs_v3_sub(P, p0)) < 0;
+    out[0] = a;
+    out[1] = flip ? c : b;
+    out[2] = flip ? b : c;
+}
+
+rs_mesh *rs_nadir_cap_coarse(const rs_cloud *c, int s, double max_rms_m, int stride, double spacing_m,
+                             rs_nadir_stats *st, rs_err *err)
+{
     memset(st, 0, sizeof *st);
     const rs_scan *sc = &c->scans[s];
     rs_v3 P = rs_v3_make(sc->position[0], sc->position[1], sc->position[2]);
-    int cols = sc->cols, rows = sc->rows;
-    rs_v3 *rim = malloc((size_t)cols * sizeof *rim);
-    double *rim_el = malloc((size_t)cols * sizeof *rim_el), *steps = malloc((size_t)cols * sizeof *steps);
-    int *has = calloc((size_t)cols, sizeof *has);
+    int rows = sc->rows;
+    if (stride < 1) stride = 1;
+    int *cl = malloc(((size_t)sc->cols + 2) * sizeof *cl), *rl = malloc(((size_t)rows + 2) * sizeof *rl);
+    int cols = cl ? rs_grid_lattice(sc->cols, stride, cl) : 0, nrl = rl ? rs_grid_lattice(rows, stride, rl) : 0;
+    rs_v3 *rim = malloc(((size_t)cols + 1) * sizeof *rim);
+    double *rim_el = calloc((size_t)cols + 1, sizeof *rim_el), *steps = malloc(((size_t)cols + 1) * sizeof *steps);
+    int *has = calloc((size_t)cols + 1, sizeof *has);
     rs_mesh *cap = NULL;
-    if (!rim || !rim_el || !steps || !has) goto oom;
+    if (!cl || !rl || !rim || !rim_el || !steps || !has) goto oom;
     size_t nrim = 0, nsteps = 0;
+    /* The rim on the grid's lattice (rs_grid_lattice), so that it welds to the grid mesh. */
     for (int col = 0; col < cols; col++) {
-        int best = -1, next = -1;
+        int best = -1;
         double best_el = 0;
-        for (int row = 0; row < rows; row++) {
-            size_t i = sc->first + (size_t)col * rows + row;
+        for (int ri = 0; ri < nrl; ri++) {
+            size_t i = sc->first + (size_t)cl[col] * rows + rl[ri];
             if (!c->valid[i]) continue;
             double el = elevation(rs_v3_sub(rs_v3_make(c->xyz[3 * i], c->xyz[3 * i + 1], c->xyz[3 * i + 2]), P));
             if (best < 0 || el < best_el) {
-                next = best;
-                best = row;
+                best = ri;
                 best_el = el;
             }
         }
         if (best < 0 || best_el > MAX_RIM_ELEVATION) continue;
-        size_t i = sc->first + (size_t)col * rows + best;
+        size_t i = sc->first + (size_t)cl[col] * rows + rl[best];
         rim[col] = rs_v3_make(c->xyz[3 * i], c->xyz[3 * i + 1], c->xyz[3 * i + 2]);
         rim_el[col] = best_el;
         has[col] = 1;
         nrim++;
-        (void)next;
-        /* the grid's elevation step, from this column's two lowest neighbouring rows */
-        int nb = best + 1 < rows ? best + 1 : best - 1;
-        size_t j = sc->first + (size_t)col * rows + nb;
+        /* the lattice's elevation step, from this column's two lowest neighbouring rows */
+        int nb = best + 1 < nrl ? best + 1 : best - 1;
+        size_t j = sc->first + (size_t)cl[col] * rows + (nb >= 0 ? rl[nb] : 0);
         if (nb >= 0 && c->valid[j]) {
             double el2 = elevation(rs_v3_sub(rs_v3_make(c->xyz[3 * j], c->xyz[3 * j + 1], c->xyz[3 * j + 2]), P));
             if (fabs(el2 - best_el) > 0) steps[nsteps++] = fabs(el2 - best_el);
@@ -108,23 +138,52 @@ rs_mesh *rs_nadir_cap(const rs_cloud *c, int s, double max_rms_m, rs_nadir_stats
     int K = (int)ceil((mean_el + M_PI / 2) / step);
     if (K < 1) K = 1;
     if (K > 4096) K = 4096;
-    size_t nv = (size_t)cols * K + 1, nf_max = (size_t)cols * (2 * (size_t)K);
+    /* A flat cap needs no more vertices than the facets it becomes: with spacing_m, rings about
+     * spacing_m apart and, inside the rim, every m-th column (the rim keeps all of them). */
+    int m = 1;
+    if (spacing_m > 0) {
+        double radius = 0;
+        for (int col = 0; col < cols; col++)
+            if (has[col]) {
+                double dx = rim[col].x - P.x, dy = rim[col].y - P.y;
+                radius += sqrt(dx * dx + dy * dy) / nrim;
+            }
+        int Ks = (int)ceil(radius / spacing_m);
+        if (Ks < K) K = Ks < 1 ? 1 : Ks;
+        double rim_gap = 2 * M_PI * radius / cols;
+        m = rim_gap > 0 ? (int)floor(spacing_m / rim_gap) : 1;
+        if (m > cols / 8) m = cols / 8;
+        if (m < 1 || K == 1) m = 1;
+    }
+    int nin = (cols + m - 1) / m;
+    size_t nv = m == 1 ? (size_t)cols * K + 1 : (size_t)cols + (size_t)(K - 1) * nin + 1;
+    size_t nf_max = m == 1 ? (size_t)cols * (2 * (size_t)K) : (size_t)cols + (size_t)nin * (2 * (size_t)K + 1);
     cap = rs_mesh_new(nv, nf_max);
     if (!cap) goto oom;
+    /* Each inner column takes its azimuth and rim elevation from the first rim point of its group. */
+    int *src = malloc((size_t)nin * sizeof *src);
+    if (!src) goto oom;
+    for (int g = 0; g < nin; g++) {
+        src[g] = -1;
+        for (int col = g * m; col < cols && col < (g + 1) * m && src[g] < 0; col++)
+            if (has[col]) src[g] = col;
+    }
     for (int col = 0; col < cols; col++) {
-        rs_v3 d0 = has[col] ? rs_v3_sub(rim[col], P) : rs_v3_make(1, 0, 0);
+        int g = col / m, sg = src[g] >= 0 ? src[g] : col;
+        rs_v3 d0 = has[sg] ? rs_v3_sub(rim[sg], P) : rs_v3_make(1, 0, 0);
         double az = atan2(d0.y, d0.x);
         for (int r = 0; r < K; r++) {
+            if (r > 0 && col % m) continue;
             rs_v3 q;
             if (r == 0) {
                 q = has[col] ? rim[col] : P;
             } else {
-                double el = rim_el[col] - r * (rim_el[col] + M_PI / 2) / K;
+                double el = rim_el[sg] - r * (rim_el[sg] + M_PI / 2) / K;
                 rs_v3 d = rs_v3_make(cos(el) * cos(az), cos(el) * sin(az), sin(el));
                 double t = (plane[0] * P.x + plane[1] * P.y + plane[2] - P.z) / (d.z - plane[0] * d.x - plane[1] * d.y);
                 q = rs_v3_add(P, rs_v3_scale(d, t));
             }
-            float *v = cap->verts + 3 * ((size_t)col * K + r);
+            float *v = cap->verts + 3 * (size_t)vid(m, K, cols, nin, col, r);
             if (r == 0 && has[col]) {          /* bit-identical to the cloud's point for welding */
                 v[0] = (float)rim[col].x, v[1] = (float)rim[col].y, v[2] = (float)rim[col].z;
             } else {
@@ -132,42 +191,40 @@ rs_mesh *rs_nadir_cap(const rs_cloud *c, int s, double max_rms_m, rs_nadir_stats
             }
         }
     }
-    float *centre = cap->verts + 3 * (size_t)cols * K;
+    float *centre = cap->verts + 3 * (nv - 1);
     centre[0] = (float)P.x, centre[1] = (float)P.y;
     centre[2] = (float)(plane[0] * P.x + plane[1] * P.y + plane[2]);
     /* Quads between rings k and k + 1 of neighbouring columns (wrapping around), a fan at the
-     * centre; each triangle wound so that its normal faces the scanner. */
+     * centre; each triangle wound so that its normal faces the scanner. With m > 1 the rim's
+     * columns of a group fan to the group's inner vertex, then a triangle closes to the next. */
     size_t nf = 0;
-    uint32_t ctr = (uint32_t)((size_t)cols * K);
+    uint32_t ctr = (uint32_t)(nv - 1);
     for (int col = 0; col < cols; col++) {
         int c2 = (col + 1) % cols;
-        if (!has[col] || !has[c2]) continue;
-        for (int r = 0; r < K; r++) {
-            uint32_t a = (uint32_t)((size_t)col * K + r), b = (uint32_t)((size_t)c2 * K + r);
-            uint32_t tri[2][3];
-            int nt;
+        if (m > 1) {
+            int g = col / m, g2 = (g + 1) % nin;
+            if (K > 1 && has[col] && has[c2] && src[g] >= 0)
+                add_tri(cap, &nf, P, (uint32_t)col, (uint32_t)c2, vid(m, K, cols, nin, col, 1));
+            if (c2 % m == 0 && has[c2] && src[g] >= 0 && src[g2] >= 0)
+                add_tri(cap, &nf, P, (uint32_t)c2, vid(m, K, cols, nin, c2, 1), vid(m, K, cols, nin, col, 1));
+            if (col % m) continue;
+            c2 = g2 * m;
+            if (src[g] < 0 || src[g2] < 0) continue;
+        } else if (!has[col] || !has[c2]) {
+            continue;
+        }
+        for (int r = m > 1 ? 1 : 0; r < K; r++) {
+            uint32_t a = vid(m, K, cols, nin, col, r), b = vid(m, K, cols, nin, c2, r);
             if (r + 1 < K) {
-                uint32_t a2 = a + 1, b2 = b + 1;
-                tri[0][0] = a, tri[0][1] = b, tri[0][2] = b2;
-                tri[1][0] = a, tri[1][1] = b2, tri[1][2] = a2;
-                nt = 2;
+                uint32_t a2 = vid(m, K, cols, nin, col, r + 1), b2 = vid(m, K, cols, nin, c2, r + 1);
+                add_tri(cap, &nf, P, a, b, b2);
+                add_tri(cap, &nf, P, a, b2, a2);
             } else {
-                tri[0][0] = a, tri[0][1] = b, tri[0][2] = ctr;
-                nt = 1;
-            }
-            for (int t = 0; t < nt; t++) {
-                rs_v3 p0 = rs_mesh_vert(cap, tri[t][0]), p1 = rs_mesh_vert(cap, tri[t][1]),
-                      p2 = rs_mesh_vert(cap, tri[t][2]);
-                rs_v3 n = rs_v3_cross(rs_v3_sub(p1, p0), rs_v3_sub(p2, p0));
-                if (rs_v3_len(n) == 0) continue;
-                uint32_t *out = cap->tris + 3 * nf++;
-                int flip = rs_v3_dot(n, rs_v3_sub(P, p0)) < 0;
-                out[0] = tri[t][0];
-                out[1] = flip ? tri[t][2] : tri[t][1];
-                out[2] = flip ? tri[t][1] : tri[t][2];
+                add_tri(cap, &nf, P, a, b, ctr);
             }
         }
     }
+    free(src);
     cap->nfaces = nf;
     st->triangles = nf;
     goto done;
@@ -176,6 +233,8 @@ oom:
     rs_mesh_free(cap);
     cap = NULL;
 done:
+    free(cl);
+    free(rl);
     free(rim);
     free(rim_el);
     free(steps);

@@ -21,6 +21,14 @@ typedef struct rs_nadir_stats {
  * there is not flat within max_rms_m; NULL with err set when out of memory. */
 rs_mesh *rs_nadir_cap(const rs_cloud *c, int s, double max_rms_m, rs_nadir_stats *st, rs_err *err);
 
+/* The same on the lattice of a grid triangulated at stride (rs_grid_lattice: the rim is the
+ * lowest valid point of each used column among the used rows, so that it welds), and, when
+ * spacing_m > 0, meshed coarsely inside the rim: rings about spacing_m apart (never more than
+ * the lattice's), every m-th column with m rim gaps about spacing_m. rs_nadir_cap is stride 1,
+ * spacing 0 (the grid's own steps). */
+rs_mesh *rs_nadir_cap_coarse(const rs_cloud *c, int s, double max_rms_m, int stride, double spacing_m,
+                             rs_nadir_stats *st, rs_err *err);
+
 /* a + b with b's vertices that equal one of a's (bit for bit) merged into it. Caller frees. */
 rs_mesh *rs_mesh_merge_welded(const rs_mesh *a, const rs_mesh *b);
 

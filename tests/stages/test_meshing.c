@@ -45,7 +45,7 @@ static rs_cloud *plane_scan(const double o[3], int cols, int rows, double az_spa
 
 static rs_grid_opts default_opts(void)
 {
-    rs_grid_opts o = {0.05, 85 * M_PI / 180, 2.5};
+    rs_grid_opts o = {0.05, 85 * M_PI / 180, 2.5, 0, 0};
     return o;
 }
 
