@@ -69,6 +69,16 @@ float rs_linear_to_srgb(float v)
     return v <= 0.0031308f ? v * 12.92f : 1.055f * powf(v, 1.0f / 2.4f) - 0.055f;
 }
 
+void rs_image_ramp(double t, float rgb[3])
+{
+    static const double stop[5][3] = {{0.10, 0.20, 0.90}, {0.00, 0.80, 0.90}, {0.10, 0.85, 0.20},
+                                      {1.00, 0.90, 0.00}, {0.90, 0.10, 0.10}};
+    t = t < 0 ? 0 : t > 1 ? 1 : t;       /* NaN takes the first stop below */
+    int k = t >= 1 ? 3 : t > 0 ? (int)(t * 4) : 0;
+    double s = t > 0 ? t * 4 - k : 0;
+    for (int c = 0; c < 3; c++) rgb[c] = rs_srgb_to_linear((float)(stop[k][c] * (1 - s) + stop[k + 1][c] * s));
+}
+
 int rs_image_check_size(long long w, long long h, const char *name, rs_err *err)
 {
     if (w <= 0 || h <= 0 || w > RS_IMAGE_MAX_SIDE || h > RS_IMAGE_MAX_SIDE)

@@ -40,6 +40,10 @@ int rs_image_write_exr(const rs_image *img, const char *path, const char *const 
  * 1 channel -> grey, 3 -> RGB. Atomic. */
 int rs_image_write_png(const rs_image *img, const char *path, float scale, rs_err *err);
 
+/* False colour for t in [0, 1] (clamped): the sRGB ramp blue - cyan - green - yellow - red,
+ * returned linear (for rs_image_write_png at scale 1). One ramp for every false-colour image. */
+void rs_image_ramp(double t, float rgb[3]);
+
 /* sRGB transfer functions (IEC 61966-2-1). */
 float rs_srgb_to_linear(float v);
 float rs_linear_to_srgb(float v);

@@ -79,11 +79,46 @@ static double median(double *x, size_t n)
     return x[n / 2];
 }
 
+/* How directly a capture saw the direction of each of its sky pixels (mask): a sky pixel next to
+ * the model's silhouette is a mixed pixel (part model, part sky, smeared further by the
+ * panorama's reconstruction filter), so its value is not the sky's. Weight by the Chebyshev
+ * distance in pixels to the nearest non-sky pixel (azimuth wraps): 1 px -> SILHOUETTE_W1,
+ * 2 px -> SILHOUETTE_W2, further -> 1. Small but not zero: where no other capture saw the
+ * direction the mixed value is still the best there is (weights only matter against others). */
+#define SILHOUETTE_W1 0.02
+#define SILHOUETTE_W2 0.2
+
+static void silhouette_weights(int w, int h, const uint8_t *mask, float *q)
+{
+    for (int r = 0; r < h; r++)
+        for (int c = 0; c < w; c++) {
+            size_t k = (size_t)r * w + c;
+            if (!mask[k]) {
+                q[k] = 0;
+                continue;
+            }
+            int dmin = 3;
+            for (int dr = -2; dr <= 2 && dmin > 1; dr++) {
+                int rr = r + dr < 0 ? 0 : r + dr >= h ? h - 1 : r + dr;
+                for (int dc = -2; dc <= 2; dc++) {
+                    int d = abs(dr) > abs(dc) ? abs(dr) : abs(dc);
+                    if (d >= dmin) continue;
+                    if (!mask[(size_t)rr * w + (size_t)((c + dc + w) % w)]) dmin = d;
+                }
+            }
+            q[k] = dmin == 1 ? (float)SILHOUETTE_W1 : dmin == 2 ? (float)SILHOUETTE_W2 : 1.0f;
+        }
+}
+
 /* Spreads the sky pixels of capture c (mask) onto the map pixels holding their directions:
- * acc[4k..4k+2] = solid-angle-weighted radiance sums, acc[4k+3] = solid angle (an area-weighted
- * mean, so that a small sun keeps its power); map pixels that got nothing take the pixel under
- * their centre when it is sky (weight 1e-12 x its solid angle). acc: 4 * W * H, zeroed. */
-static void splat_capture(const rs_skyenv *env, const rs_capture *c, const uint8_t *mask, double *acc)
+ * acc[4k..4k+2] = weighted radiance sums, acc[4k+3] = the weights. A source pixel's weight is
+ * its solid angle (an area-weighted mean, so that a small sun keeps its power) times q (its
+ * silhouette weight; NULL: 1) times min(1, map pixel solid angle / its solid angle)^2: a pixel
+ * larger than the map's saw the direction blurred over that many map pixels, and lands in only
+ * one of them, so a panorama half as fine weighs a quarter of an equally clean fine one there. Map pixels that got nothing take the pixel under their
+ * centre when it is sky (weight 1e-12 x its solid angle x q). acc: 4 * W * H, zeroed. */
+static void splat_capture(const rs_skyenv *env, const rs_capture *c, const uint8_t *mask, const float *q,
+                          double *acc)
 {
     int w = env->width, h = env->height, sw = c->pano->width, sh = c->pano->height;
     size_t npx = (size_t)w * h, nsrc = (size_t)sw * sh;
@@ -93,9 +128,10 @@ static void splat_capture(const rs_skyenv *env, const rs_capture *c, const uint8
         rs_v3 d = rs_pose_dir_to_world(&c->pose, rs_pano_pixel_dir(sw, sh, (int)(j % (size_t)sw), r));
         rs_pano_world_to_pixel(&env->pose, w, h, d, &cc, &rr);
         size_t k = (size_t)rr * w + cc;
-        double om = rs_pano_pixel_solid_angle(sw, sh, r);
-        for (int ch = 0; ch < 3; ch++) acc[4 * k + ch] += om * c->pano->data[3 * j + ch];
-        acc[4 * k + 3] += om;
+        double om = rs_pano_pixel_solid_angle(sw, sh, r), om_map = rs_pano_pixel_solid_angle(w, h, rr);
+        double fp = om > om_map ? om_map / om : 1, wt = om * (q ? q[j] : 1) * fp * fp;
+        for (int ch = 0; ch < 3; ch++) acc[4 * k + ch] += wt * c->pano->data[3 * j + ch];
+        acc[4 * k + 3] += wt;
     }
     for (size_t k = 0; k < npx; k++) {
         if (acc[4 * k + 3] > 0) continue;
@@ -104,16 +140,17 @@ static void splat_capture(const rs_skyenv *env, const rs_capture *c, const uint8
         rs_pano_world_to_pixel(&c->pose, sw, sh, d, &cc, &r);
         size_t j = (size_t)r * sw + cc;
         if (!mask[j]) continue;
-        double om = 1e-12 * rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w));
+        double om = 1e-12 * rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w)) * (q ? q[j] : 1);
         for (int ch = 0; ch < 3; ch++) acc[4 * k + ch] = om * c->pano->data[3 * j + ch];
         acc[4 * k + 3] = om;
     }
 }
 
 /* Exposure factor capture / c per channel: the median ratio over the directions both saw as sky,
- * bright ones left out; 1 when they share less than 0.01 sr. ratio: 3 * W * H scratch. */
-static void exposure_factor(const rs_skyenv *env, const uint8_t *cap_meas, const double *acc, double bright_lum,
-                            double *ratio, double scale[3], double *overlap_sr)
+ * bright ones left out; 1 when they share less than 0.01 sr. ref: the capture's own panorama
+ * (map pixels = its pixels). ratio: 3 * W * H scratch. */
+static void exposure_factor(const rs_skyenv *env, const float *ref, const uint8_t *cap_meas, const double *acc,
+                            double bright_lum, double *ratio, double scale[3], double *overlap_sr)
 {
     int w = env->width, h = env->height;
     size_t npx = (size_t)w * h, nov = 0;
@@ -122,7 +159,7 @@ static void exposure_factor(const rs_skyenv *env, const uint8_t *cap_meas, const
         if (!(acc[4 * k + 3] > 0) || !cap_meas[k]) continue;
         float v[3];
         for (int ch = 0; ch < 3; ch++) v[ch] = (float)(acc[4 * k + ch] / acc[4 * k + 3]);
-        const float *p = env->radiance + 3 * k;
+        const float *p = ref + 3 * k;
         if (luminance(p) > bright_lum || luminance(v) > bright_lum || !(v[0] > 0 && v[1] > 0 && v[2] > 0)) continue;
         for (int ch = 0; ch < 3; ch++) ratio[ch * npx + nov] = p[ch] / v[ch];
         nov++;
@@ -131,53 +168,81 @@ static void exposure_factor(const rs_skyenv *env, const uint8_t *cap_meas, const
     for (int ch = 0; ch < 3; ch++) scale[ch] = *overlap_sr >= 0.01 ? median(ratio + ch * npx, nov) : 1;
 }
 
-/* The sky panorama over everything it sees as sky, then the further captures into what is
- * still unmeasured; flags what they gave in meas. cap_meas: the capture's own sky. */
-static int merge_other_skies(rs_skyenv *env, const uint8_t *cap_meas, double bright_lum, const rs_skyenv_opts *o,
-                             uint8_t *meas, rs_skyenv_info *info)
+/* The sky panorama over everything it sees as sky; then, everywhere else, the weighted mean of
+ * every capture that saw the direction as sky: the capture itself (its pixel's solid angle x its
+ * silhouette weight) and the further captures (splat_capture's weights, their values scaled to
+ * the capture's exposure). So a clean view wins over a mixed pixel at another capture's
+ * silhouette, and a fine panorama over a coarse one; with equal standing the values average.
+ * Flags what they gave in meas. cap_meas: the capture's own sky. */
+static int merge_other_skies(rs_skyenv *env, const rs_capture *cap, const uint8_t *cap_meas, double bright_lum,
+                             const rs_skyenv_opts *o, uint8_t *meas, rs_skyenv_info *info)
 {
-    size_t npx = (size_t)env->width * env->height;
+    int w = env->width, h = env->height;
+    size_t npx = (size_t)w * h;
     double *acc = malloc(4 * npx * sizeof *acc), *ratio = malloc(3 * npx * sizeof *ratio);
     double *sum = o->nothers ? calloc(4 * npx, sizeof *sum) : NULL;
-    if (!acc || !ratio || (o->nothers && !sum)) {
-        free(acc);
-        free(ratio);
-        free(sum);
-        return -1;
+    uint8_t *from_sky = calloc(npx, 1);
+    size_t qn = (size_t)w * h;
+    for (int i = 0; i < o->nothers && i < RS_SKYENV_MAX_OTHERS; i++) {
+        size_t n = (size_t)o->others[i]->pano->width * o->others[i]->pano->height;
+        if (n > qn) qn = n;
     }
+    float *q = o->nothers ? malloc(qn * sizeof *q) : NULL;
+    int rc = -1;
+    if (!acc || !ratio || !from_sky || (o->nothers && (!sum || !q))) goto out;
     if (o->sky) {
         memset(acc, 0, 4 * npx * sizeof *acc);
-        splat_capture(env, o->sky, o->sky_mask, acc);
-        exposure_factor(env, cap_meas, acc, bright_lum, ratio, info->sky_pano_scale, &info->sky_overlap_sr);
+        splat_capture(env, o->sky, o->sky_mask, NULL, acc);
+        exposure_factor(env, cap->pano->data, cap_meas, acc, bright_lum, ratio, info->sky_pano_scale,
+                        &info->sky_overlap_sr);
         for (size_t k = 0; k < npx; k++) {
             if (!(acc[4 * k + 3] > 0)) continue;
             for (int ch = 0; ch < 3; ch++)
                 env->radiance[3 * k + ch] = (float)(info->sky_pano_scale[ch] * acc[4 * k + ch] / acc[4 * k + 3]);
-            meas[k] = 1;
+            meas[k] = from_sky[k] = 1;
             info->sky_pano_pixels++;
         }
     }
-    for (int i = 0; i < o->nothers && i < RS_SKYENV_MAX_OTHERS; i++) {
-        memset(acc, 0, 4 * npx * sizeof *acc);
-        splat_capture(env, o->others[i], o->other_masks[i], acc);
-        double *sc = info->other_scale[i];
-        exposure_factor(env, cap_meas, acc, bright_lum, ratio, sc, &info->other_overlap_sr[i]);
+    if (o->nothers) {
+        /* The capture's own weights; sum[] gathers the further captures', apart, so that it
+         * is known where they gave anything. */
+        silhouette_weights(w, h, cap_meas, q);
+        for (int i = 0; i < o->nothers && i < RS_SKYENV_MAX_OTHERS; i++) {
+            const rs_capture *oc = o->others[i];
+            memset(acc, 0, 4 * npx * sizeof *acc);
+            silhouette_weights(oc->pano->width, oc->pano->height, o->other_masks[i], q);
+            splat_capture(env, oc, o->other_masks[i], q, acc);
+            double *sc = info->other_scale[i];
+            exposure_factor(env, cap->pano->data, cap_meas, acc, bright_lum, ratio, sc, &info->other_overlap_sr[i]);
+            for (size_t k = 0; k < npx; k++) {
+                if (from_sky[k] || !(acc[4 * k + 3] > 0)) continue;
+                for (int ch = 0; ch < 3; ch++) sum[4 * k + ch] += sc[ch] * acc[4 * k + ch];
+                sum[4 * k + 3] += acc[4 * k + 3];
+            }
+        }
+        silhouette_weights(w, h, cap_meas, q);
         for (size_t k = 0; k < npx; k++) {
-            if (meas[k] || !(acc[4 * k + 3] > 0)) continue;
-            for (int ch = 0; ch < 3; ch++) sum[4 * k + ch] += sc[ch] * acc[4 * k + ch];
-            sum[4 * k + 3] += acc[4 * k + 3];
+            if (!(sum[4 * k + 3] > 0)) continue;
+            double wc = cap_meas[k] ? q[k] * rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w)) : 0;
+            for (int ch = 0; ch < 3; ch++)
+                env->radiance[3 * k + ch] =
+                    (float)((sum[4 * k + ch] + wc * cap->pano->data[3 * k + ch]) / (sum[4 * k + 3] + wc));
+            if (cap_meas[k]) {
+                info->blended_pixels++;
+            } else {
+                meas[k] = 1;
+                info->other_pixels++;
+            }
         }
     }
-    for (size_t k = 0; sum && k < npx; k++) {
-        if (!(sum[4 * k + 3] > 0)) continue;
-        for (int ch = 0; ch < 3; ch++) env->radiance[3 * k + ch] = (float)(sum[4 * k + ch] / sum[4 * k + 3]);
-        meas[k] = 1;
-        info->other_pixels++;
-    }
+    rc = 0;
+out:
     free(acc);
     free(ratio);
     free(sum);
-    return 0;
+    free(from_sky);
+    free(q);
+    return rc;
 }
 
 void rs_skyenv_sky_mask(const rs_scene *scene, const rs_capture *sky, uint8_t *mask)
@@ -251,7 +316,7 @@ int rs_skyenv_build_opts(const rs_capture *cap, const float *facet_id, const rs_
         }
     double cap_median = median(lum, ncap);
     if ((o->sky || o->nothers) &&
-        merge_other_skies(env, cap_meas, o->sun_threshold * (cap_median > 0 ? cap_median : 1e-30), o, meas, info) != 0) {
+        merge_other_skies(env, cap, cap_meas, o->sun_threshold * (cap_median > 0 ? cap_median : 1e-30), o, meas, info) != 0) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory merging the sky panorama");
         goto out;
     }

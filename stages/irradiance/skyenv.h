@@ -50,7 +50,8 @@ typedef struct rs_skyenv_info {
     size_t sky_pano_pixels;    /* map pixels taken from the sky panorama */
     double sky_pano_scale[3];  /* exposure factor applied to the sky panorama (capture / sky) */
     double sky_overlap_sr;     /* solid angle both saw as sky: where the factor comes from */
-    size_t other_pixels;       /* map pixels filled from the further captures */
+    size_t other_pixels;       /* map pixels the capture did not see, taken from further captures */
+    size_t blended_pixels;     /* map pixels the capture saw that further captures saw too */
     double other_scale[RS_SKYENV_MAX_OTHERS][3];   /* their exposure factors, the same way */
     double other_overlap_sr[RS_SKYENV_MAX_OTHERS];
 } rs_skyenv_info;
@@ -69,11 +70,13 @@ int rs_skyenv_build(const rs_capture *cap, const float *facet_id, double sun_thr
 /* The same with a choice of fill (o->fill) and an optional sky-only panorama. The map keeps the
  * capture's frame and size. Every direction the sky panorama sees as sky takes its value, times
  * a per-channel exposure factor: the median ratio capture / sky panorama over the directions
- * both see as sky (outside the bright pixels); 1 when they share less than 0.01 sr. The rest
- * of the capture's sky comes next. Directions neither saw take the mean of the further captures
- * that see them as sky (each scaled to the capture's exposure the same way, weighted by the
- * solid angle of their pixels there; up to RS_SKYENV_MAX_OTHERS). What none saw is filled.
- * info may be NULL. */
+ * both see as sky (outside the bright pixels); 1 when they share less than 0.01 sr. Elsewhere
+ * each direction takes the weighted mean of every capture that saw it as sky (the capture and
+ * the further captures, each scaled to the capture's exposure the same way; up to
+ * RS_SKYENV_MAX_OTHERS). A capture's weight there is its pixels' solid angle times how directly
+ * it saw the direction: low for a mixed pixel 1 or 2 pixels from the model's silhouette in that
+ * capture, lower for a panorama whose pixels are larger than the map's (skyenv.c). With no
+ * further capture the capture's sky is used as it is. What none saw is filled. info may be NULL. */
 int rs_skyenv_build_opts(const rs_capture *cap, const float *facet_id, const rs_skyenv_opts *o,
                          rs_skyenv *env, rs_skyenv_info *info, rs_err *err);
 

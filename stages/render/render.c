@@ -3,7 +3,8 @@
  * solved by Jacobi iteration (converges since row sums of K are <= pi and rho < 1), then
  * compares it with the observation. Writes, in the camera's view: irradiance.exr (E = E_sky + K L),
  * albedo.exr, synth.exr, diff.exr (synth - observed on model pixels), PNG previews of each and
- * of the observation. */
+ * of the observation, and when albedo.ply carries them (issue 8, part 4) false-colour images of
+ * sky_filled and albedo_sigma_rel over the facets (render_uncertainty.c). */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -13,6 +14,7 @@
 #include "log.h"
 #include "stages.h"
 #include "transport.h"
+#include "render_uncertainty.h"
 
 /* The k-th smallest of v[0..n) (Hoare's selection, expected O(n)): the same value a full sort
  * puts at index k, for a fraction of the cost on a 2M-pixel panorama (the sort was a third of
@@ -175,6 +177,9 @@ int rs_render_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         write_pair(cfg, diff, "diff", (float)expo * 4, err) != 0 ||
         rs_image_write_png(obs, rs_work_path(cfg, "observed.png", path, sizeof path), (float)expo, err) != 0)
         goto out;
+    int unc = rs_render_uncertainty_images(cfg, alb, ap, nf, ids, err);
+    if (unc < 0) goto out;
+    rs_json_set_bool(rep->metrics, "uncertainty_images", unc);
     rs_json_set_int(rep->metrics, "forward_iterations", iters);
     rs_json_set_num(rep->metrics, "forward_residual", residual);
     rs_json_set_bool(rep->metrics, "forward_converged", converged);

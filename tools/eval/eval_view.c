@@ -9,17 +9,6 @@
 /* Relative error that the false-colour image shows as full red. */
 #define ERROR_IMAGE_FULL_SCALE 0.2
 
-/* sRGB ramp blue - cyan - green - yellow - red over t in [0, 1], returned linear. */
-static void ramp(double t, float *rgb)
-{
-    static const double stop[5][3] = {{0.10, 0.20, 0.90}, {0.00, 0.80, 0.90}, {0.10, 0.85, 0.20},
-                                      {1.00, 0.90, 0.00}, {0.90, 0.10, 0.10}};
-    t = t < 0 ? 0 : t > 1 ? 1 : t;
-    int k = t >= 1 ? 3 : (int)(t * 4);
-    double s = t * 4 - k;
-    for (int c = 0; c < 3; c++) rgb[c] = rs_srgb_to_linear((float)(stop[k][c] * (1 - s) + stop[k + 1][c] * s));
-}
-
 static int write_error_images(const rs_image *rel, const rs_image *color, const char *out_dir, rs_err *err)
 {
     char path[4096];
@@ -96,7 +85,7 @@ int rs_eval_camera(const ev *e, const uint8_t *good, rs_json *doc, const char *o
             double r = 0;
             for (int c = 0; c < 3; c++) r += fabs(a[c] - dc[c]) / (dc[c] > 1e-6 ? dc[c] : 1e-6) / 3;
             rel->data[k] = (float)r;
-            ramp(r / ERROR_IMAGE_FULL_SCALE, col);
+            rs_image_ramp(r / ERROR_IMAGE_FULL_SCALE, col);
         } else {
             rel->data[k] = -1;
             col[0] = col[2] = 1;

@@ -1,0 +1,133 @@
+#!/usr/bin/env python3
+"""Albedo error with one capture against two captures (issue 8, part 2): writes docs/SKY-CAPTURES.md.
+
+usage: two_captures.py --bin BUILD --shared SHARED --out docs/SKY-CAPTURES.md --work DIR \
+           --inside SCENE_DIR --outside SCENE_DIR
+
+Both SCENE_DIRs are tools/refscene outputs of the same scene and sky (tools/skycompare/courtyard.json
+and courtyard_outside.json: the same boxes and environment, the camera inside and outside the
+courtyard). rhoscan runs once from the inside render's scan (ingest, mesh, observe), then
+irradiance and reflectance with [sky] fill = model: with the inside capture alone, and with the
+outside panorama added as [capture.outside] (its sky fills what the inside camera cannot see), and
+with the true sky (env.exr as [sky] panorama) as the reference. The shared evaluator
+(SHARED/tools/eval_albedo.py) gives the area-weighted mean relative albedo error over interior
+facets, per part and overall.
+"""
+import argparse, json, os, shutil, subprocess, sys
+
+
+def run(cmd, log):
+    with open(log, 'a') as fh:
+        fh.write('$ ' + ' '.join(cmd) + '\n')
+        fh.flush()
+        r = subprocess.run(cmd, stdout=fh, stderr=fh)
+    if r.returncode != 0:
+        sys.exit('FAIL: %s exited %d (see %s)' % (cmd[0], r.returncode, log))
+
+
+def pose(sdir):
+    t = json.load(open(os.path.join(sdir, 'truth.json')))
+    rot = ' '.join('%.17g' % (0 if abs(v) < 1e-12 else v) for row in t['camera_rotation_local_to_world'] for v in row)
+    return t, ' '.join('%.17g' % v for v in t['camera_position']), rot
+
+
+def check_same_scene(tin, tout):
+    """The two renders must differ only in the camera (and sampling)."""
+    for k in ('parts', 'env', 'sun', 'scanner_position'):
+        if tin.get(k) != tout.get(k):
+            sys.exit('FAIL: the inside and outside renders differ in %s' % k)
+
+
+HOW = """## How several captures are merged (stages/irradiance/skyenv.c)
+
+- Every capture's sky pixels (rays from its position that miss the model, usable values) are
+  spread onto the map of the first capture ([capture]); a sky panorama ([sky] panorama) still
+  overrides every direction it sees.
+- Each further capture ([capture.NAME]) is brought to the first capture's exposure by the
+  per-channel median ratio over the sky both see (bright pixels left out).
+- Where several captures see a direction, the value is their weighted mean. A capture's weight
+  there is the solid angle of its pixels times how directly it saw the direction:
+  - a sky pixel next to the model's silhouette in that capture is a mixed pixel (part wall, part
+    sky, plus the panorama's filter footprint): weight 0.02 at 1 pixel from a facet pixel, 0.2 at
+    2 pixels, 1 further out;
+  - a capture whose pixel is larger than the map pixel (a coarser panorama) has weight scaled by
+    map pixel solid angle / its pixel solid angle (at most 1): it saw the direction blurred.
+  A clean view of the first capture (weight 1) therefore dominates, and a clean view of another
+  capture replaces the first capture's mixed silhouette pixels.
+- What no capture saw is filled (`[sky] fill`), from the merged measured sky.
+"""
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument('--bin', required=True)
+    ap.add_argument('--shared', required=True)
+    ap.add_argument('--out', required=True)
+    ap.add_argument('--work', required=True)
+    ap.add_argument('--inside', required=True, help='render with the camera inside the courtyard')
+    ap.add_argument('--outside', required=True, help='render of the same scene, camera outside')
+    ap.add_argument('--reuse', action='store_true', help='keep the mesh and observation of an earlier run')
+    a = ap.parse_args()
+    tin, cam_in, rot_in = pose(a.inside)
+    tout, cam_out, rot_out = pose(a.outside)
+    check_same_scene(tin, tout)
+    os.makedirs(a.work, exist_ok=True)
+    log = os.path.join(a.work, 'run.log')
+    rhoscan = os.path.join(a.bin, 'rhoscan')
+    base = ('[pipeline]\nworkdir = work\n[ingest]\nscan = %s\n[capture]\npanorama = %s\nposition = %s\nrotation = %s\n'
+            % (os.path.join(a.inside, 'scan.ptx'), os.path.join(a.inside, 'pano.exr'), cam_in, rot_in))
+    second = ('[capture.outside]\npanorama = %s\nposition = %s\nrotation = %s\n'
+              % (os.path.join(a.outside, 'pano.exr'), cam_out, rot_out))
+    cfg1, cfg2 = os.path.join(a.work, 'one.ini'), os.path.join(a.work, 'two.ini')
+    open(cfg1, 'w').write(base)
+    open(cfg2, 'w').write(base + second)
+    pos = [float(v) for v in cam_in.split()]
+    true_sky = ['--set', 'sky.panorama=' + os.path.join(a.inside, 'env.exr'),
+                '--set', 'sky.position=%.9g %.9g %.9g' % (pos[0], pos[1], pos[2] + 1000), '--set', 'sky.rotation=' + rot_in]
+    work = os.path.join(a.work, 'work')
+    if not (a.reuse and os.path.exists(os.path.join(work, 'observe.ply'))):
+        for stage in ('ingest', 'mesh', 'observe'):
+            run([rhoscan, 'run', '--only', stage, cfg1], log)
+    names = [p['name'] for p in tin['parts']]
+    res = []
+    for label, cfg, sets in (('one capture (inside)', cfg1, []), ('two captures (inside + outside)', cfg2, []),
+                             ('true sky', cfg1, true_sky)):
+        for stage in ('irradiance', 'reflectance'):
+            run([rhoscan, 'run', '--only', stage, cfg, '--set', 'sky.fill=model'] + sets, log)
+        tag = label.split(' ')[0]
+        shutil.copy(os.path.join(work, 'albedo.ply'), os.path.join(a.work, 'albedo_%s.ply' % tag))
+        ej = os.path.join(a.work, 'eval_%s.json' % tag)
+        run([sys.executable, os.path.join(a.shared, 'tools', 'eval_albedo.py'), os.path.join(a.inside, 'truth.ply'),
+             os.path.join(work, 'albedo.ply'), '--json', ej], log)
+        ev = json.load(open(ej))
+        irr = json.load(open(os.path.join(work, 'irradiance.json')))
+        im = irr.get('metrics', irr)
+        parts = {int(p): v['mean_rel'] for p, v in ev['parts'].items() if v}
+        res.append((label, ev['interior']['mean_rel'], parts, im))
+        print('%s: interior mean %.4f' % (label, ev['interior']['mean_rel']))
+    with open(a.out, 'w') as fh:
+        fh.write('# Sky from two captures: albedo error with one and with two panoramas\n\n'
+                 'Generated by `tools/skycompare/two_captures.py --bin BUILD --shared ../shared --out '
+                 'docs/SKY-CAPTURES.md --work DIR --inside COURTYARD --outside COURTYARD_OUT` (do not edit by '
+                 'hand), from tools/refscene renders of tools/skycompare/courtyard.json (camera inside the '
+                 'courtyard) and courtyard_outside.json (the same scene and sky, camera %s m outside the south '
+                 'wall). Every run starts from the inside render\'s scan and uses `[sky] fill = model`; "two '
+                 'captures" adds the outside panorama as `[capture.outside]`; "true sky" gives the environment '
+                 'alone (env.exr) as `[sky] panorama`, the reference. Errors: the shared evaluator\'s area-weighted '
+                 'mean relative albedo error over interior facets (`eval_albedo.py`), overall and per part.\n\n'
+                 % ('%.0f' % abs(tout['camera_position'][1] - tin['parts'][-1]['min'][1])
+                    if 'wall_south' in names else 'some'))
+        fh.write('| run | interior error | ' + ' | '.join(names) + ' | map pixels from the 2nd capture | '
+                 'pixels filled | share of E_sky filled |\n')
+        fh.write('| --- | --- | ' + ' | '.join('---' for _ in names) + ' | --- | --- | --- |\n')
+        for label, interior, parts, im in res:
+            fh.write('| %s | %.2f %% | %s | %s | %s | %.1f %% |\n' % (
+                label, 100 * interior, ' | '.join('%.2f %%' % (100 * parts[i]) if i in parts else '-'
+                                                 for i in range(len(names))),
+                im.get('sky_other_capture_pixels', 0), im.get('filled_pixels', '-'), 100 * im.get('sky_filled_share', 0)))
+        fh.write('\n' + HOW)
+    print('wrote ' + a.out)
+
+
+if __name__ == '__main__':
+    main()
