@@ -39,10 +39,10 @@ int rs_capture_load(const rs_config *cfg, const char *section, rs_capture *cap, 
         if (!(isfinite(px[0]) && isfinite(px[1]) && isfinite(px[2]))) cap->nonfinite++;
         else if (px[0] < 0 || px[1] < 0 || px[2] < 0) cap->negative++;
     }
-    /* With [capture] correspondences, the pose the calib stage solved is the capture's pose
-     * (position and rotation only seeded the solver, so position is not required then). Only
-     * capture sections have that key: [sky] panorama is posed by its position and rotation. */
-    if (strncmp(section, "capture", 7) == 0 && rs_config_has(cfg, section, "correspondences")) {
+    /* With [capture] correspondences or colmap_panorama, the pose the calib stage solved is the
+     * capture's pose (position and rotation only seeded it, so position is not required then).
+     * Only capture sections have those keys: [sky] panorama is posed by its position and rotation. */
+    if (rs_calib_pose_solved(cfg, section)) {
         if (rs_calib_pose_apply(cfg, section, &cap->pose, err) != 0) {
             rs_capture_release(cap);
             return -1;

@@ -65,6 +65,8 @@ const rs_cfg_key rs_cfg_keys[] = {
      "camera local -> world rotation, 9 numbers row-major"},
     {"capture", "correspondences", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib observe irradiance render",
      "pairs file `column row X Y Z` per line (>= 4): the calib stage solves the pose; position and rotation only seed it"},
+    {"capture", "colmap_panorama", RS_CFG_STRING, NULL, 0, 0, NULL, "", "calib observe irradiance render",
+     "label of a panorama in the [colmap] views file: its views in the COLMAP model pose this capture (position, rotation unused)"},
 
     {"rig", "file", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib observe irradiance render",
      "camera rig in OpenCV FileStorage YAML (DESIGN.md section 7); its stitched panorama replaces [capture] panorama"},
@@ -92,6 +94,15 @@ const rs_cfg_key rs_cfg_keys[] = {
      "radiometric check: x0 y0 x1 y1, the capture panorama's pixels on a grey card (columns x0..x1-1, rows y0..y1-1)"},
     {"calib", "grey_card_albedo", RS_CFG_REAL, "0.18", 0.001, 1, NULL, "", "reflectance",
      "the grey card's known albedo; reflectance.json reports pi L / (E_sky + G) over the region against it"},
+
+    {"colmap", "model", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib",
+     "folder of a COLMAP text model: cameras.txt, images.txt, points3D.txt (docs/COLMAP.md)"},
+    {"colmap", "views", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib",
+     "views file `NAME PANORAMA R00..R22 [TX TY TZ]`: which model images are views of which panorama, and their rotation"},
+    {"colmap", "control_points", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib",
+     "`image NAME X Y Z`, `point ID X Y Z` or `panorama LABEL X Y Z` per line (>= 3, not on one line; m): the similarity"},
+    {"colmap", "max_rms_m", RS_CFG_REAL, "0.1", 0, 1e6, NULL, "m", "calib",
+     "the alignment fails when the control points' RMS residual exceeds this"},
 
     {"observe", "min_pixels", RS_CFG_INT, "3", 1, 1000000, NULL, "px", "observe",
      "pure pixels (not on a facet border) needed to average a facet's radiance from pixels"},

@@ -1,11 +1,13 @@
 /* calib: the capture's calibration before anything looks at its pixels. With [rig], stitches the
  * rig's frames into pano_stitched.exr; with [capture] correspondences, solves the capture's pose
- * from the pairs file and writes capture_pose.txt. Both are picked up by rs_capture_load. */
+ * from the pairs file, and with [colmap] the poses of the captures it names, into capture_pose.txt.
+ * Both are picked up by rs_capture_load. */
 #include <stdlib.h>
 #include <string.h>
 #include <ctype.h>
 #include "calib_files.h"
 #include "calib_math.h"
+#include "colmap_poses.h"
 #include "capture.h"
 #include "fileio.h"
 #include "log.h"
@@ -57,7 +59,8 @@ static int register_capture(const rs_config *cfg, int width, int height, rs_repo
         goto out;
     }
     rs_report_time(rep, "registration", rs_now() - t0);
-    if (rs_calib_pose_write(rs_work_path(cfg, RS_CALIB_POSE_FILE, out, sizeof out), &res.pose, err) != 0) goto out;
+    if (rs_calib_pose_write(rs_work_path(cfg, RS_CALIB_POSE_FILE, out, sizeof out), "capture", &res.pose, err) != 0)
+        goto out;
 
     rs_json *reg = rs_json_set_obj(rep->metrics, "registration");
     rs_json_set_str(reg, "pairs_file", pairs_path);
@@ -346,15 +349,16 @@ int rs_calib_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         if (stitch_rig(cfg, rs_work_path(cfg, RS_CALIB_PANO_FILE, path, sizeof path), rep, err) != 0) return -1;
         rs_report_time(rep, "stitch", rs_now() - t0);
     }
+    /* A pose left from an earlier run must not outlive the pairs or the [colmap] section that made it. */
+    remove(rs_work_path(cfg, RS_CALIB_POSE_FILE, path, sizeof path));
     if (have_pairs) {
         int w = 0, h = 0;
         if (panorama_size(cfg, &w, &h, err) != 0) return -1;
         if (register_capture(cfg, w, h, rep, err) != 0) return -1;
-    } else {
-        /* A pose left from an earlier run with pairs must not outlive them. */
-        remove(rs_work_path(cfg, RS_CALIB_POSE_FILE, path, sizeof path));
     }
-    if (!have_rig && !have_pairs)
-        rs_report_skip(rep, "calib", "no [rig] file and no [capture] correspondences: nothing to calibrate");
+    if (rs_calib_colmap_run(cfg, rep, err) != 0) return -1;
+    if (!have_rig && !have_pairs && !rs_config_has(cfg, "colmap", "model"))
+        rs_report_skip(rep, "calib", "no [rig] file, no [capture] correspondences and no [colmap] model: nothing to "
+                       "calibrate");
     return 0;
 }
