@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include "calib_math.h"
 #include "colmap_text.h"
 #include "fileio.h"
 
@@ -246,21 +247,6 @@ static int read_points(const char *path, rs_colmap_model *m, rs_err *err)
     return 0;
 }
 
-/* Rotation matrix (row-major) of the unit quaternion (w, x, y, z); COLMAP's QuaternionToRotationMatrix. */
-static void quat_to_rot(const double q[4], double r[9])
-{
-    double w = q[0], x = q[1], y = q[2], z = q[3];
-    r[0] = 1 - 2 * (y * y + z * z);
-    r[1] = 2 * (x * y - w * z);
-    r[2] = 2 * (x * z + w * y);
-    r[3] = 2 * (x * y + w * z);
-    r[4] = 1 - 2 * (x * x + z * z);
-    r[5] = 2 * (y * z - w * x);
-    r[6] = 2 * (x * z - w * y);
-    r[7] = 2 * (y * z + w * x);
-    r[8] = 1 - 2 * (x * x + y * y);
-}
-
 /* One image's header line (IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME). */
 static int image_header(rs_ctext *c, const rs_colmap_model *m, rs_colmap_image *im, rs_err *err)
 {
@@ -284,7 +270,7 @@ static int image_header(rs_ctext *c, const rs_colmap_model *m, rs_colmap_image *
     if (!known)
         return rs_err_set(err, RS_ERR_INPUT, c->path, c->line, "field 9 (CAMERA_ID) = %ld: expected a camera of "
                           "cameras.txt", im->camera_id);
-    quat_to_rot(im->q, im->rot_cam_world);
+    rs_calib_quat_to_rot(im->q, im->rot_cam_world);   /* COLMAP's QuaternionToRotationMatrix */
     im->centre = rs_v3_scale(rs_m3_mul_vt(im->rot_cam_world, im->t), -1);
     return 0;
 }
