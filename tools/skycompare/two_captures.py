@@ -13,16 +13,9 @@ with the true sky (env.exr as [sky] panorama) as the reference. The shared evalu
 (SHARED/tools/eval_albedo.py) gives the area-weighted mean relative albedo error over interior
 facets, per part and overall.
 """
-import argparse, json, os, shutil, subprocess, sys
+import argparse, json, os, shutil, sys
 
-
-def run(cmd, log):
-    with open(log, 'a') as fh:
-        fh.write('$ ' + ' '.join(cmd) + '\n')
-        fh.flush()
-        r = subprocess.run(cmd, stdout=fh, stderr=fh)
-    if r.returncode != 0:
-        sys.exit('FAIL: %s exited %d (see %s)' % (cmd[0], r.returncode, log))
+from sky_compare import run   # one way to run a stage and log it, shared with sky_compare.py
 
 
 def pose(sdir):
