@@ -225,6 +225,41 @@ extern "C" int rs_cv_project(int fisheye, const double *camera_matrix, const dou
     }
 }
 
+extern "C" int rs_cv_edge_distance(const float *image, int width, int height, double sigma_px, double lo,
+                                   double hi, unsigned char *edges, float *dist, long *edge_count, char *msg,
+                                   size_t msg_size)
+{
+    try {
+        cv::Mat img(height, width, CV_32F, const_cast<float *>(image)), smooth;
+        if (sigma_px > 0) cv::GaussianBlur(img, smooth, cv::Size(0, 0), sigma_px, sigma_px, cv::BORDER_REFLECT);
+        else smooth = img;
+        // Sobel's 3 x 3 kernel weighs the difference over 2 px by 1 + 2 + 1: scale 1/8 gives the
+        // derivative per pixel. Canny takes 16-bit derivatives: a fixed gain keeps the thresholds
+        // in the image's own units (saturation at 32767 / gain is far above any real edge).
+        const double gain = 1000.0;
+        cv::Mat dx, dy, dx16, dy16;
+        cv::Sobel(smooth, dx, CV_32F, 1, 0, 3, 1.0 / 8.0, 0, cv::BORDER_REFLECT);
+        cv::Sobel(smooth, dy, CV_32F, 0, 1, 3, 1.0 / 8.0, 0, cv::BORDER_REFLECT);
+        dx.convertTo(dx16, CV_16S, gain);
+        dy.convertTo(dy16, CV_16S, gain);
+        cv::Mat e(height, width, CV_8U, edges);
+        cv::Mat canny;
+        cv::Canny(dx16, dy16, canny, lo * gain, hi * gain, true);
+        canny.copyTo(e);
+        *edge_count = cv::countNonZero(e);
+        if (*edge_count == 0) return 0;
+        // distanceTransform measures the distance to the nearest zero pixel: edges must be zero.
+        cv::Mat inv, d(height, width, CV_32F, dist);
+        cv::bitwise_not(e, inv);
+        cv::Mat dt;
+        cv::distanceTransform(inv, dt, cv::DIST_L2, cv::DIST_MASK_PRECISE, CV_32F);
+        dt.copyTo(d);
+        return 0;
+    } catch (...) {
+        return fail_with_current_exception(msg, msg_size);
+    }
+}
+
 extern "C" void rs_cv_free(void *p)
 {
     std::free(p);

@@ -50,6 +50,15 @@ int rs_cv_merge_debevec(const unsigned char *const *images, const float *times_s
 int rs_cv_project(int fisheye, const double *camera_matrix, const double *dist, int n, const double *points,
                   double *pixels, char *msg, size_t msg_size);
 
+/* Edges of a float image (width x height, row 0 on top; e.g. log luminance) and every pixel's
+ * distance to the nearest edge: Gaussian blur (sigma_px; none when 0), Sobel derivatives per
+ * pixel, Canny with hysteresis thresholds lo < hi on the gradient magnitude (image units per
+ * pixel, L2), then the exact Euclidean distance transform (px) into dist. edges (width x height,
+ * 255 on an edge, else 0) and dist are the caller's; *edge_count is the number of edge pixels
+ * (with none, dist is left unset). */
+int rs_cv_edge_distance(const float *image, int width, int height, double sigma_px, double lo, double hi,
+                        unsigned char *edges, float *dist, long *edge_count, char *msg, size_t msg_size);
+
 void rs_cv_free(void *p);
 
 #ifdef __cplusplus
