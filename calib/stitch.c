@@ -1,7 +1,8 @@
-/* stitch: rig frames -> equirectangular panorama (see stitch.h). Each panorama pixel's direction
- * is projected into every camera (infinite depth: the cameras' offsets from the rig centre are
- * ignored), sampled bilinearly where the lens model is usable, and blended with weights that fall
- * smoothly to 0 at the usable edge, so seams do not show as steps. */
+/* stitch: rig frames -> equirectangular panorama (see stitch.h). Each panorama pixel's direction,
+ * or with the model the point its ray from the rig centre hits, is projected into every camera
+ * (from the camera's own centre when the point is at a finite depth), sampled bilinearly where
+ * the lens model is usable, and blended with weights that fall smoothly to 0 at the usable edge,
+ * so seams do not show as steps. */
 #include "stitch.h"
 
 #include <stdlib.h>
@@ -27,13 +28,102 @@ int rs_stitch_width(const rs_rig *rig, int configured_width)
     return w + (w & 1);
 }
 
-/* Camera i's bilinear sample of the rig direction d and its blending weight; 0 when the
- * camera does not see d through the usable part of its lens. */
-static int sample_camera(const rs_rig_camera *c, const rs_image *img, rs_v3 d_rig, double feather, float rgb[3],
-                         double *weight)
-{
+/* Where one panorama pixel falls in one camera: ok = 0 when the camera does not see it through the
+ * usable part of its lens, or (with the model) when the model hides the point from the camera. */
+typedef struct {
     double x, y, margin;
-    if (!rs_rig_project(c, rs_m3_mul_vt(c->r_rig_cam, d_rig), &x, &y, &margin)) return 0;
+    int ok;
+} cam_px;
+
+/* The panorama row r seen by every camera: plan[col * n + i]. Without a scene the cameras look
+ * along the pixel's direction (infinite depth). With one, each pixel's ray from the rig centre
+ * is cast into the model; a hit at depth t is the rig-frame point t d, which camera i sees along
+ * R_i^T (t d - t_i), provided nothing lies between the camera's centre and the point. Returns
+ * the row's solid angle with model depth in *model_sa and the hidden camera samples in *hidden
+ * (of *candidates). */
+static int plan_row(const rs_rig *rig, const rs_stitch_opts *o, int r, cam_px *plan, double *model_sa,
+                    double *hidden, double *candidates)
+{
+    int n = rig->count, w = o->width, h = o->width / 2;
+    rs_ray *rays = NULL;
+    rs_hit *hits = NULL;
+    uint8_t *occ = NULL;
+    int *map = NULL;
+    if (o->scene) {
+        rays = malloc((size_t)w * (n + 1) * sizeof *rays);   /* the row's rays, then the cameras' */
+        hits = malloc((size_t)w * sizeof *hits);
+        occ = malloc((size_t)w * n);
+        map = malloc((size_t)w * n * sizeof *map);
+        if (!rays || !hits || !occ || !map) {
+            free(rays);
+            free(hits);
+            free(occ);
+            free(map);
+            return -1;
+        }
+        for (int col = 0; col < w; col++) {
+            rays[col].org = o->pose.position;
+            rays[col].dir = rs_pose_dir_to_world(&o->pose, rs_pano_pixel_dir(w, h, col, r));
+            rays[col].tnear = 0;
+            rays[col].tfar = INFINITY;
+        }
+        rs_scene_intersect(o->scene, rays, hits, (size_t)w);
+    }
+    int nocc = 0;
+    for (int col = 0; col < w; col++) {
+        rs_v3 d = rs_pano_pixel_dir(w, h, col, r);
+        double t = hits && hits[col].face != RS_NO_HIT ? hits[col].t : INFINITY;
+        if (isfinite(t)) *model_sa += rs_pano_pixel_solid_angle(w, h, r);
+        for (int i = 0; i < n; i++) {
+            const rs_rig_camera *c = &rig->cams[i];
+            cam_px *p = &plan[(size_t)col * n + i];
+            rs_v3 d_rig = isfinite(t) ? rs_v3_sub(rs_v3_scale(d, t), c->t_rig_cam) : d;
+            p->ok = rs_rig_project(c, rs_m3_mul_vt(c->r_rig_cam, d_rig), &p->x, &p->y, &p->margin);
+            if (!p->ok || !o->scene) continue;
+            /* Is the point hidden from this camera? A ray from the camera's centre to just short
+             * of the point: the scan's mesh is only approximately where the surface is, so stop
+             * 1 % of the distance short (occluders that close shift the view very little). For
+             * the sky the ray is the pixel's direction from the camera's centre: near a roof
+             * line, a camera closer to the wall sees the wall where the rig centre sees sky. */
+            rs_v3 cw = rs_v3_add(o->pose.position, rs_pose_dir_to_world(&o->pose, c->t_rig_cam));
+            rs_ray *q = &rays[w + nocc];
+            q->org = cw;
+            if (isfinite(t)) {
+                rs_v3 pw = rs_v3_add(o->pose.position, rs_v3_scale(rays[col].dir, t));
+                q->dir = rs_v3_sub(pw, cw);
+                double len = rs_v3_len(q->dir);
+                q->tnear = len > 0 ? rs_scene_offset(o->scene, cw) / len : 0;
+                q->tfar = 1 - fmax(0.01, len > 0 ? rs_scene_offset(o->scene, pw) / len : 0);
+            } else {
+                q->dir = rays[col].dir;
+                q->tnear = rs_scene_offset(o->scene, cw);
+                q->tfar = INFINITY;
+            }
+            map[nocc++] = col * n + i;
+        }
+    }
+    if (nocc) {
+        rs_scene_occluded(o->scene, rays + w, occ, (size_t)nocc);
+        *candidates += nocc;
+        for (int k = 0; k < nocc; k++)
+            if (occ[k]) {
+                plan[map[k]].ok = 0;
+                *hidden += 1;
+            }
+    }
+    free(rays);
+    free(hits);
+    free(occ);
+    free(map);
+    return 0;
+}
+
+/* Camera c's bilinear sample at its planned pixel and its blending weight; 0 when the camera
+ * does not see the pixel or its frame holds no finite value there. */
+static int sample_camera(const cam_px *p, const rs_image *img, double feather, float rgb[3], double *weight)
+{
+    if (!p->ok) return 0;
+    double x = p->x, y = p->y;
     int x0 = (int)floor(x), y0 = (int)floor(y);
     int x1 = x0 + 1 < img->width ? x0 + 1 : x0, y1 = y0 + 1 < img->height ? y0 + 1 : y0;
     double fx = x - x0, fy = y - y0;
@@ -44,7 +134,7 @@ static int sample_camera(const rs_rig_camera *c, const rs_image *img, rs_v3 d_ri
         if (!isfinite(v)) return 0;
         rgb[ch] = (float)v;
     }
-    double t = fmin(fmax(margin / feather, 0), 1);
+    double t = fmin(fmax(p->margin / feather, 0), 1);
     /* smoothstep: no kink in the blend at either end of the ramp; the floor keeps pixels that
      * only one camera sees, right at its edge. */
     *weight = t * t * (3 - 2 * t) + 1e-6;
@@ -99,6 +189,7 @@ int rs_stitch(const rs_rig *rig, rs_image *const *frames, const rs_stitch_opts *
 {
     int n = rig->count, w = opts->width, h = opts->width / 2;
     *pano = NULL;
+    memset(stats, 0, sizeof *stats);
     if (n > 64) return rs_err_set(err, RS_ERR_INPUT, NULL, 0, "%d cameras: at most 64 are supported", n);
     for (int i = 0; i < n; i++) {
         gains[i] = 1;
@@ -109,26 +200,29 @@ int rs_stitch(const rs_rig *rig, rs_image *const *frames, const rs_stitch_opts *
                               rig->cams[i].height, rig->cams[i].name);
     }
     rs_image *out = rs_image_new(w, h, 3);
-    /* Per-row overlap sums, reduced in row order afterwards so the result does not depend on
-     * the thread count. */
+    /* Per-row sums (overlaps, coverage, model depth, hidden samples), reduced in row order
+     * afterwards so the result does not depend on the thread count. */
     size_t nn = (size_t)n * n;
     double *row_sum = opts->estimate_gain ? calloc((size_t)h * nn, sizeof *row_sum) : NULL;
     double *row_cnt = opts->estimate_gain ? calloc((size_t)h * nn, sizeof *row_cnt) : NULL;
-    if (!out || (opts->estimate_gain && (!row_sum || !row_cnt))) {
-        rs_image_free(out);
-        free(row_sum);
-        free(row_cnt);
-        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for a %d x %d panorama", w, h);
-    }
+    double *row_stat = calloc((size_t)h * 4, sizeof *row_stat);
+    int failed = 0;
+    if (!out || !row_stat || (opts->estimate_gain && (!row_sum || !row_cnt))) goto oom;
     if (opts->estimate_gain) {
 #pragma omp parallel for schedule(dynamic, 8)
         for (int r = 0; r < h; r++) {
             float rgb[64][3];
             int seen[64];
-            double *s = row_sum + (size_t)r * nn, *c = row_cnt + (size_t)r * nn, wt;
+            double *s = row_sum + (size_t)r * nn, *c = row_cnt + (size_t)r * nn, wt, unused[3] = {0, 0, 0};
+            cam_px *plan = malloc((size_t)w * n * sizeof *plan);
+            if (!plan || plan_row(rig, opts, r, plan, &unused[0], &unused[1], &unused[2]) != 0) {
+#pragma omp atomic write
+                failed = 1;
+                free(plan);
+                continue;
+            }
             for (int col = 0; col < w; col++) {
-                rs_v3 d = rs_pano_pixel_dir(w, h, col, r);
-                for (int i = 0; i < n; i++) seen[i] = sample_camera(&rig->cams[i], frames[i], d, 1, rgb[i], &wt);
+                for (int i = 0; i < n; i++) seen[i] = sample_camera(&plan[(size_t)col * n + i], frames[i], 1, rgb[i], &wt);
                 for (int i = 0; i < n; i++)
                     for (int j = i + 1; j < n; j++)
                         if (seen[i] && seen[j]) {
@@ -137,48 +231,56 @@ int rs_stitch(const rs_rig *rig, rs_image *const *frames, const rs_stitch_opts *
                             c[i * n + j] += 1;
                         }
             }
+            free(plan);
         }
+        if (failed) goto oom;
         for (int r = 1; r < h; r++)
             for (size_t k = 0; k < nn; k++) {
                 row_sum[k] += row_sum[(size_t)r * nn + k];
                 row_cnt[k] += row_cnt[(size_t)r * nn + k];
             }
-        if (solve_gains(n, row_sum, row_cnt, gains, &stats->overlap_pairs) != 0) {
-            rs_image_free(out);
-            free(row_sum);
-            free(row_cnt);
-            return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
-        }
-    } else {
-        stats->overlap_pairs = 0;
-    }
-    free(row_sum);
-    free(row_cnt);
-    double *row_cover = calloc((size_t)h, sizeof *row_cover);
-    if (!row_cover) {
-        rs_image_free(out);
-        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+        if (solve_gains(n, row_sum, row_cnt, gains, &stats->overlap_pairs) != 0) goto oom;
     }
 #pragma omp parallel for schedule(dynamic, 8)
     for (int r = 0; r < h; r++) {
+        double *st = row_stat + (size_t)r * 4;
+        cam_px *plan = malloc((size_t)w * n * sizeof *plan);
+        if (!plan || plan_row(rig, opts, r, plan, &st[1], &st[2], &st[3]) != 0) {
+#pragma omp atomic write
+            failed = 1;
+            free(plan);
+            continue;
+        }
         for (int col = 0; col < w; col++) {
-            rs_v3 d = rs_pano_pixel_dir(w, h, col, r);
             double acc[3] = {0, 0, 0}, wsum = 0, wt;
             float rgb[3];
             for (int i = 0; i < n; i++) {
-                if (!sample_camera(&rig->cams[i], frames[i], d, opts->feather_px, rgb, &wt)) continue;
+                if (!sample_camera(&plan[(size_t)col * n + i], frames[i], opts->feather_px, rgb, &wt)) continue;
                 for (int ch = 0; ch < 3; ch++) acc[ch] += wt * rgb[ch] / gains[i];
                 wsum += wt;
             }
             float *px = rs_image_px(out, col, r);
             for (int ch = 0; ch < 3; ch++) px[ch] = wsum > 0 ? (float)(acc[ch] / wsum) : NAN;
-            if (wsum > 0) row_cover[r] += rs_pano_pixel_solid_angle(w, h, r);
+            if (wsum > 0) st[0] += rs_pano_pixel_solid_angle(w, h, r);
         }
+        free(plan);
     }
-    double cover = 0;
-    for (int r = 0; r < h; r++) cover += row_cover[r];
-    free(row_cover);
-    stats->coverage = cover / (4 * M_PI);
+    if (failed) goto oom;
+    double sum[4] = {0, 0, 0, 0};
+    for (int r = 0; r < h; r++)
+        for (int k = 0; k < 4; k++) sum[k] += row_stat[(size_t)r * 4 + k];
+    stats->coverage = sum[0] / (4 * M_PI);
+    stats->model_coverage = sum[1] / (4 * M_PI);
+    stats->hidden_share = sum[3] > 0 ? sum[2] / sum[3] : 0;
+    free(row_sum);
+    free(row_cnt);
+    free(row_stat);
     *pano = out;
     return 0;
+oom:
+    rs_image_free(out);
+    free(row_sum);
+    free(row_cnt);
+    free(row_stat);
+    return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for a %d x %d panorama from %d cameras", w, h, n);
 }

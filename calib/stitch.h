@@ -1,20 +1,33 @@
 /* stitch: a rig's frames -> one equirectangular panorama in the rig frame (DESIGN.md section 2),
- * at infinite depth, with feathered blending and per-camera gains estimated from the overlaps. */
+ * at infinite depth or, given the model, with each pixel's parallax corrected by the model's depth;
+ * feathered blending and per-camera gains estimated from the overlaps. */
 #ifndef RS_STITCH_H
 #define RS_STITCH_H
 
 #include "image.h"
+#include "pano.h"
 #include "rig.h"
+#include "scene.h"
 
 typedef struct rs_stitch_opts {
     int width;                 /* panorama width (px); height = width / 2 */
     double feather_px;         /* blending weight reaches 1 this many camera pixels inside the usable edge */
     int estimate_gain;         /* 1: estimate and divide out one gain per camera */
+    const rs_scene *scene;     /* NULL: infinite depth. Else the model (world frame): each pixel's
+                                  point is where its ray from the rig centre hits the model, and
+                                  every camera looks at that point from its own centre (cameras
+                                  that the model hides it from are left out); rays that miss the
+                                  model (sky) keep infinite depth, without the cameras whose own
+                                  ray in that direction hits the model */
+    rs_pose pose;              /* with scene: rig -> world (the rig centre and rotation) */
 } rs_stitch_opts;
 
 typedef struct rs_stitch_stats {
     double coverage;           /* share of the sphere (solid angle) that some camera sees */
     int overlap_pairs;         /* camera pairs that share enough pixels for the gain estimate */
+    double model_coverage;     /* share of the sphere whose depth came from the model (0 without) */
+    double hidden_share;       /* with a model: share of the camera samples (model points and sky)
+                                  dropped because the model hides them from that camera */
 } rs_stitch_stats;
 
 /* Stitches frames[i] (3 channels, rig->cams[i]'s size, linear) into *pano (3 channels; NaN

@@ -83,6 +83,9 @@ const rs_cfg_key rs_cfg_keys[] = {
      "blending weight ramps from 0 at a camera's usable border to 1 this many camera pixels inside"},
     {"rig", "gain", RS_CFG_BOOL, "true", 0, 0, NULL, "", "calib",
      "estimate one gain per camera from the overlaps (geometric mean 1) and apply it"},
+    {"rig", "parallax", RS_CFG_BOOL, "true", 0, 0, NULL, "", "calib",
+     "correct the cameras' parallax with the model's depth (mesh.ply, from the mesh stage) seen from the rig centre "
+     "([capture] position, rotation or the solved pose); sky and false: infinite depth"},
 
     {"calib", "inlier_deg", RS_CFG_REAL, "0.5", 1e-4, 90, NULL, "deg", "calib",
      "registration: a pair is an inlier when the pose predicts its pixel within this angle"},

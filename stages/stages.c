@@ -7,7 +7,7 @@ const rs_stage_def rs_stage_table[] = {
      "read laser scans (PTX, PLY) into one point cloud"},
     {"mesh", rs_mesh_run, "mesh capture rig", "cloud.ply", "mesh.ply",
      "triangulate the scan grids and simplify to the facet size (or take [mesh] input_mesh)"},
-    {"calib", rs_calib_run, "calib rig capture colmap", "", "pano_stitched.exr capture_pose.txt",
+    {"calib", rs_calib_run, "calib rig capture colmap", "mesh.ply", "pano_stitched.exr capture_pose.txt",
      "stitch the rig's frames into the capture's panorama; solve the capture's pose from pairs"},
     {"observe", rs_observe_run, "observe capture rig", "mesh.ply pano_stitched.exr capture_pose.txt",
      "observe.ply facet_id.exr",

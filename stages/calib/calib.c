@@ -16,6 +16,7 @@
 #include "stitch.h"
 #include "hdr.h"
 #include "response.h"
+#include "parallax.h"
 #include "stages.h"
 
 /* Solves the pose of [capture] from its pairs file on a width x height panorama and records the
@@ -230,8 +231,9 @@ out:
     return merged;
 }
 
-/* [rig]: the rig file and its frames -> the stitched panorama at out_path. */
-static int stitch_rig(const rs_config *cfg, const char *out_path, rs_report *rep, rs_err *err)
+/* [rig]: the rig file and its frames -> the stitched panorama at out_path; with [rig] parallax,
+ * the model and the rig's pose (pose_solved: the calib stage has written the capture's pose). */
+static int stitch_rig(const rs_config *cfg, const char *out_path, int pose_solved, rs_report *rep, rs_err *err)
 {
     char rig_path[4096], path[4096];
     rs_config_path(cfg, "rig", "file", rig_path, sizeof rig_path);
@@ -241,6 +243,7 @@ static int stitch_rig(const rs_config *cfg, const char *out_path, rs_report *rep
     rs_image **frames = calloc((size_t)rig.count, sizeof *frames);
     double *gains = calloc((size_t)rig.count, sizeof *gains);
     rs_image *pano = NULL;
+    rs_parallax_model model = {0};
     if (!frames || !gains) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
         goto out;
@@ -281,12 +284,16 @@ static int stitch_rig(const rs_config *cfg, const char *out_path, rs_report *rep
         }
     }
     int width = rs_stitch_width(&rig, (int)rs_config_int(cfg, "rig", "width"));
-    rs_stitch_opts opts = {width, rs_config_real(cfg, "rig", "feather_px"), rs_config_bool(cfg, "rig", "gain")};
+    int use_model = rs_calib_parallax_load(cfg, pose_solved, &model, err);
+    if (use_model < 0) goto out;
+    rs_stitch_opts opts = {width, rs_config_real(cfg, "rig", "feather_px"), rs_config_bool(cfg, "rig", "gain"),
+                           model.scene, model.pose};
     rs_stitch_stats stats;
     if (rs_stitch(&rig, frames, &opts, &pano, gains, &stats, err) != 0) goto out;
     static const char *const names[] = {"R", "G", "B"};
-    if (rs_image_write_exr(pano, out_path, names, 0, "rhoscan calib: stitched from [rig] frames (infinite depth)",
-                           err) != 0)
+    if (rs_image_write_exr(pano, out_path, names, 0, use_model ? "rhoscan calib: stitched from [rig] frames "
+                           "(parallax corrected with the model's depth)" : "rhoscan calib: stitched from [rig] "
+                           "frames (infinite depth)", err) != 0)
         goto out;
     rs_json *st = rs_json_set_obj(rep->metrics, "stitch");
     rs_json_set_str(st, "rig_file", rig_path);
@@ -300,19 +307,25 @@ static int stitch_rig(const rs_config *cfg, const char *out_path, rs_report *rep
         rs_json_set_num(g, rig.cams[i].name, gains[i]);
         max_offset = fmax(max_offset, rs_v3_len(rig.cams[i].t_rig_cam));
     }
-    /* Parallax is not corrected: say how large the ignored offsets are. */
     rs_json_set_num(st, "max_camera_offset_m", max_offset);
+    rs_json_set_bool(st, "parallax_corrected", use_model);
+    if (use_model) {
+        rs_json_set_num(st, "model_depth_coverage_of_sphere", stats.model_coverage);
+        rs_json_set_num(st, "hidden_camera_samples_share", stats.hidden_share);
+    }
     rs_log_info("calib: stitched %d frames into %d x %d, %.1f %% of the sphere covered", rig.count, width, width / 2,
                 100 * stats.coverage);
-    if (max_offset > 0)
+    /* Parallax not corrected: say how large the ignored offsets are and why. */
+    if (max_offset > 0 && !use_model)
         rs_report_skip(rep, "parallax correction", "cameras sit up to %.3f m from the rig centre; stitching assumes "
-                       "infinite depth, so near objects may show seams", max_offset);
+                       "infinite depth (%s), so near objects may show seams", max_offset, model.why);
     rc = 0;
 out:
     for (int i = 0; frames && i < rig.count; i++) rs_image_free(frames[i]);
     free(frames);
     free(gains);
     rs_image_free(pano);
+    rs_calib_parallax_release(&model);
     rs_rig_release(&rig);
     return rc;
 }
@@ -346,7 +359,7 @@ int rs_calib_run(const rs_config *cfg, rs_report *rep, rs_err *err)
                           "stitched from the rig's frames becomes the capture's panorama)");
     if (have_rig) {
         double t0 = rs_now();
-        if (stitch_rig(cfg, rs_work_path(cfg, RS_CALIB_PANO_FILE, path, sizeof path), rep, err) != 0) return -1;
+        if (stitch_rig(cfg, rs_work_path(cfg, RS_CALIB_PANO_FILE, path, sizeof path), 0, rep, err) != 0) return -1;
         rs_report_time(rep, "stitch", rs_now() - t0);
     }
     /* A pose left from an earlier run must not outlive the pairs or the [colmap] section that made it. */
@@ -357,6 +370,13 @@ int rs_calib_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         if (register_capture(cfg, w, h, rep, err) != 0) return -1;
     }
     if (rs_calib_colmap_run(cfg, rep, err) != 0) return -1;
+    /* The pose solved from the first (infinite-depth) stitch places the model: stitch again with
+     * the model's depth. */
+    if (have_rig && rs_calib_pose_solved(cfg, "capture") && rs_calib_parallax_wanted(cfg)) {
+        double t0 = rs_now();
+        if (stitch_rig(cfg, rs_work_path(cfg, RS_CALIB_PANO_FILE, path, sizeof path), 1, rep, err) != 0) return -1;
+        rs_report_time(rep, "stitch_with_model", rs_now() - t0);
+    }
     if (!have_rig && !have_pairs && !rs_config_has(cfg, "colmap", "model"))
         rs_report_skip(rep, "calib", "no [rig] file, no [capture] correspondences and no [colmap] model: nothing to "
                        "calibrate");
