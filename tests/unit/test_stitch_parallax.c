@@ -284,17 +284,23 @@ static void test_sky(void **state)
 }
 
 /* The calib stage: with mesh.ply in the work folder and [capture] position and rotation, the
- * stitched panorama is corrected (the default), and [rig] parallax = false turns it off. */
-static double stage_psnr(const fixture *f, const char *dir, const char *extra, int *corrected)
+ * stitched panorama is corrected (the default), and [rig] parallax = false turns it off. With
+ * [capture] correspondences (pairs: NULL for the true pose as position and rotation) the pose is
+ * solved from the first stitch and the frames stitched again with the model's depth. */
+static double stage_psnr(const fixture *f, const char *dir, const char *extra, const char *pairs, int *corrected)
 {
-    char text[4096], frames[1024] = "", *out = NULL;
+    char text[4096], frames[1024] = "", capture[1024], *out = NULL;
     for (int i = 0; i < NCAM; i++) snprintf(frames + strlen(frames), sizeof frames - strlen(frames), "cam%d.exr ", i);
+    if (pairs)
+        snprintf(capture, sizeof capture, "correspondences = %s\n", pairs);
+    else
+        snprintf(capture, sizeof capture, "position = %.17g %.17g %.17g\nrotation = %.17g %.17g %.17g %.17g %.17g "
+                 "%.17g %.17g %.17g %.17g\n", f->pose.position.x, f->pose.position.y, f->pose.position.z,
+                 f->pose.rot[0], f->pose.rot[1], f->pose.rot[2], f->pose.rot[3], f->pose.rot[4], f->pose.rot[5],
+                 f->pose.rot[6], f->pose.rot[7], f->pose.rot[8]);
     snprintf(text, sizeof text,
              "[pipeline]\nworkdir = out\n[rig]\nfile = rig.yaml\nframes = %s\nwidth = %d\nfeather_px = 16\n%s\n"
-             "[capture]\nposition = %.17g %.17g %.17g\nrotation = %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g "
-             "%.17g\n", frames, PANO_W, extra, f->pose.position.x, f->pose.position.y, f->pose.position.z,
-             f->pose.rot[0], f->pose.rot[1], f->pose.rot[2], f->pose.rot[3], f->pose.rot[4], f->pose.rot[5],
-             f->pose.rot[6], f->pose.rot[7], f->pose.rot[8]);
+             "[capture]\n%s", frames, PANO_W, extra, capture);
     rs_test_write(rs_test_path(dir, "calib.ini"), text);
     char cmd[4096];
     snprintf(cmd, sizeof cmd, "'%s/rhoscan-calib' '%s'", rs_test_bin_dir(), rs_test_path(dir, "calib.ini"));
@@ -330,20 +336,36 @@ static void test_calib_stage(void **state)
         assert_int_equal(rs_image_write_exr(f->frames[i], rs_test_path(dir, name), names, 0, NULL, &err), 0);
     }
     int corrected = 0;
-    double p_none = stage_psnr(f, dir, "", &corrected);      /* no mesh.ply yet: infinite depth */
+    double p_none = stage_psnr(f, dir, "", NULL, &corrected);      /* no mesh.ply yet: infinite depth */
     assert_false(corrected);
     rs_ply *ply = rs_ply_new();
     rs_mesh_to_ply(f->mesh, ply);
     assert_int_equal(rs_ply_write(ply, rs_test_path(dir, "out/mesh.ply"), 1, &err), 0);
     rs_ply_free(ply);
-    double p_model = stage_psnr(f, dir, "", &corrected);
+    double p_model = stage_psnr(f, dir, "", NULL, &corrected);
     assert_true(corrected);
-    double p_off = stage_psnr(f, dir, "parallax = false", &corrected);
+    double p_off = stage_psnr(f, dir, "parallax = false", NULL, &corrected);
     assert_false(corrected);
-    printf("# calib stage: PSNR %.2f dB without mesh.ply, %.2f dB with it, %.2f dB with parallax = false\n", p_none,
-           p_model, p_off);
+    /* Pairs: the room's inner corners and the column's top, exact pixels on the stitched panorama. */
+    static const double corners[][3] = {{-2.5, -3.5, -1.5}, {4.5, -3.5, -1.5}, {4.5, 2.5, -1.5}, {-2.5, 2.5, -1.5},
+                                        {-2.5, -3.5, 2.5},  {4.5, -3.5, 2.5},  {4.5, 2.5, 2.5},  {-2.5, 2.5, 2.5},
+                                        {1.2, 0.8, 1.0},    {1.5, 0.8, 1.0},   {1.2, 1.1, 1.0},  {1.5, 1.1, 1.0}};
+    char text[4096] = "";
+    for (size_t k = 0; k < sizeof corners / sizeof corners[0]; k++) {
+        rs_v3 p = rs_v3_make(corners[k][0], corners[k][1], corners[k][2]);
+        double u, v;
+        rs_pano_dir_to_uv(rs_pose_dir_to_local(&f->pose, rs_v3_sub(p, f->pose.position)), &u, &v);
+        snprintf(text + strlen(text), sizeof text - strlen(text), "%.9f %.9f %g %g %g\n", u * PANO_W - 0.5,
+                 v * PANO_W / 2 - 0.5, p.x, p.y, p.z);
+    }
+    rs_test_write(rs_test_path(dir, "pairs.txt"), text);
+    double p_solved = stage_psnr(f, dir, "", "pairs.txt", &corrected);
+    assert_true(corrected);
+    printf("# calib stage: PSNR %.2f dB without mesh.ply, %.2f dB with it, %.2f dB with parallax = false, %.2f dB "
+           "with the pose solved from pairs\n", p_none, p_model, p_off, p_solved);
     assert_true(p_model >= 35 && p_model > p_none + 6);
     assert_true(fabs(p_off - p_none) < 1e-9);
+    assert_true(p_solved >= 35 && fabs(p_solved - p_model) < 1);
     rs_test_rmtree(dir);
 }
 
