@@ -11,7 +11,8 @@
 
 #include <dirent.h>
 #include <openexr.h>
-#include <stb_image_write.h> /* implemented in common/image.c */
+#include <stb_image.h>       /* both implemented in common/image.c */
+#include <stb_image_write.h>
 
 #include "fileio.h"
 #include "image.h"
@@ -598,6 +599,36 @@ static void test_png_preview_round_trip(void **state)
     assert_no_temporaries(tmp);
 }
 
+/* The preview's 8-bit codes are exactly round(255 sRGB(v)) for every value, also those within a
+ * float step of a code's boundary (the writer finds codes by a threshold search). */
+static void test_png_codes_exact(void **state)
+{
+    (void)state;
+    enum { N = 256 * 8 };
+    rs_image *img = rs_image_new(N, 1, 1);
+    for (int i = 0; i < N; i++) {
+        int c = i / 8, k = i % 8;
+        float t = rs_srgb_to_linear((c + 0.5f) / 255.0f);
+        float v = k < 4 ? t : (float)(i % 5) / 4.0f * rs_srgb_to_linear((c + 1.0f) / 255.0f);
+        for (int s = 0; s < k % 4; s++) v = nextafterf(v, (k % 2) ? 2.0f : 0.0f);
+        img->data[i] = v;
+    }
+    const char *p = rs_test_path(tmp, "codes.png");
+    rs_err err = {0};
+    assert_int_equal(rs_image_write_png(img, p, 1.0f, &err), 0);
+    int w, h, ch;
+    unsigned char *px = stbi_load(p, &w, &h, &ch, 1);
+    assert_non_null(px);
+    assert_int_equal(w, N);
+    for (int i = 0; i < N; i++) {
+        float v = img->data[i] > 1 ? 1 : img->data[i];
+        int want = (int)(rs_linear_to_srgb(v) * 255.0f + 0.5f);
+        if (px[i] != want) fail_msg("value %.9g: code %d, expected %d", (double)v, px[i], want);
+    }
+    stbi_image_free(px);
+    rs_image_free(img);
+}
+
 /* Every truncation and many corrupted copies of a valid file must fail cleanly or succeed;
  * never crash (run under RHOSCAN_SANITIZE to make that strict). */
 static void mangle(const unsigned char *good, size_t n, const char *kind)
@@ -750,6 +781,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_srgb),
+        cmocka_unit_test(test_png_codes_exact),
         cmocka_unit_test(test_new_rejects_bad_sizes),
         cmocka_unit_test(test_exr_round_trip),
         cmocka_unit_test(test_exr_note_and_determinism),
