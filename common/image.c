@@ -408,18 +408,41 @@ static unsigned char *png_deflate(unsigned char *data, int len, int *out_len, in
     return out;
 }
 
-/* 8-bit sRGB code of linear v in [0, 1], rounded as (int)(rs_linear_to_srgb(v) * 255 + 0.5):
- * thr[c - 1] is the linear value where code c begins, so the code is the number of thresholds
- * at or below v (a binary search instead of a powf per channel). */
-static unsigned char srgb_code(const float thr[255], float v)
+/* 8-bit sRGB codes of linear values in [0, 1], rounded as (int)(rs_linear_to_srgb(v) * 255 + 0.5)
+ * without a powf per channel: thr[c - 1] is the smallest float whose code is c, and base[b] the
+ * code at b / SRGB_BUCKETS. A bucket is narrower than the narrowest code (3e-4 near black), so at
+ * most one threshold lies in it and one comparison either way settles the code. */
+enum { SRGB_BUCKETS = 8192 };
+typedef struct {
+    float thr[255];
+    unsigned char base[SRGB_BUCKETS + 1];
+} srgb_table;
+
+static int srgb_slow(float v) { return (int)(rs_linear_to_srgb(v) * 255.0f + 0.5f); }
+
+static void srgb_table_init(srgb_table *t)
 {
-    int lo = 0, hi = 255;
-    while (lo < hi) {
-        int mid = (lo + hi) / 2;
-        if (thr[mid] <= v) lo = mid + 1;
-        else hi = mid;
+    for (int c = 1; c < 256; c++) {
+        /* Start at the inverse curve, then step float by float to the first value with code c. */
+        float x = rs_srgb_to_linear((c - 0.5f) / 255.0f);
+        while (x > 0 && srgb_slow(nextafterf(x, 0)) >= c) x = nextafterf(x, 0);
+        while (srgb_slow(x) < c) x = nextafterf(x, 2);
+        t->thr[c - 1] = x;
     }
-    return (unsigned char)lo;
+    int code = 0;
+    for (int b = 0; b <= SRGB_BUCKETS; b++) {
+        float v = (float)b / SRGB_BUCKETS;
+        while (code < 255 && t->thr[code] <= v) code++;
+        t->base[b] = (unsigned char)code;
+    }
+}
+
+static unsigned char srgb_code(const srgb_table *t, float v)
+{
+    int code = t->base[(int)(v * SRGB_BUCKETS)];
+    if (code > 0 && v < t->thr[code - 1]) code--;
+    else if (code < 255 && v >= t->thr[code]) code++;
+    return (unsigned char)code;
 }
 
 int rs_image_write_png(const rs_image *img, const char *path, float scale, rs_err *err)
@@ -432,20 +455,19 @@ int rs_image_write_png(const rs_image *img, const char *path, float scale, rs_er
     size_t n = (size_t)img->width * (size_t)img->height * (size_t)img->channels;
     unsigned char *px = malloc(n);
     if (!px) return rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
-    float thr[255];
-    for (int c = 1; c < 256; c++) {
-        /* The smallest float whose code is c: start at the inverse curve, then step to it. */
-        float t = rs_srgb_to_linear((c - 0.5f) / 255.0f);
-        while (t > 0 && (int)(rs_linear_to_srgb(nextafterf(t, 0)) * 255.0f + 0.5f) >= c) t = nextafterf(t, 0);
-        while ((int)(rs_linear_to_srgb(t) * 255.0f + 0.5f) < c) t = nextafterf(t, 2);
-        thr[c - 1] = t;
+    srgb_table *tab = malloc(sizeof *tab);
+    if (!tab) {
+        free(px);
+        return rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
     }
+    srgb_table_init(tab);
 #pragma omp parallel for schedule(static) if (n > 65536)
     for (size_t i = 0; i < n; i++) {
         float v = scale * img->data[i];
         v = v > 0.0f ? (v < 1.0f ? v : 1.0f) : 0.0f; /* also maps NaN to 0 */
-        px[i] = srgb_code(thr, v);
+        px[i] = srgb_code(tab, v);
     }
+    free(tab);
     byte_buf b = {0};
     int ok = stbi_write_png_to_func(byte_buf_append, &b, img->width, img->height, img->channels,
                                     px, img->width * img->channels);
