@@ -26,6 +26,8 @@ typedef struct rs_facet_gather {
     uint32_t nentries;
     uint32_t rays;             /* rays of this facet */
     uint8_t sees_nothing;      /* the model lies below its plane: its rays were not traced */
+    uint8_t sky_sh;            /* E_sky from the sky's harmonic projection (skysh.h): no ray at all */
+    double sh_sigma;           /* with sky_sh: the projection's error bound on esky_lum (not noise) */
 } rs_facet_gather;
 
 typedef struct rs_gather_ctx {
@@ -40,6 +42,8 @@ typedef struct rs_gather_ctx {
     double sun_target_error;   /* > 0: adaptive sun rays (up to 16 x sun_samples) until their
                                   standard error is below this share of E_sky; 0: off */
     int skip_convex;           /* facets with the whole model below their plane trace no ray */
+    const struct rs_skysh *sky_sh; /* with skip_convex, those facets take E_sky from it when it
+                                      applies (rs_skysh_facet); NULL: never */
 } rs_gather_ctx;
 
 /* Scratch for one thread; rs_gather_scratch_new(max(samples, sun_samples)). */

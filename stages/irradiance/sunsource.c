@@ -174,7 +174,7 @@ int rs_sunsource_add(const rs_sunsource *sun, const rs_scene *scene, int rays, u
         }
 #pragma omp for schedule(dynamic, 64)
         for (size_t f = 0; f < nf; f++) {
-            if (!ray || !occl || !fg[f].rays) continue;
+            if (!ray || !occl || (!fg[f].rays && !fg[f].sky_sh)) continue;   /* not gathered */
             rs_v3 n = rs_scene_normal(scene, (uint32_t)f);
             double cosn = rs_v3_dot(n, s);
             if (!(cosn > 0)) continue;

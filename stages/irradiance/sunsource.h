@@ -47,7 +47,7 @@ int rs_sunsource_setup(const rs_config *cfg, rs_capture *cap, const float *facet
 size_t rs_sunsource_remove(rs_sunsource *sun, rs_capture *c, const float *facet_id, int count_power);
 
 /* Adds E_sun = dni max(0, n.s) V to E_sky (all three channels and its luminance) of every
- * gathered facet (fg[f].rays > 0), V being the share of rays shadow rays (from Sobol points on
+ * gathered facet (fg[f].rays > 0 or fg[f].sky_sh), V being the share of rays shadow rays (from Sobol points on
  * the facet toward Sobol points on the sun's disc) that escape. rays >= 1. -1: out of memory. */
 int rs_sunsource_add(const rs_sunsource *sun, const rs_scene *scene, int rays, uint32_t seed, size_t nf,
                      rs_facet_gather *fg);
