@@ -40,6 +40,12 @@ static const bench_row SWEEP[] = {
     {"s1024", 1024, 1024, 256, "interreflection", ""},
     {"scale", 64, 64, 16, "interreflection", ""},
     {"scale_adaptive", 64, 64, 16, "interreflection", "irradiance.sun_target_error=0.01"},
+    {"scale_target", 64, 64, 16, "interreflection", "irradiance.target_error=0.02"},
+    {"s64_target", 64, 128, 16, "interreflection", "irradiance.target_error=0.02"},
+    {"s64_target_05", 64, 128, 16, "interreflection", "irradiance.target_error=0.05"},
+    {"s64_target_10", 64, 128, 16, "interreflection", "irradiance.target_error=0.1"},
+    {"scale_target_05", 64, 64, 16, "interreflection", "irradiance.target_error=0.05"},
+    {"default_target", 256, 512, 64, "interreflection", "irradiance.target_error=0.01"},
     {"scale_all_facets", 64, 64, 16, "interreflection", "irradiance.skip_unseen=false"},
     {"default_all_facets", 256, 512, 64, "interreflection", "irradiance.skip_unseen=false"},
     {"scale_trace_convex", 64, 64, 16, "interreflection", "irradiance.skip_convex=false"},
@@ -50,9 +56,10 @@ static const bench_row SWEEP[] = {
     {"direct", 256, 512, 64, "direct", ""},
     {"paper", 256, 512, 64, "paper", ""},
 };
-static const char *const FULL_ROWS = "s16,s32,s64,s128,default,s1024,scale,scale_adaptive,scale_all_facets,"
-                                     "default_all_facets,default_trace_convex,no_sun_rays,cosine_only,direct,paper";
-static const char *const SCALE_ROWS = "scale,scale_adaptive,scale_all_facets,scale_trace_convex";
+static const char *const FULL_ROWS = "s16,s32,s64,s128,default,s1024,scale,scale_adaptive,scale_target,s64_target,"
+                                     "s64_target_05,s64_target_10,default_target,scale_all_facets,default_all_facets,default_trace_convex,"
+                                     "no_sun_rays,cosine_only,direct,paper";
+static const char *const SCALE_ROWS = "scale,scale_adaptive,scale_target,scale_all_facets,scale_trace_convex";
 
 typedef struct {
     char bindir[PATH_MAX], work[PATH_MAX], csv[PATH_MAX + 256];

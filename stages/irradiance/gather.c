@@ -8,7 +8,6 @@
 #include <string.h>
 #include "log.h"
 #include "sampling.h"
-#include "skysh.h"
 
 typedef struct {
     uint32_t face;
@@ -32,6 +31,7 @@ struct rs_gather_scratch {
     rs_ray *rays;
     rs_hit *hits;
     hit_ref *refs;
+    size_t nrefs_cap;          /* entries refs holds: an adaptive facet's hits grow it */
     uint32_t *pixels;          /* sky pixel of each map-sampled ray */
     double *samp;              /* 5 per ray: the Sobol coordinates of a map-sampled ray */
     uint32_t *range_lo, *range_hi; /* per ray: the guide's search range */
@@ -46,6 +46,7 @@ rs_gather_scratch *rs_gather_scratch_new(size_t n)
     s->rays = malloc(n * sizeof *s->rays);
     s->hits = malloc(n * sizeof *s->hits);
     s->refs = malloc(n * sizeof *s->refs);
+    s->nrefs_cap = n;
     s->pixels = malloc(n * sizeof *s->pixels);
     s->samp = malloc(5 * n * sizeof *s->samp);
     s->range_lo = malloc(n * sizeof *s->range_lo);
@@ -207,88 +208,109 @@ static void add_sky(const rs_skyenv *env, size_t pix, double weight, rs_facet_ga
     if (env->filled[pix]) out->filled_lum += lum;
 }
 
-/* Gathers one facet; rays/hits/refs are the thread's scratch (samples entries each). */
-int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs_facet_gather *out)
+/* What one facet's rounds of rays share (rs_gather_ctx target_error): its geometry, the refs
+ * of its rays that hit facets, and the per-ray values of its map-drawn rays, per pass. */
+typedef struct {
+    rs_v3 n, a, b, c;
+    uint32_t seed;
+    int nrefs;
+    double y_sum[2], y_sq[2];  /* map rays (pass 0 sky, 1 sun): each ray's estimate of the whole */
+    int done[2];               /* map rays so far, per pass */
+} facet_state;
+
+/* Room for `more` further refs in the scratch (an adaptive facet's hits outgrow samples). */
+static int refs_reserve(rs_gather_scratch *s, size_t more)
+{
+    if (s->nrefs_cap >= more) return 0;
+    size_t cap = s->nrefs_cap ? s->nrefs_cap : 64;
+    while (cap < more) cap *= 2;
+    hit_ref *r = realloc(s->refs, cap * sizeof *r);
+    if (!r) return -1;
+    s->refs = r;
+    s->nrefs_cap = cap;
+    return 0;
+}
+
+/* One round of a facet's rays: cosine rays [c0, c0 + nc) of its Sobol sequences, then rays
+ * [m0 * M, (m0 + mul) * M) of each map pass (M = sky_samples, sun_samples), every one weighted
+ * for the base counts (samples, sky_samples, sun_samples): a round that doubles every count
+ * leaves the MIS weights as they are, and rs_gather_facet divides the sums by the factor at the
+ * end. Round 0 (c0 = m0 = 0, mul = 1) is the whole gather when target_error is 0. */
+static int gather_round(const rs_gather_ctx *g, rs_gather_scratch *s, facet_state *st, int c0, int nc, int m0,
+                        int mul, rs_facet_gather *out)
 {
     rs_ray *rays = s->rays;
     rs_hit *hits = s->hits;
-    hit_ref *refs = s->refs;
     uint8_t *occl = s->occl;
-    memset(out, 0, sizeof *out);
-    const rs_mesh *m = rs_scene_mesh(g->scene);
-    rs_v3 n = rs_scene_normal(g->scene, f);
-    if (rs_v3_len(n) == 0) return 0;          /* degenerate: no irradiance, not estimable */
-    rs_v3 a = rs_mesh_vert(m, m->tris[3 * f]), b = rs_mesh_vert(m, m->tris[3 * f + 1]),
-          c = rs_mesh_vert(m, m->tris[3 * f + 2]);
-    /* Only sky above the plane and a smooth sky: its harmonic projection, no ray (skysh.h). */
-    if (g->sky_sh && g->skip_convex && sees_nothing(g, s, n, a) && rs_skysh_facet(g->sky_sh, n, out)) return 0;
-    uint32_t seed = rs_hash_combine(g->seed, f);
+    rs_v3 n = st->n, a = st->a, b = st->b, c = st->c;
+    uint32_t seed = st->seed;
     int N = g->samples;
-    for (int k = 0; k < N; k++) {
-        double x, y, px, py;
-        rs_sobol2_owen((uint32_t)k, rs_hash_combine(seed, 1), &x, &y);
-        rs_sobol2_owen((uint32_t)k, rs_hash_combine(seed, 2), &px, &py);
-        rs_v3 p = rs_triangle_point(a, b, c, px, py);
-        rays[k].org = rs_v3_add(p, rs_v3_scale(n, rs_scene_offset(g->scene, p)));
-        rays[k].dir = rs_cosine_hemisphere(n, x, y);
-        rays[k].tnear = 0;
-        rays[k].tfar = INFINITY;
-    }
-    out->sees_nothing = (uint8_t)(g->skip_convex && sees_nothing(g, s, n, a));
-    if (out->sees_nothing)                   /* the answer Embree would give, without asking */
-        for (int k = 0; k < N; k++) hits[k].face = RS_NO_HIT;
-    else
-        rs_scene_intersect(g->scene, rays, hits, (size_t)N);
     const rs_skyenv *env = g->env;
     /* The sky is split in two. The sun set (small, very bright) gets Ns rays of its own, chosen
      * by power. The rest is sampled two ways combined by multiple importance sampling (Veach
      * 1997, balance heuristic): the cosine-weighted rays above and Ne rays drawn from the map's
      * distribution. Cosine rays that land in the sun set count nothing: the sun rays have it. */
     int Nc = N, Ne = env && env->cdf ? g->sky_samples : 0, Ns = env && env->sun_cdf ? g->sun_samples : 0;
-    int nrefs = 0;
-    for (int k = 0; k < N; k++) {
-        if (hits[k].face == RS_NO_HIT) {
-            if (!env) continue;
-            size_t pix = rs_skyenv_pixel(env, rays[k].dir);
-            if (env->sun[pix] && Ns) continue;    /* the sun rays have it (none: count it here) */
-            double pdf_c = rs_v3_dot(rays[k].dir, n) / M_PI, pdf_e = Ne ? rs_skyenv_pdf(env, pix) : 0;
-            double wgt = Nc * pdf_c / (Nc * pdf_c + Ne * pdf_e) * M_PI / Nc;  /* L cos / pdf_c = pi L */
-            add_sky(env, pix, wgt, out);
-            double y = Nc * wgt * rs_skyenv_luminance(env->radiance + 3 * pix);
-            out->cos_sum += y;
-            out->cos_sum_sq += y * y;
-            continue;
+    for (int k0 = c0; k0 < c0 + nc; k0 += N) {      /* the scratch holds N rays */
+        int B = c0 + nc - k0 < N ? c0 + nc - k0 : N;
+        for (int i = 0; i < B; i++) {
+            uint32_t k = (uint32_t)(k0 + i);
+            double x, y, px, py;
+            rs_sobol2_owen(k, rs_hash_combine(seed, 1), &x, &y);
+            rs_sobol2_owen(k, rs_hash_combine(seed, 2), &px, &py);
+            rs_v3 p = rs_triangle_point(a, b, c, px, py);
+            rays[i].org = rs_v3_add(p, rs_v3_scale(n, rs_scene_offset(g->scene, p)));
+            rays[i].dir = rs_cosine_hemisphere(n, x, y);
+            rays[i].tnear = 0;
+            rays[i].tfar = INFINITY;
         }
-        double L[3];
-        rs_v3 x = rs_v3_add(rays[k].org, rs_v3_scale(rays[k].dir, hits[k].t));
-        /* A back face is lit from the side nobody measured: it takes the facet's mean radiance. */
-        int seen = !hits[k].backface && read_seen(g, hits[k].face, x, L);
-        if (seen) {
-            for (int ch = 0; ch < 3; ch++) out->gseen[ch] += L[ch];
-            double y = M_PI * (0.2126 * L[0] + 0.7152 * L[1] + 0.0722 * L[2]);
-            out->cos_sum += y;
-            out->cos_sum_sq += y * y;
+        if (out->sees_nothing)                   /* the answer Embree would give, without asking */
+            for (int i = 0; i < B; i++) hits[i].face = RS_NO_HIT;
+        else
+            rs_scene_intersect(g->scene, rays, hits, (size_t)B);
+        if (refs_reserve(s, (size_t)st->nrefs + (size_t)B) != 0) return -1;
+        hit_ref *refs = s->refs;
+        for (int i = 0; i < B; i++) {
+            if (hits[i].face == RS_NO_HIT) {
+                if (!env) continue;
+                size_t pix = rs_skyenv_pixel(env, rays[i].dir);
+                if (env->sun[pix] && Ns) continue;    /* the sun rays have it (none: count it here) */
+                double pdf_c = rs_v3_dot(rays[i].dir, n) / M_PI, pdf_e = Ne ? rs_skyenv_pdf(env, pix) : 0;
+                double wgt = Nc * pdf_c / (Nc * pdf_c + Ne * pdf_e) * M_PI / Nc;  /* L cos / pdf_c = pi L */
+                add_sky(env, pix, wgt, out);
+                double y = Nc * wgt * rs_skyenv_luminance(env->radiance + 3 * pix);
+                out->cos_sum += y;
+                out->cos_sum_sq += y * y;
+                continue;
+            }
+            double L[3];
+            rs_v3 x = rs_v3_add(rays[i].org, rs_v3_scale(rays[i].dir, hits[i].t));
+            /* A back face is lit from the side nobody measured: it takes the facet's mean radiance. */
+            int seen = !hits[i].backface && read_seen(g, hits[i].face, x, L);
+            if (seen) {
+                for (int ch = 0; ch < 3; ch++) out->gseen[ch] += L[ch];
+                double y = M_PI * (0.2126 * L[0] + 0.7152 * L[1] + 0.0722 * L[2]);
+                out->cos_sum += y;
+                out->cos_sum_sq += y * y;
+            }
+            refs[st->nrefs].face = hits[i].face;
+            refs[st->nrefs].unseen = (uint8_t)!seen;
+            st->nrefs++;
         }
-        refs[nrefs].face = hits[k].face;
-        refs[nrefs].unseen = (uint8_t)!seen;
-        nrefs++;
     }
-    double w = M_PI / N;                      /* cosine-weighted: E = pi * mean radiance */
-    for (int ch = 0; ch < 3; ch++) out->gseen[ch] *= w;
 
     /* Rays drawn from the map: first the rest of the sky, then the sun set. With
-     * sun_target_error > 0 the sun rays double (continuing the same Sobol sequence, so every
-     * count is a power-of-two multiple of Ns and keeps its stratification) up to 16 x Ns until
-     * the standard error of their estimate falls below that share of the facet's E_sky: only
-     * facets that a shadow edge crosses need many. */
-    out->rays = (uint32_t)N;
+     * sun_target_error > 0 (and no target_error) the sun rays double (continuing the same Sobol
+     * sequence, so every count is a power-of-two multiple of Ns and keeps its stratification) up
+     * to 16 x Ns until the standard error of their estimate falls below that share of the
+     * facet's E_sky: only facets that a shadow edge crosses need many. */
     for (int pass = 0; pass < 2; pass++) {
-        int M = pass ? Ns : Ne, done = 0, goal = M, adaptive = pass && Ns && g->sun_target_error > 0;
+        int M = pass ? Ns : Ne, first = m0 * M, done = first, goal = first + mul * M;
+        int adaptive = pass && Ns && g->sun_target_error > 0 && !(g->target_error > 0);
         rs_facet_gather acc;
         memset(&acc, 0, sizeof acc);
         rs_facet_gather *dst = adaptive ? &acc : out;
         double div = adaptive ? 1 : Ns, sum = 0, sum_sq = 0;
-        double y_sum = 0, y_sq = 0;                  /* each ray's value, for the noise estimate */
         while (done < goal) {
             int B = goal - done < M ? goal - done : M;     /* the scratch holds M rays */
             double *sp = s->samp;
@@ -311,7 +333,7 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
                 rays[i].tnear = 0;
                 rays[i].tfar = rs_v3_dot(d, n) > 0 ? INFINITY : 0;   /* below the horizon: no ray */
             }
-            if (B && out->sees_nothing) memset(occl, 0, (size_t)B);
+            if (B > 0 && out->sees_nothing) memset(occl, 0, (size_t)B);
             else if (B) rs_scene_occluded(g->scene, rays, occl, (size_t)B);
             for (int i = 0; i < B; i++) {
                 double cosn = rs_v3_dot(rays[i].dir, n);
@@ -324,8 +346,8 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
                     wgt = cosn / (Nc * cosn / M_PI + Ne * rs_skyenv_pdf(env, pix));
                 add_sky(env, pix, wgt, dst);
                 double y = (pass ? div : Ne) * wgt * lum;   /* this ray alone: its estimate of the whole */
-                y_sum += y;
-                y_sq += y * y;
+                st->y_sum[pass] += y;
+                st->y_sq[pass] += y * y;
                 sum += cosn * env->sun_power;                /* the ray's luminance contribution */
                 sum_sq += (cosn * env->sun_power) * (cosn * env->sun_power);
             }
@@ -335,21 +357,90 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
                 if (se > g->sun_target_error * (out->esky_lum + mean)) goal *= 2;
             }
         }
-        if (done) {                                  /* rays that brought nothing count as 0 */
-            double mean = y_sum / done;
-            out->map_var += fmax(0, y_sq / done - mean * mean) / done;
-        }
         if (adaptive) {
             for (int ch = 0; ch < 3; ch++) out->esky[ch] += acc.esky[ch] / done;
             out->esky_lum += acc.esky_lum / done;
             out->filled_lum += acc.filled_lum / done;
         }
-        out->rays += (uint32_t)done;
+        st->done[pass] += done - first;
     }
+    return 0;
+}
+
+/* Standard error of the luminance of E_sky + G after rounds giving `factor` times the base
+ * counts, and that luminance (*e), by rs_gather_mc_sigma's formula; rays that hit facet j
+ * through K carry pi L_j when the context has the radiance and j is observed. */
+static double round_sigma(const rs_gather_ctx *g, const rs_gather_scratch *s, const facet_state *st,
+                          const rs_facet_gather *out, int factor, double *e)
+{
+    double nc = (double)g->samples * factor, s1 = out->cos_sum, s2 = out->cos_sum_sq, kl = 0;
+    for (int q = 0; g->radiance && q < st->nrefs; q++) {
+        uint32_t j = s->refs[q].face;
+        if (!s->refs[q].unseen || (g->observed && !g->observed[j])) continue;
+        const double *L = g->radiance + 3 * (size_t)j;
+        double y = M_PI * (0.2126 * L[0] + 0.7152 * L[1] + 0.0722 * L[2]);
+        s1 += y;
+        s2 += y * y;
+        kl += y;
+    }
+    double gl = M_PI * (0.2126 * out->gseen[0] + 0.7152 * out->gseen[1] + 0.0722 * out->gseen[2]);
+    *e = out->esky_lum / factor + (gl + kl) / nc;
+    double mean = s1 / nc, var = fmax(0, s2 / nc - mean * mean) / nc;
+    for (int pass = 0; pass < 2; pass++)
+        if (st->done[pass]) {
+            double m = st->y_sum[pass] / st->done[pass];
+            var += fmax(0, st->y_sq[pass] / st->done[pass] - m * m) / st->done[pass];
+        }
+    return sqrt(var);
+}
+
+/* Gathers one facet; rays/hits/refs are the thread's scratch (samples entries each; refs grow).
+ * With target_error > 0 it gathers in rounds: the base counts, then each round as many rays
+ * again of every kind (continuing the sequences, so each count stays a power-of-two multiple of
+ * the base and keeps its stratification), up to RS_GATHER_MAX_ROUNDS doublings, until the
+ * standard error of E_sky + G falls below target_error times it. */
+int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs_facet_gather *out)
+{
+    memset(out, 0, sizeof *out);
+    const rs_mesh *m = rs_scene_mesh(g->scene);
+    rs_v3 n = rs_scene_normal(g->scene, f);
+    if (rs_v3_len(n) == 0) return 0;          /* degenerate: no irradiance, not estimable */
+    rs_v3 a = rs_mesh_vert(m, m->tris[3 * f]), b = rs_mesh_vert(m, m->tris[3 * f + 1]),
+          c = rs_mesh_vert(m, m->tris[3 * f + 2]);
+    facet_state st;
+    memset(&st, 0, sizeof st);
+    st.n = n, st.a = a, st.b = b, st.c = c;
+    st.seed = rs_hash_combine(g->seed, f);
+    int N = g->samples, rounds = 0;
+    out->sees_nothing = (uint8_t)(g->skip_convex && sees_nothing(g, s, n, a));
+    if (gather_round(g, s, &st, 0, N, 0, 1, out) != 0) return -1;
+    while (g->target_error > 0 && rounds < RS_GATHER_MAX_ROUNDS) {
+        double e, se = round_sigma(g, s, &st, out, 1 << rounds, &e);
+        if (!(se > g->target_error * e)) break;
+        if (gather_round(g, s, &st, N << rounds, N << rounds, 1 << rounds, 1 << rounds, out) != 0) return -1;
+        rounds++;
+    }
+    if (rounds) {                             /* every sum was weighted for the base counts */
+        double inv = 1.0 / (1 << rounds);
+        for (int ch = 0; ch < 3; ch++) out->esky[ch] *= inv;
+        out->esky_lum *= inv;
+        out->filled_lum *= inv;
+    }
+    double w = M_PI / ((double)N * (1 << rounds));  /* cosine-weighted: E = pi * mean radiance */
+    for (int ch = 0; ch < 3; ch++) out->gseen[ch] *= w;
+    for (int pass = 0; pass < 2; pass++)      /* rays that brought nothing count as 0 */
+        if (st.done[pass]) {
+            double mean = st.y_sum[pass] / st.done[pass];
+            out->map_var += fmax(0, st.y_sq[pass] / st.done[pass] - mean * mean) / st.done[pass];
+        }
+    out->rounds = (uint8_t)rounds;
+    out->rays = (uint32_t)(N << rounds) + (uint32_t)st.done[0] + (uint32_t)st.done[1];
 
     /* K row: merge hits per facet j (sorted, so the file does not depend on thread timing).
      * An entry is its hit count times w, rounded to float once: adding w up in float drifted
      * by about 1e-6 and let row sums pass pi (found by tests/stress/test_cavity.c). */
+    hit_ref *refs = s->refs;
+    int nrefs = st.nrefs;
     qsort(refs, (size_t)nrefs, sizeof *refs, cmp_hit);
     if (nrefs) {
         out->entries = malloc((size_t)nrefs * sizeof *out->entries);
@@ -371,7 +462,7 @@ double rs_gather_mc_sigma(const rs_facet_gather *fg, int samples, const double *
 {
     if (!fg->rays || samples < 1) return 0;
     /* A hit count k_unseen N / pi for each K entry: its rays' values are pi L_j each. */
-    double n = samples, s1 = fg->cos_sum, s2 = fg->cos_sum_sq;
+    double n = (double)samples * (1 << fg->rounds), s1 = fg->cos_sum, s2 = fg->cos_sum_sq;  /* its own count */
     for (uint32_t q = 0; radiance && q < fg->nentries; q++) {
         const rs_kentry *en = &fg->entries[q];
         if (observed && !observed[en->col]) continue;
@@ -456,125 +547,4 @@ int rs_gather_mc_calibration(const rs_gather_ctx *g, size_t nf, const rs_facet_g
     if (cnt) *factor = sqrt(sum / cnt);
     if (used) *used = cnt;
     return 0;
-}
-
-/* Morton code of a point scaled into [0, 1)^3: 10 bits per axis, interleaved. */
-static uint32_t spread10(uint32_t v)
-{
-    v &= 0x3ff;
-    v = (v | (v << 16)) & 0x030000ff;
-    v = (v | (v << 8)) & 0x0300f00f;
-    v = (v | (v << 4)) & 0x030c30c3;
-    v = (v | (v << 2)) & 0x09249249;
-    return v;
-}
-
-typedef struct {
-    uint32_t code, face;
-} morton_key;
-
-static int cmp_morton(const void *a, const void *b)
-{
-    const morton_key *x = a, *y = b;
-    if (x->code != y->code) return x->code < y->code ? -1 : 1;
-    return (x->face > y->face) - (x->face < y->face);
-}
-
-/* Facet indices in the Morton order of their centroids (ties by index): nf entries, caller frees. */
-static uint32_t *morton_order(const rs_mesh *m, size_t nf)
-{
-    morton_key *keys = malloc(nf * sizeof *keys);
-    uint32_t *order = malloc(nf * sizeof *order);
-    if (!keys || !order) {
-        free(keys);
-        free(order);
-        return NULL;
-    }
-    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (size_t v = 0; v < m->nverts; v++)
-        for (int a = 0; a < 3; a++) {
-            lo[a] = fminf(lo[a], m->verts[3 * v + a]);
-            hi[a] = fmaxf(hi[a], m->verts[3 * v + a]);
-        }
-    for (size_t f = 0; f < nf; f++) {
-        uint32_t q[3];
-        for (int a = 0; a < 3; a++) {
-            double c = 0;
-            for (int k = 0; k < 3; k++) c += m->verts[3 * (size_t)m->tris[3 * f + k] + a] / 3.0;
-            double t = hi[a] > lo[a] ? (c - lo[a]) / (hi[a] - lo[a]) : 0;
-            q[a] = (uint32_t)fmin(1023, fmax(0, t * 1024));
-        }
-        keys[f].code = spread10(q[0]) | spread10(q[1]) << 1 | spread10(q[2]) << 2;
-        keys[f].face = (uint32_t)f;
-    }
-    qsort(keys, nf, sizeof *keys, cmp_morton);
-    for (size_t k = 0; k < nf; k++) order[k] = keys[k].face;
-    free(keys);
-    return order;
-}
-
-/* Gathers the listed facets in parallel; -1 when a thread ran out of memory. */
-static int gather_list(const rs_gather_ctx *g, const uint32_t *list, size_t n, rs_facet_gather *fg,
-                       struct rs_progress *prog)
-{
-    size_t scratch = (size_t)g->samples;
-    if ((size_t)g->sky_samples > scratch) scratch = (size_t)g->sky_samples;
-    if ((size_t)g->sun_samples > scratch) scratch = (size_t)g->sun_samples;
-    int failed = 0;
-#pragma omp parallel
-    {
-        rs_gather_scratch *s = rs_gather_scratch_new(scratch);
-        int mine_failed = !s;
-        /* Dynamic chunks of neighbouring facets: costs differ a lot (a roof's rays escape at
-         * once, a courtyard's bounce), and neighbours share BVH nodes in the cache. */
-#pragma omp for schedule(dynamic, 16)
-        for (size_t k = 0; k < n; k++) {
-            if (mine_failed || failed) continue;
-            if (rs_gather_facet(g, list[k], s, &fg[list[k]]) != 0) mine_failed = 1;
-            if (prog && (k & 255) == 255) rs_progress_add(prog, 256);
-        }
-        if (mine_failed) {
-#pragma omp atomic write
-            failed = 1;
-        }
-        rs_gather_scratch_free(s);
-    }
-    return failed ? -1 : 0;
-}
-
-int rs_gather_run(const rs_gather_ctx *g, size_t nf, const uint8_t *needed, rs_facet_gather *fg, uint8_t *gathered,
-                  struct rs_progress *prog, rs_gather_stats *stats)
-{
-    memset(stats, 0, sizeof *stats);
-    memset(fg, 0, nf * sizeof *fg);
-    uint32_t *order = morton_order(rs_scene_mesh(g->scene), nf), *list = malloc((nf ? nf : 1) * sizeof *list);
-    uint8_t *state = calloc(nf ? nf : 1, 1);        /* 0 not reached, 1 queued, 2 gathered */
-    int rc = -1;
-    if (!order || !list || !state) goto out;
-    for (size_t f = 0; f < nf; f++) state[f] = !needed || needed[f];
-    for (;;) {
-        size_t n = 0;
-        for (size_t k = 0; k < nf; k++)
-            if (state[order[k]] == 1) list[n++] = order[k];
-        if (!n) break;
-        if (gather_list(g, list, n, fg, prog) != 0) goto out;
-        stats->waves++;
-        stats->gathered += n;
-        for (size_t k = 0; k < n; k++) state[list[k]] = 2;
-        for (size_t k = 0; k < n; k++)                 /* what these facets' rays reached comes next */
-            for (uint32_t q = 0; q < fg[list[k]].nentries; q++)
-                if (!state[fg[list[k]].entries[q].col]) state[fg[list[k]].entries[q].col] = 1;
-    }
-    for (size_t f = 0; f < nf; f++) {
-        stats->rays += fg[f].sees_nothing ? 0 : fg[f].rays;
-        stats->sees_nothing += fg[f].sees_nothing;
-    }
-    if (gathered)
-        for (size_t f = 0; f < nf; f++) gathered[f] = state[f] == 2;
-    rc = 0;
-out:
-    free(order);
-    free(list);
-    free(state);
-    return rc;
 }

@@ -26,8 +26,7 @@ typedef struct rs_facet_gather {
     uint32_t nentries;
     uint32_t rays;             /* rays of this facet */
     uint8_t sees_nothing;      /* the model lies below its plane: its rays were not traced */
-    uint8_t sky_sh;            /* E_sky from the sky's harmonic projection (skysh.h): no ray at all */
-    double sh_sigma;           /* with sky_sh: the projection's error bound on esky_lum (not noise) */
+    uint8_t rounds;            /* target_error: times its counts were doubled (0: the base counts) */
 } rs_facet_gather;
 
 typedef struct rs_gather_ctx {
@@ -42,9 +41,16 @@ typedef struct rs_gather_ctx {
     double sun_target_error;   /* > 0: adaptive sun rays (up to 16 x sun_samples) until their
                                   standard error is below this share of E_sky; 0: off */
     int skip_convex;           /* facets with the whole model below their plane trace no ray */
-    const struct rs_skysh *sky_sh; /* with skip_convex, those facets take E_sky from it when it
-                                      applies (rs_skysh_facet); NULL: never */
+    double target_error;       /* > 0: gather in rounds, doubling every ray count (up to
+                                  2^RS_GATHER_MAX_ROUNDS x), until the standard error of E_sky + G
+                                  is below this share of it; 0: the base counts (sun_target_error
+                                  then applies to the sun rays alone) */
+    const double *radiance;    /* with target_error: facets' mean radiance (3 per facet), so that */
+    const uint8_t *observed;   /* rays into K count pi L_j for observed j (NULL: they count 0) */
 } rs_gather_ctx;
+
+/* target_error's cap: at most 2^4 = 16 times the base counts. */
+#define RS_GATHER_MAX_ROUNDS 4
 
 /* Scratch for one thread; rs_gather_scratch_new(max(samples, sun_samples)). */
 typedef struct rs_gather_scratch rs_gather_scratch;

@@ -1,0 +1,129 @@
+/* gather_run: the gather of a whole model (rs_gather_run, gather.h): facets in Morton order on
+ * all OpenMP threads, and the closure of the light paths that end at the facets a camera sees. */
+#include "gather.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include "log.h"
+
+/* Morton code of a point scaled into [0, 1)^3: 10 bits per axis, interleaved. */
+static uint32_t spread10(uint32_t v)
+{
+    v &= 0x3ff;
+    v = (v | (v << 16)) & 0x030000ff;
+    v = (v | (v << 8)) & 0x0300f00f;
+    v = (v | (v << 4)) & 0x030c30c3;
+    v = (v | (v << 2)) & 0x09249249;
+    return v;
+}
+
+typedef struct {
+    uint32_t code, face;
+} morton_key;
+
+static int cmp_morton(const void *a, const void *b)
+{
+    const morton_key *x = a, *y = b;
+    if (x->code != y->code) return x->code < y->code ? -1 : 1;
+    return (x->face > y->face) - (x->face < y->face);
+}
+
+/* Facet indices in the Morton order of their centroids (ties by index): nf entries, caller frees. */
+static uint32_t *morton_order(const rs_mesh *m, size_t nf)
+{
+    morton_key *keys = malloc(nf * sizeof *keys);
+    uint32_t *order = malloc(nf * sizeof *order);
+    if (!keys || !order) {
+        free(keys);
+        free(order);
+        return NULL;
+    }
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t v = 0; v < m->nverts; v++)
+        for (int a = 0; a < 3; a++) {
+            lo[a] = fminf(lo[a], m->verts[3 * v + a]);
+            hi[a] = fmaxf(hi[a], m->verts[3 * v + a]);
+        }
+    for (size_t f = 0; f < nf; f++) {
+        uint32_t q[3];
+        for (int a = 0; a < 3; a++) {
+            double c = 0;
+            for (int k = 0; k < 3; k++) c += m->verts[3 * (size_t)m->tris[3 * f + k] + a] / 3.0;
+            double t = hi[a] > lo[a] ? (c - lo[a]) / (hi[a] - lo[a]) : 0;
+            q[a] = (uint32_t)fmin(1023, fmax(0, t * 1024));
+        }
+        keys[f].code = spread10(q[0]) | spread10(q[1]) << 1 | spread10(q[2]) << 2;
+        keys[f].face = (uint32_t)f;
+    }
+    qsort(keys, nf, sizeof *keys, cmp_morton);
+    for (size_t k = 0; k < nf; k++) order[k] = keys[k].face;
+    free(keys);
+    return order;
+}
+
+/* Gathers the listed facets in parallel; -1 when a thread ran out of memory. */
+static int gather_list(const rs_gather_ctx *g, const uint32_t *list, size_t n, rs_facet_gather *fg,
+                       struct rs_progress *prog)
+{
+    size_t scratch = (size_t)g->samples;
+    if ((size_t)g->sky_samples > scratch) scratch = (size_t)g->sky_samples;
+    if ((size_t)g->sun_samples > scratch) scratch = (size_t)g->sun_samples;
+    int failed = 0;
+#pragma omp parallel
+    {
+        rs_gather_scratch *s = rs_gather_scratch_new(scratch);
+        int mine_failed = !s;
+        /* Dynamic chunks of neighbouring facets: costs differ a lot (a roof's rays escape at
+         * once, a courtyard's bounce), and neighbours share BVH nodes in the cache. */
+#pragma omp for schedule(dynamic, 16)
+        for (size_t k = 0; k < n; k++) {
+            if (mine_failed || failed) continue;
+            if (rs_gather_facet(g, list[k], s, &fg[list[k]]) != 0) mine_failed = 1;
+            if (prog && (k & 255) == 255) rs_progress_add(prog, 256);
+        }
+        if (mine_failed) {
+#pragma omp atomic write
+            failed = 1;
+        }
+        rs_gather_scratch_free(s);
+    }
+    return failed ? -1 : 0;
+}
+
+int rs_gather_run(const rs_gather_ctx *g, size_t nf, const uint8_t *needed, rs_facet_gather *fg, uint8_t *gathered,
+                  struct rs_progress *prog, rs_gather_stats *stats)
+{
+    memset(stats, 0, sizeof *stats);
+    memset(fg, 0, nf * sizeof *fg);
+    uint32_t *order = morton_order(rs_scene_mesh(g->scene), nf), *list = malloc((nf ? nf : 1) * sizeof *list);
+    uint8_t *state = calloc(nf ? nf : 1, 1);        /* 0 not reached, 1 queued, 2 gathered */
+    int rc = -1;
+    if (!order || !list || !state) goto out;
+    for (size_t f = 0; f < nf; f++) state[f] = !needed || needed[f];
+    for (;;) {
+        size_t n = 0;
+        for (size_t k = 0; k < nf; k++)
+            if (state[order[k]] == 1) list[n++] = order[k];
+        if (!n) break;
+        if (gather_list(g, list, n, fg, prog) != 0) goto out;
+        stats->waves++;
+        stats->gathered += n;
+        for (size_t k = 0; k < n; k++) state[list[k]] = 2;
+        for (size_t k = 0; k < n; k++)                 /* what these facets' rays reached comes next */
+            for (uint32_t q = 0; q < fg[list[k]].nentries; q++)
+                if (!state[fg[list[k]].entries[q].col]) state[fg[list[k]].entries[q].col] = 1;
+    }
+    for (size_t f = 0; f < nf; f++) {
+        stats->rays += fg[f].sees_nothing ? 0 : fg[f].rays;
+        stats->sees_nothing += fg[f].sees_nothing;
+    }
+    if (gathered)
+        for (size_t f = 0; f < nf; f++) gathered[f] = state[f] == 2;
+    rc = 0;
+out:
+    free(order);
+    free(list);
+    free(state);
+    return rc;
+}
