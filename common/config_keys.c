@@ -139,6 +139,9 @@ const rs_cfg_key rs_cfg_keys[] = {
      "E_sky + G is below this share of it (sun_target_error is then unused); 0: the fixed counts"},
     {"irradiance", "skip_convex", RS_CFG_BOOL, "true", 0, 0, NULL, "", "irradiance",
      "facets with the whole model below their plane (bounding-box test) trace no ray: they see only sky"},
+    {"irradiance", "sh_max_error", RS_CFG_REAL, "0.01", 0, 1, NULL, "", "irradiance",
+     "those facets take E_sky from the sky map's order-2 harmonics, without rays, where the harmonics' relative "
+     "error (measured on the map at 256 normals, 1.5 x the worst near the facet's) is below this (0: never)"},
 
     {"sky", "panorama", RS_CFG_PATH, NULL, 0, 0, NULL, "", "irradiance",
      "sky-only panorama (EXR or HDR, linear) used for every direction it sees as sky"},

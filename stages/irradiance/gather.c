@@ -8,6 +8,7 @@
 #include <string.h>
 #include "log.h"
 #include "sampling.h"
+#include "skysh.h"
 
 typedef struct {
     uint32_t face;
@@ -407,6 +408,8 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
     if (rs_v3_len(n) == 0) return 0;          /* degenerate: no irradiance, not estimable */
     rs_v3 a = rs_mesh_vert(m, m->tris[3 * f]), b = rs_mesh_vert(m, m->tris[3 * f + 1]),
           c = rs_mesh_vert(m, m->tris[3 * f + 2]);
+    /* Only sky above the plane and a smooth sky: its harmonic projection, no ray (skysh.h). */
+    if (g->sky_sh && g->skip_convex && sees_nothing(g, s, n, a) && rs_skysh_facet(g->sky_sh, n, out)) return 0;
     facet_state st;
     memset(&st, 0, sizeof st);
     st.n = n, st.a = a, st.b = b, st.c = c;

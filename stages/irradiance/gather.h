@@ -27,6 +27,8 @@ typedef struct rs_facet_gather {
     uint32_t rays;             /* rays of this facet */
     uint8_t sees_nothing;      /* the model lies below its plane: its rays were not traced */
     uint8_t rounds;            /* target_error: times its counts were doubled (0: the base counts) */
+    uint8_t sky_sh;            /* E_sky from the sky's harmonic projection (skysh.h): no ray at all */
+    double sh_sigma;           /* with sky_sh: the projection's error bound on esky_lum (not noise) */
 } rs_facet_gather;
 
 typedef struct rs_gather_ctx {
@@ -41,6 +43,8 @@ typedef struct rs_gather_ctx {
     double sun_target_error;   /* > 0: adaptive sun rays (up to 16 x sun_samples) until their
                                   standard error is below this share of E_sky; 0: off */
     int skip_convex;           /* facets with the whole model below their plane trace no ray */
+    const struct rs_skysh *sky_sh; /* with skip_convex, those facets take E_sky from it when it
+                                      applies (rs_skysh_facet); NULL: never */
     double target_error;       /* > 0: gather in rounds, doubling every ray count (up to
                                   2^RS_GATHER_MAX_ROUNDS x), until the standard error of E_sky + G
                                   is below this share of it; 0: the base counts (sun_target_error

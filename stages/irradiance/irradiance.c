@@ -21,6 +21,7 @@
 #include "gather.h"
 #include "kernel_out.h"
 #include "skyenv.h"
+#include "skysh.h"
 #include "solar.h"
 #include "sunsource.h"
 #include "stages.h"
@@ -54,6 +55,7 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
          * independent-sample formula scaled by what a second seed showed (rs_gather_mc_calibration). */
         mc[f] = mc_factor *
                 rs_gather_mc_sigma(&fg[f], (int)rs_config_int(cfg, "irradiance", "samples"), radiance, observed);
+        if (fg[f].sky_sh) mc[f] = fg[f].sh_sigma;   /* no rays: the projection's measured error bound */
         for (uint32_t q = 0; q < fg[f].nentries; q++) {
             const rs_kentry *en = &fg[f].entries[q];
             if (observed[en->col])      /* unobserved facets are the reflectance stage's job */
@@ -258,7 +260,13 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
 
     rs_gather_ctx g = {scene, &env, &cap, ids->data, (int)rs_config_int(cfg, "irradiance", "samples"),
                     (int)rs_config_int(cfg, "irradiance", "sky_samples"), sun_samples, (uint32_t)rs_config_int(cfg, "irradiance", "seed"),
-                    rs_config_real(cfg, "irradiance", "sun_target_error"), rs_config_bool(cfg, "irradiance", "skip_convex")};
+                    rs_config_real(cfg, "irradiance", "sun_target_error"), rs_config_bool(cfg, "irradiance", "skip_convex"),
+                    NULL};
+    rs_skysh sh;                 /* [irradiance] sh_max_error: harmonics for facets that see only sky */
+    t0 = rs_now();
+    if (rs_skysh_build(&env, rs_config_real(cfg, "irradiance", "sh_max_error"), 256, &sh, err) != 0) goto out;
+    rs_report_time(rep, "sky_sh", rs_now() - t0);
+    if (g.skip_convex && sh.usable) g.sky_sh = &sh;
     fg = calloc(nf, sizeof *fg);
     if (!fg) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu facets", nf);
@@ -298,6 +306,25 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
                        "their rays escape without tracing", gs.sees_nothing);
     rs_json_set_int(rep->metrics, "facets_gathered", (long long)gs.gathered);
     rs_json_set_int(rep->metrics, "facets_seeing_nothing", (long long)gs.sees_nothing);
+    size_t nsh = 0;
+    for (size_t f = 0; f < nf; f++) nsh += fg[f].sky_sh;
+    rs_json_set_int(rep->metrics, "facets_sky_sh", (long long)nsh);
+    rs_json_set_num(rep->metrics, "sky_sh_max_error", sh.max_error);
+    rs_json_set_num(rep->metrics, "sky_sh_max_error_filled", sh.max_error_filled);
+    rs_json_set_num(rep->metrics, "sky_sh_passed_share", sh.passed_share);
+    if (!g.skip_convex)
+        rs_report_skip(rep, "sky harmonics", "[irradiance] skip_convex = false: every facet gathers with rays");
+    else if (!sh.usable)
+        rs_report_skip(rep, "sky harmonics", "the sky map's order-2 irradiance is off by more than [irradiance] "
+                       "sh_max_error = %g at every one of %d normals (up to %.2f %%, at %.2f %.2f %.2f): facets that "
+                       "see only sky gather with rays", sh.tol, sh.normals, 100 * sh.max_error, sh.worst_normal.x,
+                       sh.worst_normal.y, sh.worst_normal.z);
+    else
+        rs_log_info("irradiance: %zu of %zu facets that see only sky took E_sky from the sky's order-2 harmonics, "
+                    "no rays (error within %g on %.0f %% of the normals, up to %.2f %% at %.2f %.2f %.2f); the other "
+                    "%zu face a normal above that or cut the sun set's cone, and gathered", nsh, gs.sees_nothing,
+                    sh.tol, 100 * sh.passed_share, 100 * sh.max_error, sh.worst_normal.x, sh.worst_normal.y,
+                    sh.worst_normal.z, gs.sees_nothing - nsh);
     double rays = gs.rays;
     rs_json_set_num(rep->metrics, "rays", rays);
     rs_json_set_num(rep->metrics, "rays_per_second", gather_s > 0 ? rays / gather_s : 0);
