@@ -27,7 +27,9 @@ int rs_calib_pose_solved(const rs_config *cfg, const char *section)
 {
     /* The key table has these keys for capture sections only; asking [sky] would abort. */
     if (strncmp(section, "capture", 7) != 0 || (section[7] != 0 && section[7] != '.')) return 0;
-    return rs_config_has(cfg, section, "correspondences") || rs_config_has(cfg, section, "colmap_panorama");
+    return rs_config_has(cfg, section, "correspondences") || rs_config_has(cfg, section, "colmap_panorama") ||
+           (strcmp(section, "capture") == 0 && rs_config_has(cfg, section, "refine_edges") &&
+            rs_config_bool(cfg, section, "refine_edges"));
 }
 
 int rs_calib_pose_apply(const rs_config *cfg, const char *section, rs_pose *pose, rs_err *err)

@@ -16,8 +16,8 @@
  * -1 when both are given or the stitched panorama has not been made yet (run the calib stage). */
 int rs_calib_panorama_path(const rs_config *cfg, const char *section, char *out, size_t n, rs_err *err);
 
-/* 1 when the calib stage solves the section's pose: [capture] correspondences, or
- * colmap_panorama in [capture] or [capture.NAME]. Position and rotation then only seed it. */
+/* 1 when the calib stage solves the section's pose: [capture] correspondences or refine_edges,
+ * or colmap_panorama in [capture] or [capture.NAME]. Position and rotation then only seed it. */
 int rs_calib_pose_solved(const rs_config *cfg, const char *section);
 
 /* When rs_calib_pose_solved, replaces *pose by the one the calib stage solved. Otherwise leaves

@@ -67,6 +67,9 @@ const rs_cfg_key rs_cfg_keys[] = {
      "pairs file `column row X Y Z` per line (>= 4): the calib stage solves the pose; position and rotation only seed it"},
     {"capture", "colmap_panorama", RS_CFG_STRING, NULL, 0, 0, NULL, "", "calib observe irradiance render",
      "label of a panorama in the [colmap] views file: its views in the COLMAP model pose this capture (position, rotation unused)"},
+    {"capture", "refine_edges", RS_CFG_BOOL, NULL, 0, 0, NULL, "", "calib observe irradiance render",
+     "true: the calib stage refines the pose (solved, or position and rotation as a rough start) by aligning the "
+     "panorama's edges with the model's (mesh.ply); unset or false: no refinement; [capture] only"},
 
     {"rig", "file", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib observe irradiance render",
      "camera rig in OpenCV FileStorage YAML (DESIGN.md section 7); its stitched panorama replaces [capture] panorama"},
@@ -93,6 +96,10 @@ const rs_cfg_key rs_cfg_keys[] = {
      "registration: random samples of 3 pairs tried before refinement"},
     {"calib", "seed", RS_CFG_INT, "1", 0, 2147483647, NULL, "", "calib",
      "registration: seed of the RANSAC samples"},
+    {"calib", "edge_levels", RS_CFG_INT, "3", 1, 8, NULL, "", "calib",
+     "edge refinement: pyramid levels, coarse to fine, each half the width of the next (more: a wider capture range)"},
+    {"calib", "edge_max_width", RS_CFG_INT, "2048", 64, 65536, NULL, "px", "calib",
+     "edge refinement: the finest level's width; the panorama is halved until it is at most this wide"},
     {"calib", "grey_card_region", RS_CFG_STRING, NULL, 0, 0, NULL, "px", "reflectance",
      "radiometric check: x0 y0 x1 y1, the capture panorama's pixels on a grey card (columns x0..x1-1, rows y0..y1-1)"},
     {"calib", "grey_card_albedo", RS_CFG_REAL, "0.18", 0.001, 1, NULL, "", "reflectance",

@@ -8,6 +8,7 @@
 #include "calib_files.h"
 #include "calib_math.h"
 #include "colmap_poses.h"
+#include "edge_pose.h"
 #include "capture.h"
 #include "fileio.h"
 #include "log.h"
@@ -370,6 +371,8 @@ int rs_calib_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         if (register_capture(cfg, w, h, rep, err) != 0) return -1;
     }
     if (rs_calib_colmap_run(cfg, rep, err) != 0) return -1;
+    /* Edges refine the pose solved above (or the config's rough one) before anything uses it. */
+    if (rs_calib_edge_pose_run(cfg, rep, err) != 0) return -1;
     /* The pose solved from the first (infinite-depth) stitch places the model: stitch again with
      * the model's depth. */
     if (have_rig && rs_calib_pose_solved(cfg, "capture") && rs_calib_parallax_wanted(cfg)) {
@@ -377,7 +380,8 @@ int rs_calib_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         if (stitch_rig(cfg, rs_work_path(cfg, RS_CALIB_PANO_FILE, path, sizeof path), 1, rep, err) != 0) return -1;
         rs_report_time(rep, "stitch_with_model", rs_now() - t0);
     }
-    if (!have_rig && !have_pairs && !rs_config_has(cfg, "colmap", "model"))
+    if (!have_rig && !have_pairs && !rs_config_has(cfg, "colmap", "model") &&
+        !rs_config_has(cfg, "capture", "refine_edges"))
         rs_report_skip(rep, "calib", "no [rig] file, no [capture] correspondences and no [colmap] model: nothing to "
                        "calibrate");
     return 0;

@@ -4,8 +4,11 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include "calib_files.h"
 #include "calib_math.h"
 #include "edge_refine.h"
+#include "fileio.h"
 #include "log.h"
 #include "meshgen.h"
 #include "testutil.h"
@@ -201,6 +204,83 @@ static void test_model_out_of_sight_refused(void **state)
     assert_non_null(strstr(err.msg, "model edge pixels are visible from centre (5000"));
 }
 
+/* The work folder of a calib run: mesh.ply there, the panorama and calib.ini beside it, the
+ * capture placed at start with [capture] refine_edges = true. */
+static const char *write_run(fixture *f, const char *tag, const rs_image *pano, const rs_pose *start)
+{
+    const char *dir = rs_test_tmpdir(tag);
+    char out[4096], text[4096];
+    rs_err err;
+    snprintf(out, sizeof out, "%s/out", dir);
+    assert_int_equal(mkdir(out, 0777), 0);
+    rs_ply *ply = rs_ply_new();
+    rs_mesh_to_ply(f->mesh, ply);
+    assert_int_equal(rs_ply_write(ply, rs_test_path(out, "mesh.ply"), 1, &err), 0);
+    rs_ply_free(ply);
+    static const char *const names[] = {"R", "G", "B"};
+    assert_int_equal(rs_image_write_exr(pano, rs_test_path(dir, "pano.exr"), names, 0, NULL, &err), 0);
+    const double *r = start->rot;
+    snprintf(text, sizeof text, "[pipeline]\nworkdir = out\n[capture]\npanorama = pano.exr\nposition = %.17g %.17g "
+             "%.17g\nrotation = %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g\nrefine_edges = true\n",
+             start->position.x, start->position.y, start->position.z, r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7],
+             r[8]);
+    rs_test_write(rs_test_path(dir, "calib.ini"), text);
+    return dir;
+}
+
+static int run_calib(const char *dir, char **output)
+{
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "'%s/rhoscan-calib' '%s'", rs_test_bin_dir(), rs_test_path(dir, "calib.ini"));
+    return rs_test_run(cmd, output);
+}
+
+/* The calib stage with [capture] refine_edges: the refined pose lands in capture_pose.txt, where
+ * the other stages pick it up, and the report names the costs. */
+static void test_calib_stage_refines(void **state)
+{
+    fixture *f = *state;
+    rs_pose start = perturbed(&f->truth, rs_v3_make(0.2, -1, 0.5), 2.0, rs_v3_make(0.3, 1, 0.1), 0.3);
+    const char *dir = write_run(f, "edge_stage", f->pano, &start);
+    char *output = NULL;
+    int rc = run_calib(dir, &output);
+    print_message("exit %d: %s", rc, output);
+    assert_int_equal(rc, 0);
+    assert_non_null(strstr(output, "edges refined the pose"));
+    free(output);
+    rs_pose got;
+    rs_err err;
+    char pose_dir[4096];
+    snprintf(pose_dir, sizeof pose_dir, "%s/out", dir);
+    assert_int_equal(rs_calib_pose_read(rs_test_path(pose_dir, RS_CALIB_POSE_FILE), "capture", &got, &err), 0);
+    assert_true(rs_calib_rot_angle(got.rot, f->truth.rot) * 180 / M_PI < TURN_BOUND_DEG);
+    assert_true(rs_v3_len(rs_v3_sub(got.position, f->truth.position)) < SHIFT_BOUND_M);
+    char *json = NULL;
+    size_t size;
+    assert_int_equal(rs_read_file(rs_test_path(pose_dir, "calib.json"), &json, &size, &err), 0);
+    assert_non_null(strstr(json, "\"edge_refinement\""));
+    assert_non_null(strstr(json, "\"median_px_after\""));
+    free(json);
+    rs_test_rmtree(dir);
+}
+
+/* A featureless panorama through the program: exit 1 and a message naming the key. */
+static void test_calib_stage_featureless(void **state)
+{
+    fixture *f = *state;
+    rs_image *flat = rs_image_new(512, 256, 3);
+    for (size_t k = 0; k < (size_t)512 * 256 * 3; k++) flat->data[k] = 0.7f;
+    const char *dir = write_run(f, "edge_flat", flat, &f->truth);
+    rs_image_free(flat);
+    char *output = NULL;
+    int rc = run_calib(dir, &output);
+    print_message("exit %d: %s", rc, output);
+    assert_int_equal(rc, 1);
+    assert_non_null(strstr(output, "[capture] refine_edges = true: the panorama shows 0 edge pixels"));
+    free(output);
+    rs_test_rmtree(dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -208,6 +288,8 @@ int main(void)
         cmocka_unit_test(test_recovers_other_perturbation),
         cmocka_unit_test(test_featureless_refused),
         cmocka_unit_test(test_model_out_of_sight_refused),
+        cmocka_unit_test(test_calib_stage_refines),
+        cmocka_unit_test(test_calib_stage_featureless),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
