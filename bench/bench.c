@@ -50,6 +50,8 @@ static const bench_row SWEEP[] = {
     {"default_all_facets", 256, 512, 64, "interreflection", "irradiance.skip_unseen=false"},
     {"scale_trace_convex", 64, 64, 16, "interreflection", "irradiance.skip_convex=false"},
     {"default_trace_convex", 256, 512, 64, "interreflection", "irradiance.skip_convex=false"},
+    {"scale_no_sky_sh", 64, 64, 16, "interreflection", "irradiance.sh_max_error=0"},
+    {"default_no_sky_sh", 256, 512, 64, "interreflection", "irradiance.sh_max_error=0"},
     {"sun_set_forced", 256, 512, 64, "interreflection", "irradiance.sun_threshold=1"},
     {"no_sun_rays", 256, 512, 0, "interreflection", ""},
     {"cosine_only", 256, 0, 0, "interreflection", ""},

@@ -263,10 +263,15 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
                     rs_config_real(cfg, "irradiance", "sun_target_error"), rs_config_bool(cfg, "irradiance", "skip_convex"),
                     NULL};
     rs_skysh sh;                 /* [irradiance] sh_max_error: harmonics for facets that see only sky */
-    t0 = rs_now();
-    if (rs_skysh_build(&env, rs_config_real(cfg, "irradiance", "sh_max_error"), 256, &sh, err) != 0) goto out;
-    rs_report_time(rep, "sky_sh", rs_now() - t0);
-    if (g.skip_convex && sh.usable) g.sky_sh = &sh;
+    memset(&sh, 0, sizeof sh);
+    double sh_tol = rs_config_real(cfg, "irradiance", "sh_max_error");
+    size_t sh_candidates = g.skip_convex && sh_tol > 0 ? rs_skysh_candidates(scene) : 0;
+    if (sh_candidates) {         /* the test costs a pass over the map: only when a facet can use it */
+        t0 = rs_now();
+        if (rs_skysh_build(&env, sh_tol, 256, &sh, err) != 0) goto out;
+        rs_report_time(rep, "sky_sh", rs_now() - t0);
+        if (sh.usable) g.sky_sh = &sh;
+    }
     fg = calloc(nf, sizeof *fg);
     if (!fg) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu facets", nf);
@@ -312,8 +317,11 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_num(rep->metrics, "sky_sh_max_error", sh.max_error);
     rs_json_set_num(rep->metrics, "sky_sh_max_error_filled", sh.max_error_filled);
     rs_json_set_num(rep->metrics, "sky_sh_passed_share", sh.passed_share);
-    if (!g.skip_convex)
-        rs_report_skip(rep, "sky harmonics", "[irradiance] skip_convex = false: every facet gathers with rays");
+    if (!g.skip_convex || !(sh_tol > 0))
+        rs_report_skip(rep, "sky harmonics", "[irradiance] %s: every facet gathers with rays",
+                       g.skip_convex ? "sh_max_error = 0" : "skip_convex = false");
+    else if (!sh_candidates)
+        rs_report_skip(rep, "sky harmonics", "no facet has the whole model below its plane");
     else if (!sh.usable)
         rs_report_skip(rep, "sky harmonics", "the sky map's order-2 irradiance is off by more than [irradiance] "
                        "sh_max_error = %g at every one of %d normals (up to %.2f %%, at %.2f %.2f %.2f): facets that "

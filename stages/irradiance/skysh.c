@@ -300,3 +300,27 @@ void rs_skysh_exact(const rs_skyenv *env, rs_v3 n, double e[RS_SKYSH_CHANNELS])
         }
     }
 }
+
+size_t rs_skysh_candidates(const rs_scene *scene)
+{
+    const rs_mesh *m = rs_scene_mesh(scene);
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t v = 0; v < m->nverts; v++)
+        for (int k = 0; k < 3; k++) {
+            lo[k] = fmin(lo[k], m->verts[3 * v + k]);
+            hi[k] = fmax(hi[k], m->verts[3 * v + k]);
+        }
+    double eps = 0.5 * rs_scene_offset(scene, rs_v3_make(0, 0, 0));
+    size_t n = 0;
+    for (size_t f = 0; f < m->nfaces; f++) {
+        rs_v3 nrm = rs_scene_normal(scene, (uint32_t)f), a = rs_mesh_vert(m, m->tris[3 * f]);
+        if (rs_v3_len(nrm) == 0) continue;
+        double top = -INFINITY;
+        for (int k = 0; k < 8; k++) {
+            rs_v3 corner = rs_v3_make(k & 1 ? hi[0] : lo[0], k & 2 ? hi[1] : lo[1], k & 4 ? hi[2] : lo[2]);
+            top = fmax(top, rs_v3_dot(nrm, rs_v3_sub(corner, a)));
+        }
+        n += top <= eps;
+    }
+    return n;
+}

@@ -295,6 +295,7 @@ static void test_gather_uses_it(void **state)
     }
     assert_int_equal(top_used, 8);  /* the slab's top: 2 x 2 cells of two triangles */
     assert_int_equal(used, convex); /* every facet that sees only sky: the sun set is above them all */
+    assert_int_equal(rs_skysh_candidates(scene), convex);   /* the count before the gather */
     /* rs_gather_run: the same facets, fewer rays */
     rs_facet_gather *fa = calloc(nf, sizeof *fa), *fb = calloc(nf, sizeof *fb);
     rs_gather_stats sa, sb;
