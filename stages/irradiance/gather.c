@@ -206,7 +206,10 @@ static void add_sky(const rs_skyenv *env, size_t pix, double weight, rs_facet_ga
     for (int ch = 0; ch < 3; ch++) out->esky[ch] += weight * L[ch];
     double lum = weight * rs_skyenv_luminance(L);
     out->esky_lum += lum;
-    if (env->filled[pix]) out->filled_lum += lum;
+    if (env->filled[pix]) {
+        out->filled_lum += lum;
+        if (env->fill_sigma_px) out->fill_sigma_lum += lum * env->fill_sigma_px[pix];
+    }
 }
 
 /* What one facet's rounds of rays share (rs_gather_ctx target_error): its geometry, the refs
@@ -362,6 +365,7 @@ static int gather_round(const rs_gather_ctx *g, rs_gather_scratch *s, facet_stat
             for (int ch = 0; ch < 3; ch++) out->esky[ch] += acc.esky[ch] / done;
             out->esky_lum += acc.esky_lum / done;
             out->filled_lum += acc.filled_lum / done;
+            out->fill_sigma_lum += acc.fill_sigma_lum / done;
         }
         st->done[pass] += done - first;
     }

@@ -17,6 +17,9 @@ typedef struct rs_facet_gather {
     double esky[3];            /* E_sky (same unit as the panorama's radiance times sr) */
     double gseen[3];           /* G read from the panorama at hit points the camera sees */
     double esky_lum, filled_lum; /* luminance of E_sky, and of its filled-in part */
+    double fill_sigma_lum;     /* standard uncertainty of filled_lum: its light times each filled
+                                  direction's fill uncertainty (env->fill_sigma_px), summed: a fill
+                                  errs smoothly over neighbouring directions, not at random */
     /* Monte Carlo noise, from the rays' own spread (luminance). Cosine rays: the sum and sum of
      * squares of each ray's value Y (E = mean Y): escapes carry their MIS-weighted sky, hits read
      * from the panorama pi L; hits through K carry 0 here, their pi L_j is added by the caller,

@@ -27,7 +27,7 @@
 #include "stages.h"
 
 static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_facet_gather *fg,
-                         const double *radiance, const uint8_t *observed, double fill_sigma, double mc_factor,
+                         const double *radiance, const uint8_t *observed, double fill_rate, double mc_factor,
                          rs_report *rep, rs_err *err)
 {
     size_t nf = mesh->nfaces, ne = 0;
@@ -48,9 +48,7 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
             g[3 * f + ch] = fg[f].gseen[ch];
         }
         filled[f] = fg[f].esky_lum > 0 ? fg[f].filled_lum / fg[f].esky_lum : 0;
-        /* The fill's error is a smooth bias over neighbouring directions, not noise that
-         * averages out: the filled light is uncertain by fill_sigma as a whole. */
-        sigma[f] = fill_sigma * fg[f].filled_lum;
+        sigma[f] = fg[f].fill_sigma_lum;       /* rs_facet_gather: summed, not in quadrature */
         /* Monte Carlo noise of E_sky + G (rays toward unobserved facets count 0 here), the
          * independent-sample formula scaled by what a second seed showed (rs_gather_mc_calibration). */
         mc[f] = mc_factor *
@@ -75,7 +73,9 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
     rs_ply_add_comment(ply, "rhoscan %s irradiance: E_sky and G (W m^-2 per unit radiance scale); "
                             "irradiance_inter counts observed facets only", RHOSCAN_VERSION);
     rs_ply_add_comment(ply, "sky_filled: luminance share of E_sky from filled-in directions; irradiance_sky_sigma: "
-                            "standard uncertainty of E_sky's luminance = %.4g x its filled part", fill_sigma);
+                            "standard uncertainty of E_sky's luminance = the sum over filled directions of their "
+                            "light x %.4g per radian of their angle to the nearest measured sky (at most 1)",
+                       fill_rate);
     rs_ply_add_comment(ply, "irradiance_mc_sigma: standard error of the luminance of E_sky + G from the gather's "
                             "own sample spread times %.4g, the ratio of the actual spread between two seeds to it on "
                             "sampled facets (Monte Carlo noise; rays toward unobserved facets count 0)", mc_factor);
@@ -384,12 +384,23 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         el += a * fg[f].esky_lum;
     }
     rs_json_set_num(rep->metrics, "sky_filled_share", el > 0 ? fl / el : 0);
-    /* The fill's uncertainty from the largest held-out error (rs_skyfill_sigma_from_blocks), not
-     * env.fill_sigma (their RMS, kept in the metrics for comparison). */
+    /* The fill's uncertainty grows with the distance from the measured sky at the largest
+     * held-out rate (rs_skyfill_sigma_map); the flat figure from the largest held-out error, and
+     * their RMS (env.fill_sigma), stay in the metrics for comparison. */
     int use_model = so.fill.method == RS_SKYFILL_MODEL && info.fill.fit_samples;
     double fill_unc = rs_skyfill_sigma_from_blocks(info.fill.cv_folds, use_model ? info.fill.cv_max_model
                                                                               : info.fill.cv_max_row);
-    rs_json_set_num(rep->metrics, "sky_fill_sigma_used", fill_unc);
+    double fill_rate = rs_skyfill_rate_used(&info.fill, so.fill.method);
+    rs_json_set_num(rep->metrics, "sky_fill_sigma_flat", fill_unc);
+    rs_json_set_num(rep->metrics, "sky_fill_sigma_per_rad", fill_rate);
+    double fs = 0;
+    for (size_t f = 0; f < nf; f++) {
+        rs_v3 c, n;
+        double a;
+        rs_mesh_face(mesh, f, &c, &n, &a);
+        fs += a * fg[f].fill_sigma_lum;
+    }
+    rs_json_set_num(rep->metrics, "sky_fill_sigma_used", fl > 0 ? fs / fl : 0);
     rs_json_set_num(rep->metrics, "sky_cv_max_row", info.fill.cv_max_row);
     rs_json_set_num(rep->metrics, "sky_cv_max_model", info.fill.cv_max_model);
     double mc_factor;
@@ -404,7 +415,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_int(rep->metrics, "mc_calibration_facets", (long long)mc_facets);
     rs_log_info("irradiance: Monte Carlo noise from %zu facets gathered twice: %.3g x the independent-sample formula",
                 mc_facets, mc_factor);
-    rc = write_outputs(cfg, mesh, fg, radiance, observed, fill_unc, mc_factor, rep, err);
+    rc = write_outputs(cfg, mesh, fg, radiance, observed, fill_rate, mc_factor, rep, err);
 out:
     if (fg)
         for (size_t f = 0; f < nf; f++) free(fg[f].entries);

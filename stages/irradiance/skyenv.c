@@ -365,6 +365,11 @@ int rs_skyenv_build_opts(const rs_capture *cap, const float *facet_id, const rs_
         goto out;
     }
     env->fill_sigma = info->fill.fill_sigma > 0 ? info->fill.fill_sigma : 0;
+    if (!(env->fill_sigma_px = malloc(npx * sizeof *env->fill_sigma_px)) ||
+        rs_skyfill_sigma_map(w, h, src, env->filled, &info->fill, o->fill.method, env->fill_sigma_px) != 0) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky fill's uncertainty");
+        goto out;
+    }
     if (!o->explicit_sun) memset(env->sun, 0, npx);     /* everything by cosine rays */
     if (o->explicit_sun && build_distributions(env) != 0) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky distribution");
@@ -386,6 +391,7 @@ void rs_skyenv_release(rs_skyenv *env)
 {
     free(env->radiance);
     free(env->filled);
+    free(env->fill_sigma_px);
     free(env->sun);
     free(env->cdf);
     free(env->sun_cdf);

@@ -27,6 +27,8 @@ typedef struct rs_skyenv {
     double bright_sr;          /* solid angle of the bright pixels */
     double fill_sigma;         /* relative standard uncertainty of the light from filled pixels
                                   (held-out error of the fill method); 0 when not measured */
+    float *fill_sigma_px;      /* W * H: each filled pixel's relative standard uncertainty
+                                  (rs_skyfill_sigma_map), 0 where measured */
 } rs_skyenv;
 
 /* What the map is built from and how it is completed. */

@@ -3,8 +3,11 @@
  * held-out blocks of measured sky to measure each method's error. */
 #include "skyfill.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include "log.h"
+#include "skydist.h"
 
 #define CV_SECTORS 8           /* held-out azimuth sectors, plus one band of the lowest sky */
 #define CV_LOW_SHARE 0.2       /* the low band: this share of the measured sky's solid angle */
@@ -222,12 +225,27 @@ static double block_error(int w, int h, const float *meas, const float *pred, co
     return sm > 0 ? (sp - sm) / sm : 0;
 }
 
+/* The mean angle from block f's pixels to the nearest measured pixel outside it, weighted by
+ * their light (the block's error is an error of its light); 0 when it cannot be measured. */
+static double block_distance(int w, int h, const float *meas, const uint16_t *fold, int f, const float *dist)
+{
+    double sd = 0, sw = 0;
+    for (size_t k = 0; k < (size_t)w * h; k++) {
+        if (!(fold[k] >> f & 1)) continue;
+        double wt = rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w)) * lum(meas + 3 * k);
+        sd += wt * dist[k];
+        sw += wt;
+    }
+    return sw > 0 ? sd / sw : 0;
+}
+
 /* One held-out block f: the row method's relative error into *e_row and the model's at each
- * residual order (-1 .. max) into e_model; returns 0 when the block has too little sky or the
- * fit fails (it is then left out), 1 when counted, -1 out of memory. */
+ * residual order (-1 .. max) into e_model, and the block's distance from the sky left
+ * (block_distance) into *dist_f; returns 0 when the block has too little sky or the fit fails
+ * (it is then left out), 1 when counted, -1 out of memory. */
 static int cross_validate_block(int w, int h, const rs_pose *pose, const float *rad, const uint8_t *src,
                                 const uint16_t *fold, int f, const rs_skyfill_opts *o, rs_v3 sun, double *e_row,
-                                double *e_model)
+                                double *e_model, double *dist_f)
 {
     size_t npx = (size_t)w * h;
     uint8_t *src_f = malloc(npx), *fill_f = malloc(npx);
@@ -239,6 +257,9 @@ static int cross_validate_block(int w, int h, const rs_pose *pose, const float *
         fill_f[k] = (uint8_t)(fold[k] >> f & 1);
         src_f[k] = (uint8_t)(src[k] && !fill_f[k]);
     }
+    /* tmp's first w * h floats hold the distances until the row fill needs it. */
+    if (rs_skydist_to_source(w, h, src_f, fill_f, tmp) != 0) goto out;
+    *dist_f = block_distance(w, h, rad, fold, f, tmp);
     double sr;
     memcpy(tmp, rad, 3 * npx * sizeof *tmp);
     if (row_fill(w, h, tmp, src_f, fill_f) != 0) goto out;
@@ -272,11 +293,11 @@ static int cross_validate(int w, int h, const rs_pose *pose, const float *rad, c
     uint16_t *fold = malloc(npx * sizeof *fold);
     if (!fold) return -1;
     assign_folds(w, h, pose, src, &sun, o->sun_mask_rad, fold);
-    double e_row[NB], e_model[NB][NQ];
+    double e_row[NB], e_model[NB][NQ], dist[NB];
     int status[NB];
 #pragma omp parallel for schedule(dynamic, 1)
     for (int f = 0; f < NB; f++)
-        status[f] = cross_validate_block(w, h, pose, rad, src, fold, f, o, sun, &e_row[f], e_model[f]);
+        status[f] = cross_validate_block(w, h, pose, rad, src, fold, f, o, sun, &e_row[f], e_model[f], &dist[f]);
     free(fold);
     int norders = o->sh_order + 2, nf = 0;
     double se_row = 0, se_model[NQ] = {0};
@@ -296,10 +317,18 @@ static int cross_validate(int w, int h, const rs_pose *pose, const float *rad, c
         rep->cv_rel_model = sqrt(se_model[bq] / nf);
         *best_order = bq - 1;
         rep->cv_max_row = rep->cv_max_model = 0;
+        rep->cv_rate_row = rep->cv_rate_model = 0;
         for (int f = 0; f < NB; f++)
             if (status[f] == 1) {
                 rep->cv_max_row = fmax(rep->cv_max_row, fabs(e_row[f]));
                 rep->cv_max_model = fmax(rep->cv_max_model, fabs(e_model[f][bq]));
+                /* A block next to the data (distance below one grid cell) says nothing of the
+                 * rate: its error counts as if one cell away. */
+                double d = sqrt(fmax(dist[f], 2 * M_PI / RS_SKYDIST_CELLS_W));
+                rep->cv_rate_row = fmax(rep->cv_rate_row, fabs(e_row[f]) / d);
+                rep->cv_rate_model = fmax(rep->cv_rate_model, fabs(e_model[f][bq]) / d);
+                rs_log_debug("skyfill: held-out block %d: %.1f deg from the sky left, error rows %+.4f, model %+.4f",
+                             f, dist[f] * 180 / M_PI, e_row[f], e_model[f][bq]);
             }
     }
     return 0;
@@ -319,12 +348,34 @@ double rs_skyfill_sigma_from_blocks(int blocks, double largest_error)
     return largest_error / (0.5 * (lo + hi));
 }
 
+double rs_skyfill_rate_used(const rs_skyfill_report *rep, rs_skyfill_method method)
+{
+    double rate = method == RS_SKYFILL_MODEL && rep->fit_samples ? rep->cv_rate_model : rep->cv_rate_row;
+    return rate >= 0 ? rs_skyfill_sigma_from_blocks(rep->cv_folds, rate) : -1;
+}
+
+int rs_skyfill_sigma_map(int w, int h, const uint8_t *src, const uint8_t *fill, const rs_skyfill_report *rep,
+                         rs_skyfill_method method, float *sigma)
+{
+    size_t npx = (size_t)w * h;
+    double rate = rs_skyfill_rate_used(rep, method);
+    if (!(rate >= 0)) {
+        for (size_t k = 0; k < npx; k++) sigma[k] = fill[k] ? 1.0f : 0.0f;
+        return 0;
+    }
+    if (rs_skydist_to_source(w, h, src, fill, sigma) != 0) return -1;
+    for (size_t k = 0; k < npx; k++)
+        sigma[k] = fill[k] ? (float)fmin(1, rate * sqrt(fmax(sigma[k], 2 * M_PI / RS_SKYDIST_CELLS_W))) : 0.0f;
+    return 0;
+}
+
 int rs_skyfill_run(int w, int h, const rs_pose *pose, float *rad, const uint8_t *src, const uint8_t *fill,
                    const uint8_t *sun, const rs_skyfill_opts *o, rs_skyfill_report *rep)
 {
     memset(rep, 0, sizeof *rep);
     rep->cv_rel_row = rep->cv_rel_model = -1;
     rep->cv_max_row = rep->cv_max_model = -1;
+    rep->cv_rate_row = rep->cv_rate_model = -1;
     rep->model.sh_order = -1;
     size_t npx = (size_t)w * h;
     /* The sun: given, else the luminance-weighted centroid of the sun set, else searched. */

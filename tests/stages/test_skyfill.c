@@ -4,6 +4,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include "skydist.h"
 #include "skyenv.h"
 #include "solar.h"
 #include "testutil.h"
@@ -149,6 +150,78 @@ static void test_low_sun_courtyard(void **state)
     assert_true(info[1].fill.cv_rel_model < info[1].fill.cv_rel_row);
     assert_true(env[1].fill_sigma > 0 && env[1].fill_sigma == info[1].fill.cv_rel_model);
     for (int m = 0; m < 2; m++) rs_skyenv_release(&env[m]);
+    free(ids);
+    rs_capture_release(&cap);
+}
+
+/* The fill's uncertainty per direction grows with the angle to the nearest measured sky: the
+ * angles are right, sigma grows as their square root, and summed over the hidden sky a wall
+ * sees it bounds the wall's actual fill error at 2 sigma in every direction. */
+static void test_fill_sigma_grows_with_distance(void **state)
+{
+    (void)state;
+    const double sun_az = 30, sun_el = 8;
+    rs_capture cap = make_capture(sun_dir(sun_az, sun_el));
+    float *ids = courtyard_ids(sun_az);
+    size_t npx = (size_t)W * H;
+    uint8_t *src = malloc(npx), *tgt = malloc(npx);
+    float *dist = malloc(npx * sizeof *dist);
+    for (size_t k = 0; k < npx; k++) {
+        src[k] = ids[k] < 0;
+        tgt[k] = !src[k];
+    }
+    assert_int_equal(rs_skydist_to_source(W, H, src, tgt, dist), 0);
+    rs_err err;
+    rs_skyenv env;
+    rs_skyenv_info info;
+    rs_skyenv_opts o = opts(RS_SKYFILL_MODEL);
+    assert_int_equal(rs_skyenv_build_opts(&cap, ids, &o, &env, &info, &err), 0);
+    double rate = rs_skyfill_rate_used(&info.fill, RS_SKYFILL_MODEL);
+    print_message("fill uncertainty %.3f per sqrt(radian) (%d blocks)\n", rate, info.fill.cv_folds);
+    assert_true(rate > 0);
+    /* Opposite the gap the wall hides everything below 40 degrees: the nearest measured sky is
+     * straight up, 40 - elevation away (to a grid cell, 2.8 degrees). */
+    double az = sun_az + 180, prev = -1;
+    for (int el = 30; el >= 0; el -= 10) {
+        rs_v3 d = sun_dir(az, el + 0.3);
+        int c, r;
+        rs_pano_world_to_pixel(&cap.pose, W, H, d, &c, &r);
+        size_t k = (size_t)r * W + c;
+        double deg = dist[k] * 180 / M_PI;
+        print_message("elevation %2d: %.1f deg from the measured sky, fill sigma %.3f\n", el, deg,
+                      env.fill_sigma_px[k]);
+        assert_true(fabs(deg - (40 - el)) < 3.0);
+        assert_true(env.filled[k] && env.fill_sigma_px[k] > prev && env.fill_sigma_px[k] <= 1);
+        if (env.fill_sigma_px[k] < 1)
+            assert_float_equal(env.fill_sigma_px[k], rate * sqrt(dist[k]), 0.02 * rate);
+        prev = env.fill_sigma_px[k];
+    }
+    for (size_t k = 0; k < npx; k++)
+        if (!env.filled[k]) assert_true(env.fill_sigma_px[k] == 0);
+    /* Walls facing every way: the hidden sky's actual error against its summed uncertainty. */
+    for (int a = 0; a < 12; a++) {
+        double waz = (sun_az + 30 * a) * M_PI / 180;
+        rs_v3 n = rs_v3_make(cos(waz), sin(waz), 0);
+        double em = 0, et = 0, sig = 0;
+        for (int r = 0; r < H; r++)
+            for (int c = 0; c < W; c++) {
+                size_t k = (size_t)r * W + c;
+                rs_v3 d = rs_pano_pixel_dir(W, H, c, r);
+                double cs = rs_v3_dot(d, n), om = rs_pano_pixel_solid_angle(W, H, r);
+                if (cs <= 0 || !env.filled[k] || d.z <= 0) continue;
+                double lm = om * cs * rs_skyenv_luminance(env.radiance + 3 * k);
+                em += lm;
+                et += om * cs * rs_skyenv_luminance(cap.pano->data + 3 * k);
+                sig += lm * env.fill_sigma_px[k];
+            }
+        print_message("wall facing %5.0f deg: hidden-sky E error %+.4f, sigma %.4f\n", waz * 180 / M_PI, em - et,
+                      sig);
+        assert_true(fabs(em - et) <= 2 * sig);
+    }
+    rs_skyenv_release(&env);
+    free(src);
+    free(tgt);
+    free(dist);
     free(ids);
     rs_capture_release(&cap);
 }
@@ -316,6 +389,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_low_sun_courtyard),
+        cmocka_unit_test(test_fill_sigma_grows_with_distance),
         cmocka_unit_test(test_sky_panorama),
         cmocka_unit_test(test_two_captures),
         cmocka_unit_test(test_find_hidden_sun),

@@ -1,0 +1,69 @@
+/* skydist: angular distance of target pixels to the nearest source pixel (see skydist.h), by
+ * brute force between grid cells: only source cells on the edge of the source region can be
+ * nearest, and there are few of them at 128 x 64. */
+#include "skydist.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include "pano.h"
+
+int rs_skydist_to_source(int w, int h, const uint8_t *src, const uint8_t *target, float *out)
+{
+    int cw = w < RS_SKYDIST_CELLS_W ? w : RS_SKYDIST_CELLS_W;
+    int chh = h < RS_SKYDIST_CELLS_W / 2 ? h : RS_SKYDIST_CELLS_W / 2;
+    size_t npx = (size_t)w * h, nc = (size_t)cw * chh;
+    uint8_t *csrc = calloc(nc, 1), *ctgt = calloc(nc, 1);
+    float *cdist = malloc(nc * sizeof *cdist);
+    rs_v3 *dir = malloc(nc * sizeof *dir);
+    uint32_t *edge = malloc(nc * sizeof *edge);
+    if (!csrc || !ctgt || !cdist || !dir || !edge) {
+        free(csrc);
+        free(ctgt);
+        free(cdist);
+        free(dir);
+        free(edge);
+        return -1;
+    }
+    for (size_t k = 0; k < npx; k++) {
+        size_t c = (size_t)((k / (size_t)w) * chh / h) * cw + (k % (size_t)w) * cw / w;
+        csrc[c] |= src[k] != 0;
+        ctgt[c] |= target[k] != 0;
+    }
+    size_t nedge = 0;
+    for (int i = 0; i < chh; i++)
+        for (int j = 0; j < cw; j++) {
+            size_t c = (size_t)i * cw + j;
+            dir[c] = rs_pano_uv_to_dir((j + 0.5) / cw, (i + 0.5) / chh);
+            if (!csrc[c]) continue;
+            /* An edge cell has a non-source neighbour (azimuth wraps; the poles have none). */
+            int l = (j + cw - 1) % cw, r = (j + 1) % cw;
+            if (!csrc[(size_t)i * cw + l] || !csrc[(size_t)i * cw + r] || (i > 0 && !csrc[c - cw]) ||
+                (i + 1 < chh && !csrc[c + cw]))
+                edge[nedge++] = (uint32_t)c;
+        }
+    size_t nsrc = 0;
+    for (size_t c = 0; c < nc; c++) nsrc += csrc[c];
+#pragma omp parallel for schedule(dynamic, 64)
+    for (size_t c = 0; c < nc; c++) {
+        if (!ctgt[c] || csrc[c]) {
+            cdist[c] = 0;
+            continue;
+        }
+        double best = -1;
+        for (size_t e = 0; e < nedge; e++) {
+            double d = rs_v3_dot(dir[c], dir[edge[e]]);
+            if (d > best) best = d;
+        }
+        cdist[c] = nsrc ? (float)acos(fmin(1, fmax(-1, best))) : (float)M_PI;
+    }
+    for (size_t k = 0; k < npx; k++) {
+        size_t c = (size_t)((k / (size_t)w) * chh / h) * cw + (k % (size_t)w) * cw / w;
+        out[k] = target[k] ? cdist[c] : 0;
+    }
+    free(csrc);
+    free(ctgt);
+    free(cdist);
+    free(dir);
+    free(edge);
+    return 0;
+}
