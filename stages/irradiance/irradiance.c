@@ -74,7 +74,7 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
                             "irradiance_inter counts observed facets only", RHOSCAN_VERSION);
     rs_ply_add_comment(ply, "sky_filled: luminance share of E_sky from filled-in directions; irradiance_sky_sigma: "
                             "standard uncertainty of E_sky's luminance = the sum over filled directions of their "
-                            "light x %.4g per radian of their angle to the nearest measured sky (at most 1)",
+                            "light x %.4g sqrt(their angle in radians to the nearest measured sky) (at most 1)",
                        fill_rate);
     rs_ply_add_comment(ply, "irradiance_mc_sigma: standard error of the luminance of E_sky + G from the gather's "
                             "own sample spread times %.4g, the ratio of the actual spread between two seeds to it on "
@@ -392,7 +392,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
                                                                               : info.fill.cv_max_row);
     double fill_rate = rs_skyfill_rate_used(&info.fill, so.fill.method);
     rs_json_set_num(rep->metrics, "sky_fill_sigma_flat", fill_unc);
-    rs_json_set_num(rep->metrics, "sky_fill_sigma_per_rad", fill_rate);
+    rs_json_set_num(rep->metrics, "sky_fill_sigma_per_sqrt_rad", fill_rate);
     double fs = 0;
     for (size_t f = 0; f < nf; f++) {
         rs_v3 c, n;

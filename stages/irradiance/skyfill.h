@@ -31,9 +31,9 @@ typedef struct rs_skyfill_report {
                                           their integrated luminance; -1 when not computed */
     double cv_max_row, cv_max_model;   /* the largest |relative error| over those blocks (the
                                           model's at its chosen order); -1 when not computed */
-    double cv_rate_row, cv_rate_model; /* the largest |relative error| per radian of the
-                                          block's mean distance from the sky left (skydist.h);
-                                          -1 when not computed */
+    double cv_rate_row, cv_rate_model; /* the largest |relative error| over the square root of
+                                          the block's mean distance (radians) from the sky left
+                                          (skydist.h); -1 when not computed */
     int cv_folds;              /* held-out blocks with enough sky */
     double fill_sigma;         /* cv of the method used: relative uncertainty of filled light
                                   (1 when no held-out block could be measured) */
@@ -46,20 +46,20 @@ typedef struct rs_skyfill_report {
  * directions are one more block whose error is one more draw. The largest |error| of n blocks
  * exceeds a new draw with probability n / (n + 1) whatever their distribution; under a normal
  * error that is the two-sided quantile z with P(|N(0, 1)| <= z) = n / (n + 1), so
- * sigma = largest / z (the same for the largest error per radian of distance, a rate). 1
+ * sigma = largest / z (the same for the largest rate, error / sqrt(distance)). 1
  * (100 %) when no block was measured. */
 double rs_skyfill_sigma_from_blocks(int blocks, double largest_error);
 
-/* The standard uncertainty per radian of distance from the measured sky: the largest held-out
- * rate (cv_rate_*) of the method that filled (the row method when the model could not be fitted)
- * through rs_skyfill_sigma_from_blocks; -1 when no block was measured. */
+/* The standard uncertainty per square root of radian of distance from the measured sky: the
+ * largest held-out rate (cv_rate_*) of the method that filled (the row method when the model
+ * could not be fitted) through rs_skyfill_sigma_from_blocks; -1 when no block was measured. */
 double rs_skyfill_rate_used(const rs_skyfill_report *rep, rs_skyfill_method method);
 
 /* Per pixel of the map, the relative standard uncertainty of a filled value: the rate above times
- * its angle to the nearest source pixel (at least one skydist cell), at most 1; 1 for every
- * filled pixel when no rate was measured; 0 where not filled. A fill interpolates next to the
- * measured sky and extrapolates far from it, and held-out blocks show its error growing with
- * that distance. Returns 0, -1 out of memory. */
+ * the square root of its angle to the nearest source pixel (at least one skydist cell), at most
+ * 1; 1 for every filled pixel when no rate was measured; 0 where not filled. A fill interpolates
+ * next to the measured sky and extrapolates far from it: sqrt(d) is the kriging standard error of
+ * a field with a linear variogram. Returns 0, -1 out of memory. */
 int rs_skyfill_sigma_map(int w, int h, const uint8_t *src, const uint8_t *fill, const rs_skyfill_report *rep,
                          rs_skyfill_method method, float *sigma);
 

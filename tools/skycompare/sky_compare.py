@@ -79,13 +79,21 @@ METHOD = """## How the sky is completed (stages/irradiance: skyenv.c, skyfill.c,
   `ground_albedo` x E_horizontal / pi of the completed sky.
 - Uncertainty of the fill: the measured sky above the horizon is split into 8 azimuth sectors and
   the lowest 20 % (by solid angle); each block is held out in turn and predicted by both methods
-  from the rest (the model's harmonic order is the one with the smallest RMS error). The hidden
-  directions are one more block: the largest |relative error| of n blocks exceeds a new draw with
-  probability n / (n + 1) whatever the distribution, so the fill's standard uncertainty is that
-  largest error over the normal two-sided quantile z(n / (n + 1)) (1.64 for 9 blocks;
-  `sky_fill_sigma_used` in irradiance.json; the RMS, `sky_fill_sigma`, covered far too little).
-  `irradiance_sky_sigma` = that x the filled part of E_sky, one correlated error (a fill is off
-  smoothly, not pixel by pixel).
+  from the rest (the model's harmonic order is the one with the smallest RMS error). A fill
+  interpolates next to the measured sky and extrapolates far from it, so its error grows with
+  the angle d to the nearest measured direction (stages/irradiance/skydist.c, on a 128 x 64 grid):
+  each filled pixel gets a relative standard uncertainty `rate x sqrt(d)` (at most 1), the kriging
+  standard error of a field with a linear variogram. The rate comes from the blocks: each block's
+  |relative error| over the square root of its light-weighted mean d from the sky left. The hidden
+  directions are one more draw: the largest of n such rates exceeds a new one with probability
+  n / (n + 1) whatever the distribution, so the rate used is that largest over the normal two-sided
+  quantile z(n / (n + 1)) (1.64 for 9 blocks; `sky_fill_sigma_per_sqrt_rad` in irradiance.json, and
+  `sky_fill_sigma_used` the resulting mean relative uncertainty of the filled light). A flat
+  uncertainty (the largest block error over z, `sky_fill_sigma_flat`) covered the courtyard's heavily
+  filled facets too little and the lightly filled ones too much; growing linearly with d covered
+  the heavily filled ones on 98 % at 1 sigma.
+  `irradiance_sky_sigma` = the sum over the facet's filled directions of their light x their
+  uncertainty, one correlated error (a fill is off smoothly, not pixel by pixel).
 - The albedo's standard uncertainty, independent sources in quadrature:
   `albedo_sigma_rel = sqrt(albedo_sigma_floor^2 + radiance_sigma_rel^2 + (irradiance_sky_sigma^2 +
   irradiance_mc_sigma^2) / (E_sky + G)^2)`, where `radiance_sigma_rel` is the standard error of the
