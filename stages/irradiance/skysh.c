@@ -33,6 +33,7 @@ static void pixel_values(const rs_skyenv *env, size_t p, double v[RS_SKYSH_CHANN
     const float *L = env->radiance + 3 * p;
     for (int ch = 0; ch < 3; ch++) v[ch] = isfinite(L[ch]) ? L[ch] : 0;
     v[3] = env->filled && env->filled[p] ? lum3(v) : 0;
+    v[4] = env->fill_sigma_px ? v[3] * env->fill_sigma_px[p] : 0;   /* gather.h: fill_sigma_lum */
 }
 
 /* The map's pixel directions from per-row and per-column tables (pano.h's convention:
@@ -280,6 +281,7 @@ int rs_skysh_facet(const rs_skysh *sh, rs_v3 n, rs_facet_gather *out)
     for (int ch = 0; ch < 3; ch++) out->esky[ch] = e[ch] + es[ch];
     out->esky_lum = lum3(out->esky);
     out->filled_lum = e[3] + es[3];
+    out->fill_sigma_lum = fmax(0, e[4]) + es[4];
     out->sees_nothing = 1;
     out->sky_sh = 1;
     out->sh_sigma = bound * lum3(e);

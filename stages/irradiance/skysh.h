@@ -8,8 +8,9 @@
 #include "gather.h"
 #include "skyenv.h"
 
-/* Channels carried: R, G, B, and the luminance of the filled-in pixels (for sky_filled). */
-enum { RS_SKYSH_CHANNELS = 4, RS_SKYSH_COEFS = 9, RS_SKYSH_MAX_NORMALS = 1024 };
+/* Channels carried: R, G, B, the luminance of the filled-in pixels (for sky_filled), and that
+ * luminance times each pixel's fill uncertainty (for irradiance_sky_sigma). */
+enum { RS_SKYSH_CHANNELS = 5, RS_SKYSH_COEFS = 9, RS_SKYSH_MAX_NORMALS = 1024 };
 
 /* A facet's error bound is the worst error of the test normals within this angle of its normal
  * (about twice their spacing at 256 normals): the error varies with the normal no faster than
@@ -49,7 +50,7 @@ typedef struct rs_skysh {
  * normal's bound (rs_skysh_bound) is within tol. Returns 0, -1 when out of memory (err set). */
 int rs_skysh_build(const rs_skyenv *env, double tol, int normals, rs_skysh *sh, rs_err *err);
 
-/* Irradiance from the projection at unit world normal n: e[4] as the channels above (sun set
+/* Irradiance from the projection at unit world normal n: e as the channels above (sun set
  * included). Returns 0 and leaves e alone when n's plane cuts the sun set. */
 int rs_skysh_eval(const rs_skysh *sh, rs_v3 n, double e[RS_SKYSH_CHANNELS]);
 
