@@ -432,6 +432,7 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
         for (int ch = 0; ch < 3; ch++) out->esky[ch] *= inv;
         out->esky_lum *= inv;
         out->filled_lum *= inv;
+        out->fill_sigma_lum *= inv;
     }
     double w = M_PI / ((double)N * (1 << rounds));  /* cosine-weighted: E = pi * mean radiance */
     for (int ch = 0; ch < 3; ch++) out->gseen[ch] *= w;
