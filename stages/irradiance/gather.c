@@ -15,18 +15,17 @@ typedef struct {
     uint8_t unseen;            /* the radiance at the hit point was not read from the panorama */
 } hit_ref;
 
-/* Search guide of one sky distribution (Chen's indexed search): guide[b] is the first pixel k
- * with cdf[k + 1] > b / GUIDE_BUCKETS of the total, so that a pick searches only between
- * guide[b] and guide[b + 1] and gives the same pixel as a binary search over the whole map,
- * without its cache misses (the profile's top entry: 58 % of the gather at 1024 x 512). */
-enum { GUIDE_BUCKETS = 1 << 18 };
+/* The search guide a scratch uses for one distribution (skyenv.h: rs_skyenv_guide_build): the
+ * map's own when it has one, else one built here on first use (maps made by hand in tests). */
+enum { GUIDE_BUCKETS = RS_SKYENV_GUIDE_BUCKETS };
 typedef struct {
-    const double *cdf;         /* the distribution it was built for (NULL: not built) */
-    uint32_t guide[GUIDE_BUCKETS + 1];
+    const double *cdf;         /* the distribution it serves (NULL: none yet) */
+    const uint32_t *guide;
+    uint32_t own[GUIDE_BUCKETS + 1];
 } sky_guide;
 
 struct rs_gather_scratch {
-    sky_guide sky, sun;        /* cached on first use: a scratch serves one sky map for its life */
+    sky_guide sky, sun;        /* chosen on first use: a scratch serves one sky map for its life */
     const rs_mesh *box_mesh;   /* the mesh whose bounding box lo/hi holds (NULL: not computed) */
     float lo[3], hi[3];
     rs_ray *rays;
@@ -74,27 +73,29 @@ void rs_gather_scratch_free(rs_gather_scratch *s)
     free(s);
 }
 
-static void guide_build(sky_guide *g, const double *cdf, size_t npx)
+static const uint32_t *guide_for(sky_guide *g, const double *cdf, const uint32_t *shared, size_t npx)
 {
-    double total = cdf[npx];
-    size_t k = 0;
-    for (size_t b = 0; b <= GUIDE_BUCKETS; b++) {
-        double target = (double)b / GUIDE_BUCKETS * total;
-        while (k < npx && !(cdf[k + 1] > target)) k++;
-        g->guide[b] = (uint32_t)k;
+    if (g->cdf != cdf) {
+        if (shared) {
+            g->guide = shared;
+        } else {
+            rs_skyenv_guide_build(cdf, npx, g->own);
+            g->guide = g->own;
+        }
+        g->cdf = cdf;
     }
-    g->cdf = cdf;
+    return g->guide;
 }
 
 /* The pixel rs_skyenv_pick (or _pick_sun) returns for x, found through the guide: the first k
  * with cdf[k + 1] > x * total lies in [guide[b], guide[b + 1]] for b = floor(x * buckets). */
-static size_t guide_pick(sky_guide *g, const double *cdf, size_t npx, double x)
+static size_t guide_pick(sky_guide *g, const double *cdf, const uint32_t *shared, size_t npx, double x)
 {
-    if (g->cdf != cdf) guide_build(g, cdf, npx);
+    const uint32_t *guide = guide_for(g, cdf, shared, npx);
     double target = x * cdf[npx];
     size_t b = (size_t)(x * GUIDE_BUCKETS);
     if (b >= GUIDE_BUCKETS) b = GUIDE_BUCKETS - 1;
-    size_t lo = g->guide[b], hi = g->guide[b + 1];
+    size_t lo = guide[b], hi = guide[b + 1];
     while (lo < hi) {
         size_t mid = lo + (hi - lo) / 2;
         if (cdf[mid + 1] > target) hi = mid;
@@ -112,7 +113,8 @@ static size_t guide_pick(sky_guide *g, const double *cdf, size_t npx, double x)
 size_t rs_gather_pick(rs_gather_scratch *s, const rs_skyenv *env, int sun, double x)
 {
     size_t npx = (size_t)env->width * env->height;
-    return sun ? guide_pick(&s->sun, env->sun_cdf, npx, x) : guide_pick(&s->sky, env->cdf, npx, x);
+    return sun ? guide_pick(&s->sun, env->sun_cdf, env->sun_cdf_guide, npx, x)
+               : guide_pick(&s->sky, env->cdf, env->cdf_guide, npx, x);
 }
 
 /* 1 when nothing of the model lies above facet f's plane by more than half the ray offset:
@@ -145,19 +147,18 @@ static int sees_nothing(const rs_gather_ctx *g, rs_gather_scratch *s, rs_v3 n, r
  * the guide entries, then the first CDF probe of each range, then the searches. */
 static void guide_pick_batch(rs_gather_scratch *s, const rs_skyenv *env, int sun, const double *x, int stride, int B)
 {
-    sky_guide *g = sun ? &s->sun : &s->sky;
     const double *cdf = sun ? env->sun_cdf : env->cdf;
     size_t npx = (size_t)env->width * env->height;
-    if (g->cdf != cdf) guide_build(g, cdf, npx);
+    const uint32_t *guide = guide_for(sun ? &s->sun : &s->sky, cdf, sun ? env->sun_cdf_guide : env->cdf_guide, npx);
     for (int i = 0; i < B; i++) {
         size_t b = (size_t)(x[i * stride] * GUIDE_BUCKETS);
-        __builtin_prefetch(&g->guide[b < GUIDE_BUCKETS ? b : GUIDE_BUCKETS - 1]);
+        __builtin_prefetch(&guide[b < GUIDE_BUCKETS ? b : GUIDE_BUCKETS - 1]);
     }
     for (int i = 0; i < B; i++) {
         size_t b = (size_t)(x[i * stride] * GUIDE_BUCKETS);
         if (b >= GUIDE_BUCKETS) b = GUIDE_BUCKETS - 1;
-        s->range_lo[i] = g->guide[b];
-        s->range_hi[i] = g->guide[b + 1];
+        s->range_lo[i] = guide[b];
+        s->range_hi[i] = guide[b + 1];
         __builtin_prefetch(&cdf[s->range_lo[i] + (s->range_hi[i] - s->range_lo[i]) / 2 + 1]);
     }
     for (int i = 0; i < B; i++) {

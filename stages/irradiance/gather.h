@@ -65,9 +65,10 @@ rs_gather_scratch *rs_gather_scratch_new(size_t n);
 void rs_gather_scratch_free(rs_gather_scratch *s);
 
 /* The pixel rs_skyenv_pick (sun = 0) or rs_skyenv_pick_sun (sun = 1) returns for x in [0, 1),
- * found through a search guide cached in the scratch (built on first use; a scratch serves one
- * sky map for its life): the same pixel with one or two memory accesses instead of a binary
- * search's twenty over a map of millions of pixels. */
+ * found through the map's search guide (built with its distributions; a map without one gets
+ * one in the scratch on first use, and a scratch serves one sky map for its life): the same
+ * pixel with one or two memory accesses instead of a binary search's twenty over a map of
+ * millions of pixels. */
 size_t rs_gather_pick(rs_gather_scratch *s, const rs_skyenv *env, int sun, double x);
 
 /* Gathers facet f into *out (zeroed first). Degenerate facets get nothing. -1: out of memory. */

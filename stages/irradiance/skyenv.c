@@ -68,7 +68,24 @@ static int build_distributions(rs_skyenv *env)
         env->sun_cdf = NULL;
         env->sun_power = 0;
     }
+    size_t ng = RS_SKYENV_GUIDE_BUCKETS + 1;
+    if ((env->cdf && !(env->cdf_guide = malloc(ng * sizeof *env->cdf_guide))) ||
+        (env->sun_cdf && !(env->sun_cdf_guide = malloc(ng * sizeof *env->sun_cdf_guide))))
+        return -1;
+    if (env->cdf) rs_skyenv_guide_build(env->cdf, npx, env->cdf_guide);
+    if (env->sun_cdf) rs_skyenv_guide_build(env->sun_cdf, npx, env->sun_cdf_guide);
     return 0;
+}
+
+void rs_skyenv_guide_build(const double *cdf, size_t npx, uint32_t *guide)
+{
+    double total = cdf[npx];
+    size_t k = 0;
+    for (size_t b = 0; b <= RS_SKYENV_GUIDE_BUCKETS; b++) {
+        double target = (double)b / RS_SKYENV_GUIDE_BUCKETS * total;
+        while (k < npx && !(cdf[k + 1] > target)) k++;
+        guide[b] = (uint32_t)k;
+    }
 }
 
 /* Median of x[0..n) (reordered). */
@@ -395,6 +412,8 @@ void rs_skyenv_release(rs_skyenv *env)
     free(env->sun);
     free(env->cdf);
     free(env->sun_cdf);
+    free(env->cdf_guide);
+    free(env->sun_cdf_guide);
     memset(env, 0, sizeof *env);
 }
 

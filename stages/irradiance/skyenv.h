@@ -21,6 +21,8 @@ typedef struct rs_skyenv {
                                   in the sun set; NULL when not importance-sampled */
     double total_power;        /* cdf[W * H] */
     double *sun_cdf;           /* the same over the sun set; NULL when it is empty */
+    uint32_t *cdf_guide, *sun_cdf_guide;  /* search guides of cdf and sun_cdf
+                                             (rs_skyenv_guide_build), NULL with them */
     double sun_power;
     double sky_median;         /* median luminance of the measured sky pixels */
     size_t sky_pixels, filled_pixels, bright_pixels;
@@ -94,6 +96,14 @@ static inline size_t rs_skyenv_pixel(const rs_skyenv *env, rs_v3 d_world)
     rs_pano_world_to_pixel(&env->pose, env->width, env->height, d_world, &c, &r);
     return (size_t)r * env->width + c;
 }
+
+/* Search guide of a distribution (Chen's indexed search): guide[b] (b = 0 ..
+ * RS_SKYENV_GUIDE_BUCKETS) is the first pixel k with cdf[k + 1] > b / RS_SKYENV_GUIDE_BUCKETS of
+ * the total, so that a pick searches only between guide[b] and guide[b + 1] and finds the same
+ * pixel as a binary search over the whole map without its cache misses (gather.c). Built once
+ * per map: every thread of the gather reads it. */
+#define RS_SKYENV_GUIDE_BUCKETS (1u << 18)
+void rs_skyenv_guide_build(const double *cdf, size_t npx, uint32_t *guide);
 
 /* Picks a pixel outside (rs_skyenv_pick) or inside (rs_skyenv_pick_sun) the sun set with
  * probability proportional to luminance x solid angle, from x in [0,1). */

@@ -45,18 +45,26 @@ static void test_pick_matches_binary_search(void **state)
     rs_capture cap;
     rs_skyenv env;
     random_sky(512, &cap, &env);
-    rs_gather_scratch *s = rs_gather_scratch_new(16);
-    size_t mismatches = 0;
-    for (int sun = 0; sun < 2; sun++)
-        for (uint32_t k = 0; k < 200000; k++) {
-            double x = (rs_hash_u32(k * 2 + (uint32_t)sun) >> 8) / 16777216.0;
-            if (k < 1000) x = k / 1000.0;              /* bucket edges and 0 */
-            if (k == 1000) x = nextafter(1.0, 0.0);   /* the last representable x */
-            size_t a = rs_gather_pick(s, &env, sun, x), b = sun ? rs_skyenv_pick_sun(&env, x) : rs_skyenv_pick(&env, x);
-            mismatches += a != b;
-        }
-    assert_int_equal(mismatches, 0);
-    rs_gather_scratch_free(s);
+    assert_non_null(env.cdf_guide);
+    assert_non_null(env.sun_cdf_guide);
+    /* The map's own guides, then (a map made without them) guides built in the scratch. */
+    rs_skyenv bare = env;
+    bare.cdf_guide = bare.sun_cdf_guide = NULL;
+    for (int own = 0; own < 2; own++) {
+        const rs_skyenv *e = own ? &bare : &env;
+        rs_gather_scratch *s = rs_gather_scratch_new(16);
+        size_t mismatches = 0;
+        for (int sun = 0; sun < 2; sun++)
+            for (uint32_t k = 0; k < 200000; k++) {
+                double x = (rs_hash_u32(k * 2 + (uint32_t)sun) >> 8) / 16777216.0;
+                if (k < 1000) x = k / 1000.0;              /* bucket edges and 0 */
+                if (k == 1000) x = nextafter(1.0, 0.0);   /* the last representable x */
+                size_t a = rs_gather_pick(s, e, sun, x), b = sun ? rs_skyenv_pick_sun(e, x) : rs_skyenv_pick(e, x);
+                mismatches += a != b;
+            }
+        assert_int_equal(mismatches, 0);
+        rs_gather_scratch_free(s);
+    }
     rs_skyenv_release(&env);
     rs_capture_release(&cap);
 }
