@@ -155,7 +155,8 @@ rs_bench_truth *rs_bench_truth_new(const rs_bench_scene *sc, const rs_image *sky
     /* Only what the camera sees and the closure of the light paths ending there: the rest
      * cannot change a pixel (rs_gather_run), and at 10^6 facets it is most of the model. */
     camera_facets(scene, sc->camera, sky->width, sky->height, seen);
-    rs_gather_ctx g = {scene, &env, NULL, NULL, samples, sky_samples, sun_samples, seed, 0, 1, NULL};  /* rays only */
+    rs_gather_ctx g = {.scene = scene, .env = &env, .samples = samples, .sky_samples = sky_samples,
+                       .sun_samples = sun_samples, .seed = seed, .skip_convex = 1};  /* rays only */
     rs_gather_stats st;
     if (rs_gather_run(&g, nf, seen, fg, NULL, NULL, &st) != 0) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory gathering the truth kernel");

@@ -258,10 +258,16 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         rs_report_skip(rep, "sun sampling", "no sky pixel is brighter than %g x the median sky",
                        rs_config_real(cfg, "irradiance", "sun_threshold"));
 
-    rs_gather_ctx g = {scene, &env, &cap, ids->data, (int)rs_config_int(cfg, "irradiance", "samples"),
-                    (int)rs_config_int(cfg, "irradiance", "sky_samples"), sun_samples, (uint32_t)rs_config_int(cfg, "irradiance", "seed"),
-                    rs_config_real(cfg, "irradiance", "sun_target_error"), rs_config_bool(cfg, "irradiance", "skip_convex"),
-                    NULL};
+    rs_gather_ctx g = {.scene = scene,
+                       .env = &env,
+                       .cap = &cap,
+                       .facet_id = ids->data,
+                       .samples = (int)rs_config_int(cfg, "irradiance", "samples"),
+                       .sky_samples = (int)rs_config_int(cfg, "irradiance", "sky_samples"),
+                       .sun_samples = sun_samples,
+                       .seed = (uint32_t)rs_config_int(cfg, "irradiance", "seed"),
+                       .sun_target_error = rs_config_real(cfg, "irradiance", "sun_target_error"),
+                       .skip_convex = rs_config_bool(cfg, "irradiance", "skip_convex")};
     rs_skysh sh;                 /* [irradiance] sh_max_error: harmonics for facets that see only sky */
     memset(&sh, 0, sizeof sh);
     double sh_tol = rs_config_real(cfg, "irradiance", "sh_max_error");

@@ -27,7 +27,8 @@ static rs_skyenv uniform_env(int w, float L)
 static rs_facet_gather gather_one(const rs_scene *scene, const rs_skyenv *env, uint32_t f, int samples,
                                   int sun_samples)
 {
-    rs_gather_ctx g = {scene, env, NULL, NULL, samples, 64, sun_samples, 1, 0, 0};
+    rs_gather_ctx g = {.scene = scene, .env = env, .samples = samples, .sky_samples = 64,
+                       .sun_samples = sun_samples, .seed = 1};
     rs_gather_scratch *s = rs_gather_scratch_new((size_t)(samples > sun_samples ? samples : sun_samples));
     rs_facet_gather out;
     assert_int_equal(rs_gather_facet(&g, f, s, &out), 0);
