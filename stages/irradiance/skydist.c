@@ -11,23 +11,28 @@ int rs_skydist_to_source(int w, int h, const uint8_t *src, const uint8_t *target
 {
     int cw = w < RS_SKYDIST_CELLS_W ? w : RS_SKYDIST_CELLS_W;
     int chh = h < RS_SKYDIST_CELLS_W / 2 ? h : RS_SKYDIST_CELLS_W / 2;
-    size_t npx = (size_t)w * h, nc = (size_t)cw * chh;
+    size_t nc = (size_t)cw * chh;
     uint8_t *csrc = calloc(nc, 1), *ctgt = calloc(nc, 1);
     float *cdist = malloc(nc * sizeof *cdist);
     rs_v3 *dir = malloc(nc * sizeof *dir);
-    uint32_t *edge = malloc(nc * sizeof *edge);
-    if (!csrc || !ctgt || !cdist || !dir || !edge) {
+    uint32_t *edge = malloc(nc * sizeof *edge), *ccol = malloc((size_t)w * sizeof *ccol);
+    if (!csrc || !ctgt || !cdist || !dir || !edge || !ccol) {
         free(csrc);
         free(ctgt);
         free(cdist);
         free(dir);
         free(edge);
+        free(ccol);
         return -1;
     }
-    for (size_t k = 0; k < npx; k++) {
-        size_t c = (size_t)((k / (size_t)w) * chh / h) * cw + (k % (size_t)w) * cw / w;
-        csrc[c] |= src[k] != 0;
-        ctgt[c] |= target[k] != 0;
+    for (int x = 0; x < w; x++) ccol[x] = (uint32_t)((long)x * cw / w);   /* each column's cell */
+    for (int r = 0; r < h; r++) {
+        size_t row = (size_t)r * w, crow = (size_t)((long)r * chh / h) * cw;
+        for (int x = 0; x < w; x++) {
+            size_t c = crow + ccol[x];
+            csrc[c] |= src[row + x] != 0;
+            ctgt[c] |= target[row + x] != 0;
+        }
     }
     size_t nedge = 0;
     for (int i = 0; i < chh; i++)
@@ -56,14 +61,16 @@ int rs_skydist_to_source(int w, int h, const uint8_t *src, const uint8_t *target
         }
         cdist[c] = nsrc ? (float)acos(fmin(1, fmax(-1, best))) : (float)M_PI;
     }
-    for (size_t k = 0; k < npx; k++) {
-        size_t c = (size_t)((k / (size_t)w) * chh / h) * cw + (k % (size_t)w) * cw / w;
-        out[k] = target[k] ? cdist[c] : 0;
+    for (int r = 0; r < h; r++) {
+        size_t row = (size_t)r * w, crow = (size_t)((long)r * chh / h) * cw;
+        for (int x = 0; x < w; x++)
+            out[row + x] = target[row + x] ? cdist[crow + ccol[x]] : 0;
     }
     free(csrc);
     free(ctgt);
     free(cdist);
     free(dir);
     free(edge);
+    free(ccol);
     return 0;
 }
