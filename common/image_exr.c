@@ -378,6 +378,9 @@ int rs_image_write_exr(const rs_image *img, const char *path, const char *const 
     if (rv == EXR_ERR_SUCCESS)
         rv = exr_initialize_required_attr_simple(ctx, part, img->width, img->height,
                                                   EXR_COMPRESSION_ZIP);
+    /* zlib's fastest level: the default (6) spent half the render stage in deflate at 2048 x 1024
+     * (perf) for files about a tenth smaller. */
+    if (rv == EXR_ERR_SUCCESS) rv = exr_set_zip_compression_level(ctx, part, 1);
     for (int c = 0; c < img->channels && rv == EXR_ERR_SUCCESS; c++)
         rv = exr_add_channel(ctx, part, names[c], half ? EXR_PIXEL_HALF : EXR_PIXEL_FLOAT,
                              EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
