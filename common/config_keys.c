@@ -56,7 +56,7 @@ const rs_cfg_key rs_cfg_keys[] = {
      "close the hole below each scanner with the plane of its lowest ring, when that ground is flat"},
     {"mesh", "nadir_max_rms", RS_CFG_REAL, "0.02", 0, 10, NULL, "m", "mesh",
      "the lowest ring must lie within this RMS distance of a plane for the nadir fill"},
-    {"mesh", "denoise", RS_CFG_BOOL, "false", 0, 0, NULL, "", "mesh",
+    {"mesh", "denoise", RS_CFG_BOOL, "true", 0, 0, NULL, "", "mesh",
      "feature-preserving denoising of the simplified mesh: bilateral normal filter, then vertices follow the normals"},
     {"mesh", "denoise_iterations", RS_CFG_INT, "3", 1, 1000, NULL, "", "mesh",
      "denoise: passes of the bilateral filter over the face normals (faces sharing a vertex)"},

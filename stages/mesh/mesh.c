@@ -565,6 +565,8 @@ static int run_scan(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_log_info("%zu triangles -> %zu facets (mean edge %.3g m -> %.3g m)", grid->nfaces, simple->nfaces,
                 ss.mean_edge_in, ss.mean_edge_out);
 
+    /* Before the overlap dedup: filtered normals make two scans' leftover sheets parallel. */
+    if (denoise_mesh(cfg, simple, rep, err) != 0) goto out;
     if (c->nscans > 1) {
         size_t removed = 0, r1 = 1;
         /* Dropping a facet can uncover another pair behind it: a few passes. */
@@ -576,7 +578,6 @@ static int run_scan(const rs_config *cfg, rs_report *rep, rs_err *err)
         rs_json_set_int(rep->metrics, "faces", (long long)simple->nfaces);
         if (removed) rs_log_info("%zu facets dropped where two scans' simplified sheets still overlapped", removed);
     }
-    if (denoise_mesh(cfg, simple, rep, err) != 0) goto out;
     if (report_quality(cfg, c, simple, rep, err) != 0) goto out;
 
     t0 = rs_now();
