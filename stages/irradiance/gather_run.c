@@ -1,5 +1,6 @@
 /* gather_run: the gather of a whole model (rs_gather_run, gather.h): facets in Morton order on
- * all OpenMP threads, and the closure of the light paths that end at the facets a camera sees. */
+ * all OpenMP threads, the closure of the light paths that end at the facets a camera sees, and
+ * the Monte Carlo noise calibration that gathers a sample of facets again. */
 #include "gather.h"
 
 #include <math.h>
@@ -62,9 +63,10 @@ static uint32_t *morton_order(const rs_mesh *m, size_t nf)
     return order;
 }
 
-/* Gathers the listed facets in parallel; -1 when a thread ran out of memory. */
+/* Gathers the listed facets in parallel into fg[list[k]], or into fg[k] when by_position; -1 when
+ * a thread ran out of memory. */
 static int gather_list(const rs_gather_ctx *g, const uint32_t *list, size_t n, rs_facet_gather *fg,
-                       struct rs_progress *prog)
+                       int by_position, struct rs_progress *prog)
 {
     size_t scratch = (size_t)g->samples;
     if ((size_t)g->sky_samples > scratch) scratch = (size_t)g->sky_samples;
@@ -79,7 +81,7 @@ static int gather_list(const rs_gather_ctx *g, const uint32_t *list, size_t n, r
 #pragma omp for schedule(dynamic, 16)
         for (size_t k = 0; k < n; k++) {
             if (mine_failed || failed) continue;
-            if (rs_gather_facet(g, list[k], s, &fg[list[k]]) != 0) mine_failed = 1;
+            if (rs_gather_facet(g, list[k], s, &fg[by_position ? k : list[k]]) != 0) mine_failed = 1;
             if (prog && (k & 255) == 255) rs_progress_add(prog, 256);
         }
         if (mine_failed) {
@@ -106,7 +108,7 @@ int rs_gather_run(const rs_gather_ctx *g, size_t nf, const uint8_t *needed, rs_f
         for (size_t k = 0; k < nf; k++)
             if (state[order[k]] == 1) list[n++] = order[k];
         if (!n) break;
-        if (gather_list(g, list, n, fg, prog) != 0) goto out;
+        if (gather_list(g, list, n, fg, 0, prog) != 0) goto out;
         stats->waves++;
         stats->gathered += n;
         for (size_t k = 0; k < n; k++) state[list[k]] = 2;
@@ -126,4 +128,59 @@ out:
     free(list);
     free(state);
     return rc;
+}
+
+/* Luminance of E_sky + G with G's K part from observed facets' radiance (as rs_gather_mc_sigma). */
+static double facet_lum(const rs_facet_gather *fg, const double *radiance, const uint8_t *observed)
+{
+    double e = fg->esky_lum + 0.2126 * fg->gseen[0] + 0.7152 * fg->gseen[1] + 0.0722 * fg->gseen[2];
+    for (uint32_t q = 0; radiance && q < fg->nentries; q++) {
+        const rs_kentry *en = &fg->entries[q];
+        if (observed && !observed[en->col]) continue;
+        const double *L = radiance + 3 * (size_t)en->col;
+        e += en->k_unseen * (0.2126 * L[0] + 0.7152 * L[1] + 0.0722 * L[2]);
+    }
+    return e;
+}
+
+int rs_gather_mc_calibration(const rs_gather_ctx *g, size_t nf, const rs_facet_gather *fg, const double *radiance,
+                             const uint8_t *observed, size_t max_facets, double *factor, size_t *used)
+{
+    *factor = 1;
+    if (used) *used = 0;
+    size_t n = 0;
+    for (size_t f = 0; f < nf; f++) n += fg[f].rays > 0;
+    if (!n || !max_facets) return 0;
+    size_t stride = (n + max_facets - 1) / max_facets, m = 0;
+    uint32_t *list = malloc(((n + stride - 1) / stride + 1) * sizeof *list);
+    rs_facet_gather *again = calloc((n + stride - 1) / stride + 1, sizeof *again);
+    if (!list || !again) {
+        free(list);
+        free(again);
+        return -1;
+    }
+    for (size_t f = 0, k = 0; f < nf; f++)
+        if (fg[f].rays > 0 && k++ % stride == 0) list[m++] = (uint32_t)f;
+    rs_gather_ctx g2 = *g;
+    g2.seed = g->seed ^ 0x5bd1e995u;                /* an independent scrambling */
+    int rc = gather_list(&g2, list, m, again, 1, NULL);
+    double sum = 0;
+    size_t cnt = 0;
+    for (size_t k = 0; k < m; k++) {
+        const rs_facet_gather *a = &fg[list[k]], *b = &again[k];
+        double sa = rs_gather_mc_sigma(a, g->samples, radiance, observed);
+        double sb = rs_gather_mc_sigma(b, g->samples, radiance, observed);
+        double d = facet_lum(a, radiance, observed) - facet_lum(b, radiance, observed);
+        if (rc == 0 && sa + sb > 0) {
+            sum += d * d / (sa * sa + sb * sb);   /* var(E - E') = sa^2 + sb^2 */
+            cnt++;
+        }
+        free(again[k].entries);
+    }
+    free(list);
+    free(again);
+    if (rc != 0) return -1;
+    if (cnt) *factor = sqrt(sum / cnt);
+    if (used) *used = cnt;
+    return 0;
 }
