@@ -83,7 +83,14 @@ static int exr_pick_channels(const exr_attr_chlist_t *chl, const char *sel[3], i
 {
     int r = -1, g = -1, b = -1, y = -1, a = -1;
     for (int i = 0; i < chl->num_channels; i++) {
-        const char *s = chl->entries[i].name.str;
+        const exr_attr_chlist_entry_t *e = &chl->entries[i];
+        /* Any subsampled channel, even one not read: OpenEXR 3.1's decoder writes through a null
+         * pointer on such a file (fuzzing found it: corpus/image/segv-exr-subsampled-alpha.exr). */
+        if (e->x_sampling != 1 || e->y_sampling != 1)
+            return rs_err_set(err, RS_ERR_INPUT, name, 0,
+                              "EXR channel %s is subsampled (%d x %d): expected full resolution",
+                              e->name.str ? e->name.str : "?", e->x_sampling, e->y_sampling);
+        const char *s = e->name.str;
         if (!s) continue;
         if (strcmp(s, "R") == 0) r = i;
         else if (strcmp(s, "G") == 0) g = i;
@@ -108,14 +115,7 @@ static int exr_pick_channels(const exr_attr_chlist_t *chl, const char *sel[3], i
                           "EXR channels {%s}: expected R,G,B (A ignored), Y, or a single channel",
                           list);
     }
-    for (int k = 0; k < n; k++) {
-        const exr_attr_chlist_entry_t *e = &chl->entries[idx[k]];
-        if (e->x_sampling != 1 || e->y_sampling != 1)
-            return rs_err_set(err, RS_ERR_INPUT, name, 0,
-                              "EXR channel %s is subsampled (%d x %d): expected full resolution",
-                              e->name.str, e->x_sampling, e->y_sampling);
-        sel[k] = e->name.str;
-    }
+    for (int k = 0; k < n; k++) sel[k] = chl->entries[idx[k]].name.str;
     *nsel = n;
     return 0;
 }

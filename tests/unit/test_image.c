@@ -437,6 +437,18 @@ static void test_hdr_nul_header_zero_run(void **state)
     alarm(0);
 }
 
+/* Found by fuzzing (tests/fuzz/corpus/image/segv-exr-subsampled-alpha.exr): an EXR whose A
+ * channel is subsampled 1 x 2 crashed OpenEXR's decoder though A is never read; refused now. */
+static void test_exr_subsampled_channel(void **state)
+{
+    (void)state;
+    char path[4096];
+    snprintf(path, sizeof path, "%s/tests/fuzz/corpus/image/segv-exr-subsampled-alpha.exr", rs_test_source_dir());
+    rs_err err = {0};
+    assert_null(rs_image_read(path, &err));
+    assert_err_mentions(&err, path, "channel A is subsampled (1 x 2)");
+}
+
 /* Found by fuzzing (tests/fuzz/corpus/image/oom-png-huge-chunk.png): a PNG chunk that claims
  * 1 GB in a 150-byte file made stb allocate that much before reading it; now refused by size. */
 static void test_png_chunk_past_end(void **state)
@@ -791,6 +803,7 @@ int main(void)
         cmocka_unit_test(test_hdr_from_memory),
         cmocka_unit_test(test_hdr_nul_header_zero_run),
         cmocka_unit_test(test_png_chunk_past_end),
+        cmocka_unit_test(test_exr_subsampled_channel),
         cmocka_unit_test(test_png_linearised),
         cmocka_unit_test(test_jpeg_and_stb_guards),
         cmocka_unit_test(test_png_preview_round_trip),
