@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "fileio.h"
+#include "json.h"
 #include "stage.h"
 
 int rs_calib_panorama_path(const rs_config *cfg, const char *section, char *out, size_t n, rs_err *err)
@@ -159,4 +160,14 @@ int rs_calib_pose_read(const char *path, const char *section, rs_pose *pose, rs_
     }
     free(e);
     return rc;
+}
+
+void rs_calib_pose_json(struct rs_json *o, const rs_pose *pose)
+{
+    rs_json *p = rs_json_set_arr(o, "position");
+    rs_json_push_num(p, pose->position.x);
+    rs_json_push_num(p, pose->position.y);
+    rs_json_push_num(p, pose->position.z);
+    rs_json *r = rs_json_set_arr(o, "rotation");
+    for (int k = 0; k < 9; k++) rs_json_push_num(r, pose->rot[k]);
 }

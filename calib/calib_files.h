@@ -32,4 +32,9 @@ int rs_calib_pose_write(const char *path, const char *section, const rs_pose *po
 /* Errors: no block for the section, malformed lines. */
 int rs_calib_pose_read(const char *path, const char *section, rs_pose *pose, rs_err *err);
 
+/* A solved pose into a report object: "position" [x, y, z] (m) and "rotation" (camera -> world,
+ * row-major), as calib.json writes every pose it found. */
+struct rs_json;
+void rs_calib_pose_json(struct rs_json *o, const rs_pose *pose);
+
 #endif

@@ -70,12 +70,7 @@ static int register_capture(const rs_config *cfg, int width, int height, rs_repo
     rs_json_set_int(reg, "inliers", res.inliers);
     rs_json_set_num(reg, "rms_deg", res.rms_deg);
     rs_json_set_num(reg, "max_deg", res.max_deg);
-    rs_json *p = rs_json_set_arr(reg, "position");
-    rs_json_push_num(p, res.pose.position.x);
-    rs_json_push_num(p, res.pose.position.y);
-    rs_json_push_num(p, res.pose.position.z);
-    rs_json *r = rs_json_set_arr(reg, "rotation");
-    for (int k = 0; k < 9; k++) rs_json_push_num(r, res.pose.rot[k]);
+    rs_calib_pose_json(reg, &res.pose);
     if (seeded) {
         rs_json_set_num(reg, "shift_from_config_m", rs_v3_len(rs_v3_sub(res.pose.position, guess.position)));
         rs_json_set_num(reg, "turn_from_config_deg", rs_calib_rot_angle(res.pose.rot, guess.rot) * 180 / M_PI);

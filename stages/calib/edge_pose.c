@@ -97,12 +97,7 @@ int rs_calib_edge_pose_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_int(o, "iterations", res.iterations);
     rs_json_set_num(o, "turn_deg", res.turn_deg);
     rs_json_set_num(o, "shift_m", res.shift_m);
-    rs_json *p = rs_json_set_arr(o, "position");
-    rs_json_push_num(p, res.pose.position.x);
-    rs_json_push_num(p, res.pose.position.y);
-    rs_json_push_num(p, res.pose.position.z);
-    rs_json *r = rs_json_set_arr(o, "rotation");
-    for (int k = 0; k < 9; k++) rs_json_push_num(r, res.pose.rot[k]);
+    rs_calib_pose_json(o, &res.pose);
     rs_log_info("calib: edges refined the pose by %.3f deg and %.3f m in %d iterations (%.1f s): median chamfer "
                 "%.2f -> %.2f px at %d px wide, %ld model edge pixels", res.turn_deg, res.shift_m, res.iterations,
                 seconds, res.median_px_before, res.median_px_after, res.finest_width, res.model_edges);
