@@ -68,6 +68,7 @@ typedef struct {
     const char *sky;
     int width, threads, truth_factor, full;
     const char *rows;          /* comma-separated row names, NULL: by --sweep */
+    const char *sampling_ref;  /* row whose albedo, from another seed, measures sampling error */
     uint32_t seed;
 } bench_opts;
 
@@ -122,7 +123,13 @@ static double json_num(const char *path, const char *key)
 
 typedef struct {
     double albedo_err, albedo_p90, irr_err, estimable_share;
+    double sampling_err;       /* against the --sampling-ref albedo; NAN without one */
 } bench_err;
+
+/* The --sampling-ref run's albedo per facet (3 channels; NAN where not estimable). */
+typedef struct {
+    double *rho;
+} bench_ref;
 
 static int cmp_pair(const void *a, const void *b)
 {
@@ -131,8 +138,12 @@ static int cmp_pair(const void *a, const void *b)
 }
 
 /* Area-weighted mean relative albedo error (mean of the channels) and irradiance error
- * (luminance of E_sky + G) over the estimable facets, against the truth. */
-static int measure(const char *dir, const rs_bench_truth *t, bench_err *out, rs_err *err)
+ * (luminance of E_sky + G) over the estimable facets, against the truth; with ref, the same
+ * albedo error against ref's albedo: what sampling alone contributes, since both runs share
+ * every bias of the method and differ only in their random sequences. With copy_ref, the run's
+ * albedo is kept in copy_ref instead. */
+static int measure(const char *dir, const rs_bench_truth *t, const bench_ref *ref, bench_ref *copy_ref, bench_err *out,
+                   rs_err *err)
 {
     char path[PATH_MAX + 256];
     snprintf(path, sizeof path, "%s/albedo.ply", dir);
@@ -150,7 +161,15 @@ static int measure(const char *dir, const rs_bench_truth *t, bench_err *out, rs_
     if (rs_faceprop_get_rgb(ply, path, "albedo", nf, rho, err) || rs_faceprop_get_rgb(ply, path, "irradiance_sky", nf, es, err) ||
         rs_faceprop_get_rgb(ply, path, "irradiance_inter", nf, gi, err) || rs_faceprop_get(ply, path, "estimable", nf, est, err))
         goto out;
-    double sa = 0, se = 0, wsum = 0, area_all = 0;
+    if (copy_ref) {
+        copy_ref->rho = malloc(3 * nf * sizeof *copy_ref->rho);
+        if (!copy_ref->rho) {
+            rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
+            goto out;
+        }
+        for (size_t k = 0; k < 3 * nf; k++) copy_ref->rho[k] = est[k / 3] > 0 ? rho[k] : NAN;
+    }
+    double sa = 0, se = 0, wsum = 0, area_all = 0, ss = 0, wss = 0;
     size_t np = 0;
     for (size_t f = 0; f < nf; f++) {
         rs_v3 c, n;
@@ -167,6 +186,12 @@ static int measure(const char *dir, const rs_bench_truth *t, bench_err *out, rs_
         ee = fabs(eh - et) / et;
         sa += a * ea;
         se += a * ee;
+        if (ref && ref->rho[3 * f] > 0 && ref->rho[3 * f + 1] > 0 && ref->rho[3 * f + 2] > 0) {
+            double es3 = 0;
+            for (int ch = 0; ch < 3; ch++) es3 += fabs(rho[3 * f + ch] - ref->rho[3 * f + ch]) / ref->rho[3 * f + ch] / 3;
+            ss += a * es3;
+            wss += a;
+        }
         wsum += a;
         pairs[2 * np] = ea, pairs[2 * np + 1] = a, np++;
     }
@@ -179,6 +204,7 @@ static int measure(const char *dir, const rs_bench_truth *t, bench_err *out, rs_
             break;
         }
     out->albedo_err = wsum > 0 ? sa / wsum : NAN;
+    out->sampling_err = wss > 0 ? ss / wss : NAN;
     out->irr_err = wsum > 0 ? se / wsum : NAN;
     out->estimable_share = area_all > 0 ? wsum / area_all : 0;
     rc = 0;
@@ -262,6 +288,45 @@ out:
     return t;
 }
 
+/* Irradiance, reflectance and (with_render) render of one row: wall seconds, peak MB and CPU
+ * seconds per stage in t, m, c. seed_set, when not NULL, is one more override. */
+static int run_row(const bench_opts *o, const bench_row *row, const char *config, const char *seed_set, int with_render,
+                   double t[3], double m[3], double c[3])
+{
+    char sets[4][128], extra[512];
+    const char *sp[16];
+    int ns = 0;
+    snprintf(sets[0], sizeof sets[0], "irradiance.samples=%d", row->samples);
+    snprintf(sets[1], sizeof sets[1], "irradiance.sky_samples=%d", row->sky);
+    snprintf(sets[2], sizeof sets[2], "irradiance.sun_samples=%d", row->sun);
+    snprintf(sets[3], sizeof sets[3], "reflectance.method=%s", row->method);
+    for (; ns < 4; ns++) sp[ns] = sets[ns];
+    if (seed_set) sp[ns++] = seed_set;
+    snprintf(extra, sizeof extra, "%s", row->extra);
+    char *save = NULL;
+    for (char *tok = strtok_r(extra, " ", &save); tok && ns < 16; tok = strtok_r(NULL, " ", &save)) sp[ns++] = tok;
+    t[2] = m[2] = c[2] = 0;
+    if (run_stage(o, "irradiance", config, sp, ns, &t[0], &m[0], &c[0]) != 0 ||
+        run_stage(o, "reflectance", config, sp, ns, &t[1], &m[1], &c[1]) != 0)
+        return -1;
+    return with_render ? run_stage(o, "render", config, sp, ns, &t[2], &m[2], &c[2]) : 0;
+}
+
+static const bench_row *find_row(const char *name)
+{
+    for (size_t k = 0; k < sizeof SWEEP / sizeof *SWEEP; k++)
+        if (!strcmp(SWEEP[k].name, name)) return &SWEEP[k];
+    fprintf(stderr, "rhoscan-bench: unknown row '%s'\n", name);
+    return NULL;
+}
+
+static void print_err(rs_err *err)
+{
+    char msg[2048];
+    rs_err_format(err, msg, sizeof msg);
+    fprintf(stderr, "rhoscan-bench: %s\n", msg);
+}
+
 static int bench_size(const bench_opts *o, size_t facets, FILE *csv)
 {
     bench_row rows[sizeof SWEEP / sizeof *SWEEP];
@@ -269,14 +334,16 @@ static int bench_size(const bench_opts *o, size_t facets, FILE *csv)
     char names[1024], *save_rows = NULL;
     snprintf(names, sizeof names, "%s", o->rows ? o->rows : o->full ? FULL_ROWS : SCALE_ROWS);
     for (char *tok = strtok_r(names, ",", &save_rows); tok; tok = strtok_r(NULL, ",", &save_rows)) {
-        size_t k = 0;
-        while (k < sizeof SWEEP / sizeof *SWEEP && strcmp(SWEEP[k].name, tok)) k++;
-        if (k == sizeof SWEEP / sizeof *SWEEP) {
-            fprintf(stderr, "rhoscan-bench: --rows: unknown row '%s'\n", tok);
+        const bench_row *row = find_row(tok);
+        if (!row) return -1;
+        if (nrows == (int)(sizeof rows / sizeof *rows)) {
+            fprintf(stderr, "rhoscan-bench: --rows: more than %d rows\n", nrows);
             return -1;
         }
-        rows[nrows++] = SWEEP[k];
+        rows[nrows++] = *row;
     }
+    const bench_row *ref_row = o->sampling_ref ? find_row(o->sampling_ref) : NULL;
+    if (o->sampling_ref && !ref_row) return -1;
     char dir[PATH_MAX + 64], config[PATH_MAX + 96];
     snprintf(dir, sizeof dir, "%s/facets_%zu", o->work, facets);
     mkdir(o->work, 0777);
@@ -286,40 +353,39 @@ static int bench_size(const bench_opts *o, size_t facets, FILE *csv)
     size_t nf;
     rs_bench_truth *t = prepare(o, facets, rows, nrows, dir, &nf, &err);
     if (!t) {
-        char msg[2048];
-        rs_err_format(&err, msg, sizeof msg);
-        fprintf(stderr, "rhoscan-bench: %s\n", msg);
+        print_err(&err);
         return -1;
     }
+    bench_ref ref = {0};
     double t_mesh, t_obs, m_mesh, m_obs, c_mesh, c_obs;
     int rc = -1;
     if (run_stage(o, "mesh", config, NULL, 0, &t_mesh, &m_mesh, &c_mesh) != 0 ||
         run_stage(o, "observe", config, NULL, 0, &t_obs, &m_obs, &c_obs) != 0)
         goto out;
+    if (ref_row) {
+        /* Another seed than every row's, so that the reference's points are not a superset of a
+         * row's (scrambled Sobol prefixes would make the two errors correlate). */
+        char seed_set[64];
+        snprintf(seed_set, sizeof seed_set, "irradiance.seed=%u", (o->seed + 1000003u) & 0x7fffffffu);
+        double tt[3], mm[3], cc[3];
+        bench_err e;
+        if (run_row(o, ref_row, config, seed_set, 0, tt, mm, cc) != 0) goto out;
+        if (measure(dir, t, NULL, &ref, &e, &err) != 0) {
+            print_err(&err);
+            goto out;
+        }
+        fprintf(stderr, "rhoscan-bench: %zu facets sampling reference %s (%s): albedo err %.4f\n", nf, ref_row->name,
+                seed_set, e.albedo_err);
+    }
     for (int r = 0; r < nrows; r++) {
         const bench_row *row = &rows[r];
         if (!strcmp(row->method, "paper") && nf > 4000) continue;     /* O(m^3): [reflectance] paper_max_facets */
-        char sets[8][128], extra[512];
-        const char *sp[16];
-        int ns = 0;
-        snprintf(sets[0], sizeof sets[0], "irradiance.samples=%d", row->samples);
-        snprintf(sets[1], sizeof sets[1], "irradiance.sky_samples=%d", row->sky);
-        snprintf(sets[2], sizeof sets[2], "irradiance.sun_samples=%d", row->sun);
-        snprintf(sets[3], sizeof sets[3], "reflectance.method=%s", row->method);
-        for (; ns < 4; ns++) sp[ns] = sets[ns];
-        snprintf(extra, sizeof extra, "%s", row->extra);
-        char *save = NULL;
-        for (char *tok = strtok_r(extra, " ", &save); tok && ns < 16; tok = strtok_r(NULL, " ", &save)) sp[ns++] = tok;
-        double ti, tr, tn, mi, mr, mn, ci, cr, cn;
-        if (run_stage(o, "irradiance", config, sp, ns, &ti, &mi, &ci) != 0 ||
-            run_stage(o, "reflectance", config, sp, ns, &tr, &mr, &cr) != 0 ||
-            run_stage(o, "render", config, sp, ns, &tn, &mn, &cn) != 0)
-            goto out;
+        double tt[3], mm[3], cc[3];
+        if (run_row(o, row, config, NULL, 1, tt, mm, cc) != 0) goto out;
+        double ti = tt[0], tr = tt[1], tn = tt[2], mi = mm[0], mr = mm[1], mn = mm[2], ci = cc[0], cr = cc[1], cn = cc[2];
         bench_err e;
-        if (measure(dir, t, &e, &err) != 0) {
-            char msg[2048];
-            rs_err_format(&err, msg, sizeof msg);
-            fprintf(stderr, "rhoscan-bench: %s\n", msg);
+        if (measure(dir, t, ref_row ? &ref : NULL, NULL, &e, &err) != 0) {
+            print_err(&err);
             goto out;
         }
         char jp[PATH_MAX + 256];
@@ -327,17 +393,18 @@ static int bench_size(const bench_opts *o, size_t facets, FILE *csv)
         double rays = json_num(jp, "rays"), rps = json_num(jp, "rays_per_second");
         double peak = fmax(fmax(m_obs, mi), fmax(mr, mn)), total = t_obs + ti + tr + tn;
         fprintf(csv, "%zu,%s,%s,%d,%d,%d,%s,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.1f,%.0f,%.4g,%.5f,%.5f,"
-                     "%.5f,%.4f,%.1f,%.1f,%.1f,%.1f\n", nf, row->name, row->method, row->samples, row->sky, row->sun,
+                     "%.5f,%.4f,%.1f,%.1f,%.1f,%.1f,%.5f\n", nf, row->name, row->method, row->samples, row->sky, row->sun,
                 row->extra[0] ? row->extra : "-", o->threads, t_obs, ti, tr, tn, total, c_obs, ci, cr, cn, peak, rays,
-                rps, e.albedo_err, e.albedo_p90, e.irr_err, e.estimable_share, m_obs, mi, mr, mn);
+                rps, e.albedo_err, e.albedo_p90, e.irr_err, e.estimable_share, m_obs, mi, mr, mn, e.sampling_err);
         fflush(csv);
         fprintf(stderr, "rhoscan-bench: %zu facets %-12s total %7.2f s (obs %.2f irr %.2f refl %.2f render %.2f; cpu %.2f) "
-                        "peak %.0f MB (obs %.0f irr %.0f refl %.0f render %.0f)  albedo err %.4f  E err %.4f\n",
+                        "peak %.0f MB (obs %.0f irr %.0f refl %.0f render %.0f)  albedo err %.4f  E err %.4f  sampling err %.4f\n",
                 nf, row->name, total, t_obs, ti, tr, tn, c_obs + ci + cr + cn, peak, m_obs, mi, mr, mn, e.albedo_err,
-                e.irr_err);
+                e.irr_err, e.sampling_err);
     }
     rc = 0;
 out:
+    free(ref.rho);
     rs_bench_truth_free(t);
     return rc;
 }
@@ -346,6 +413,7 @@ static void usage(FILE *f)
 {
     fputs("usage: rhoscan-bench [--facets N[,N...]] [--sweep full|scale] [--rows R[,R...]] [--work DIR] [--csv FILE]\n"
           "                     [--sky FILE.hdr] [--width W] [--threads T] [--truth-factor F] [--seed S]\n"
+          "                     [--sampling-ref ROW]\n"
           "Procedural building scenes with a known albedo; runs observe, irradiance, reflectance and render\n"
           "per sweep row and appends one CSV line per run (header written when the file is new).\n"
           "  --facets     facet counts (default 2000)\n"
@@ -355,7 +423,9 @@ static void usage(FILE *f)
           "  --sky        an equirectangular HDR sky (e.g. ../shared/skies/pmndrs_park.hdr), or 'overcast'\n"
           "               (CIE overcast, no sun); default: a clear analytic sky with a sun\n"
           "  --width      panorama width (default 2048; height = width / 2)\n"
-          "  --truth-factor  truth kernel samples as a multiple of the sweep's largest (default 16)\n",
+          "  --truth-factor  truth kernel samples as a multiple of the sweep's largest (default 16)\n"
+          "  --sampling-ref ROW  run ROW first with another seed; each row's sampling_err is its albedo's\n"
+          "               area-weighted mean relative difference from ROW's (e.g. s1024: the sampling error alone)\n",
           f);
 }
 
@@ -367,7 +437,7 @@ int main(int argc, char **argv)
     static const struct option longopts[] = {
         {"facets", 1, 0, 'f'}, {"sweep", 1, 0, 'w'}, {"work", 1, 0, 'o'}, {"csv", 1, 0, 'c'},
         {"sky", 1, 0, 's'}, {"width", 1, 0, 'W'}, {"threads", 1, 0, 't'}, {"truth-factor", 1, 0, 'F'},
-        {"seed", 1, 0, 'S'}, {"rows", 1, 0, 'r'}, {"help", 0, 0, 'h'}, {0, 0, 0, 0}};
+        {"seed", 1, 0, 'S'}, {"rows", 1, 0, 'r'}, {"sampling-ref", 1, 0, 'R'}, {"help", 0, 0, 'h'}, {0, 0, 0, 0}};
     int c;
     o.csv[0] = 0;
     while ((c = getopt_long(argc, argv, "h", longopts, NULL)) != -1) {
@@ -382,6 +452,7 @@ int main(int argc, char **argv)
         case 'F': o.truth_factor = atoi(optarg); break;
         case 'S': o.seed = (uint32_t)strtoul(optarg, NULL, 10); break;
         case 'r': o.rows = optarg; break;
+        case 'R': o.sampling_ref = optarg; break;
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 1;
         }
@@ -406,7 +477,7 @@ int main(int argc, char **argv)
     if (fresh)
         fputs("facets,row,method,samples,sky_samples,sun_samples,extra,threads,t_observe,t_irradiance,"
               "t_reflectance,t_render,t_total,cpu_observe,cpu_irradiance,cpu_reflectance,cpu_render,peak_mb,rays,rays_per_s,albedo_err,albedo_err_p90,irradiance_err,"
-              "estimable_share,peak_observe_mb,peak_irradiance_mb,peak_reflectance_mb,peak_render_mb\n", csv);
+              "estimable_share,peak_observe_mb,peak_irradiance_mb,peak_reflectance_mb,peak_render_mb,sampling_err\n", csv);
     int rc = 0;
     char *save = NULL;
     for (char *tok = strtok_r(facets, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
