@@ -3,18 +3,20 @@
 
 rs_v3 rs_cosine_hemisphere(rs_v3 n, double x, double y)
 {
-    double a = 2 * x - 1, b = 2 * y - 1, r, phi;
+    /* Concentric map: (a, b) on the square's ring of radius r goes to angle phi on the disc,
+     * phi = (pi / 4) (b / a) when |a| > |b|, else pi / 2 - (pi / 4) (a / b). */
+    double a = 2 * x - 1, b = 2 * y - 1, dx, dy, s, c;
     if (a == 0 && b == 0) {
-        r = 0;
-        phi = 0;
+        dx = dy = 0;
     } else if (fabs(a) > fabs(b)) {
-        r = a;
-        phi = (M_PI / 4) * (b / a);
+        rs_sincos_pi(0.25 * (b / a), &s, &c);
+        dx = a * c;
+        dy = a * s;
     } else {
-        r = b;
-        phi = M_PI / 2 - (M_PI / 4) * (a / b);
+        rs_sincos_pi(0.25 * (a / b), &s, &c);     /* cos(pi/2 - v) = sin v, sin(pi/2 - v) = cos v */
+        dx = b * s;
+        dy = b * c;
     }
-    double dx = r * cos(phi), dy = r * sin(phi);
     double dz = sqrt(fmax(0.0, 1.0 - dx * dx - dy * dy));
     rs_v3 t, bt;
     rs_v3_basis(n, &t, &bt);
