@@ -33,7 +33,8 @@ int rs_read_file(const char *path, char **data, size_t *size, rs_err *err);
 /* 64-bit FNV-1a over bytes, chainable through seed (use RS_HASH_SEED to start). */
 #define RS_HASH_SEED 0xcbf29ce484222325ULL
 uint64_t rs_hash_bytes(const void *data, size_t n, uint64_t seed);
-/* Hash of a file's contents; 0 with *err set when unreadable. */
+/* 64-bit hash of a file's contents (word-wise, not rs_hash_bytes' value; for change
+ * detection); 0 with *err set when unreadable. */
 int rs_hash_file(const char *path, uint64_t *hash, rs_err *err);
 
 int rs_file_exists(const char *path);

@@ -3,10 +3,10 @@
 
 rs_v3 rs_pano_uv_to_dir(double u, double v)
 {
-    double phi = M_PI * (1.0 - 2.0 * u);
-    double theta = M_PI * v;
-    double st = sin(theta);
-    return rs_v3_make(st * cos(phi), st * sin(phi), cos(theta));
+    double sp, cp, st, ct;                         /* phi = pi (1 - 2 u), theta = pi v */
+    rs_sincos_pi(1.0 - 2.0 * u, &sp, &cp);
+    rs_sincos_pi(v, &st, &ct);
+    return rs_v3_make(st * cp, st * sp, ct);
 }
 
 void rs_pano_dir_to_uv(rs_v3 d, double *u, double *v)

@@ -142,7 +142,7 @@ static void fill_ray(struct RTCRay *er, const rs_ray *r)
 
 enum { BATCH = 256 };
 
-void rs_scene_intersect(const rs_scene *s, const rs_ray *rays, rs_hit *hits, size_t n)
+static void intersect(const rs_scene *s, const rs_ray *rays, rs_hit *hits, size_t n, enum RTCIntersectContextFlags flags)
 {
     struct RTCRayHit rh[BATCH];
     size_t map[BATCH];
@@ -162,7 +162,7 @@ void rs_scene_intersect(const rs_scene *s, const rs_ray *rays, rs_hit *hits, siz
         }
         if (!m) continue;
         rtcInitIntersectContext(&ctx);
-        ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+        ctx.flags = flags;
         rtcIntersect1M(s->scene, &ctx, rh, (unsigned)m, sizeof(struct RTCRayHit));
         for (size_t q = 0; q < m; q++) {
             if (rh[q].hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
@@ -174,6 +174,16 @@ void rs_scene_intersect(const rs_scene *s, const rs_ray *rays, rs_hit *hits, siz
             h->backface = rs_v3_dot(rays[map[q]].dir, rs_scene_normal(s, h->face)) > 0;
         }
     }
+}
+
+void rs_scene_intersect(const rs_scene *s, const rs_ray *rays, rs_hit *hits, size_t n)
+{
+    intersect(s, rays, hits, n, RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT);
+}
+
+void rs_scene_intersect_coherent(const rs_scene *s, const rs_ray *rays, rs_hit *hits, size_t n)
+{
+    intersect(s, rays, hits, n, RTC_INTERSECT_CONTEXT_FLAG_COHERENT);
 }
 
 void rs_scene_occluded(const rs_scene *s, const rs_ray *rays, uint8_t *occluded, size_t n)

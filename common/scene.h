@@ -34,6 +34,9 @@ rs_v3 rs_scene_normal(const rs_scene *s, uint32_t f);
 
 /* Closest hits of n rays. Rays with non-finite values get face = RS_NO_HIT. Thread-safe. */
 void rs_scene_intersect(const rs_scene *s, const rs_ray *rays, rs_hit *hits, size_t n);
+/* The same for rays that are coherent (a camera's neighbouring pixels, in order): Embree may then
+ * trace them as packets (the closest hits are the same, up to ties between triangles). */
+void rs_scene_intersect_coherent(const rs_scene *s, const rs_ray *rays, rs_hit *hits, size_t n);
 /* occluded[k] = 1 when something lies on ray k within (tnear, tfar). Thread-safe. */
 void rs_scene_occluded(const rs_scene *s, const rs_ray *rays, uint8_t *occluded, size_t n);
 

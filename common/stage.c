@@ -60,13 +60,6 @@ void rs_report_time(rs_report *rep, const char *step, double seconds)
     if (rep && rep->timings) rs_json_set_num(rep->timings, step, seconds);
 }
 
-const rs_stage_def *rs_stage_find(const char *name)
-{
-    for (const rs_stage_def *d = rs_stage_table; d->name; d++)
-        if (strcmp(d->name, name) == 0) return d;
-    return NULL;
-}
-
 int rs_workdir(const rs_config *cfg, char *out, size_t n, rs_err *err)
 {
     if (!rs_config_path(cfg, "pipeline", "workdir", out, n))
@@ -287,16 +280,12 @@ rs_config *rs_program_config(const char *path, const char *const *sets, int *exi
     return cfg;
 }
 
-int rs_stage_main(const char *stage, int argc, char **argv)
+int rs_stage_main(const rs_stage_def *def, int argc, char **argv)
 {
+    const char *stage = def->name;
     char prog[128];
     snprintf(prog, sizeof prog, "rhoscan-%s", stage);
     rs_log_init(prog);
-    const rs_stage_def *def = rs_stage_find(stage);
-    if (!def) {
-        fprintf(stderr, "%s: unknown stage\n", prog);
-        return 3;
-    }
     const char **sets = calloc((size_t)argc + 1, sizeof *sets);
     int nsets = 0, print_config = 0;
     const char *config = NULL;

@@ -35,7 +35,8 @@ typedef struct rs_stage_def {
     const char *help;
 } rs_stage_def;
 
-/* In pipeline order, ended by {NULL}. */
+/* In pipeline order, ended by {NULL} (stages/stages.c: it references every stage's code, so
+ * only the driver and the tests use it; a stage program passes its own def). */
 extern const rs_stage_def rs_stage_table[];
 const rs_stage_def *rs_stage_find(const char *name);
 
@@ -65,6 +66,6 @@ rs_config *rs_program_config(const char *path, const char *const *sets, int *exi
 
 /* Shared program entry for rhoscan-<stage>: options --set section.key=value (repeatable),
  * --print-config, --quiet, --verbose, --help; CONFIG anywhere among them. Returns the exit code. */
-int rs_stage_main(const char *stage, int argc, char **argv);
+int rs_stage_main(const rs_stage_def *def, int argc, char **argv);
 
 #endif

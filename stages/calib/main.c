@@ -1,7 +1,8 @@
 /* rhoscan-calib: the calib stage as a program (see stages.h and stage.h). */
-#include "stage.h"
+#include "stages.h"
 
 int main(int argc, char **argv)
 {
-    return rs_stage_main("calib", argc, argv);
+    static const rs_stage_def def = RS_STAGE_DEF_CALIB;
+    return rs_stage_main(&def, argc, argv);
 }

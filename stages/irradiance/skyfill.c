@@ -157,6 +157,22 @@ static int ground_fill(int w, int h, const rs_pose *pose, float *rad, const uint
     for (int b = 0; b < nb; b++)
         if (acc[4 * b + 3] > 0) rep->ground_from_albedo = 0;
     for (int ch = 0; ch < 3; ch++) rep->ground_rgb[ch] = rep->ground_from_albedo ? ground[ch] : 0;
+    /* Each band's nearest band with measured ground (below first, then above), found once per
+     * band: searched per pixel it was the stage's largest serial loop (perf: most of
+     * rs_skyfill_run's own time, up to nb steps for each of a million ground pixels). */
+    int *nearest = rep->ground_from_albedo ? NULL : malloc((size_t)nb * sizeof *nearest);
+    if (!rep->ground_from_albedo && !nearest) {
+        free(acc);
+        return -1;
+    }
+    for (int b = 0; nearest && b < nb; b++) {
+        int best = -1;
+        for (int dd = 0; dd < nb && best < 0; dd++) {
+            if (b - dd >= 0 && acc[4 * (b - dd) + 3] > 0) best = b - dd;
+            else if (b + dd < nb && acc[4 * (b + dd) + 3] > 0) best = b + dd;
+        }
+        nearest[b] = best;
+    }
     for (size_t k = 0; k < npx; k++) {
         if (!fill[k]) continue;
         rs_v3 d = pixel_world(w, h, pose, k);
@@ -164,17 +180,15 @@ static int ground_fill(int w, int h, const rs_pose *pose, float *rad, const uint
         const double *L = ground;
         double mean[3];
         if (!rep->ground_from_albedo) {
-            int b = (int)(asin(fmin(1, -d.z)) / (M_PI / 2) * nb), best = -1;
+            int b = (int)(asin(fmin(1, -d.z)) / (M_PI / 2) * nb);
             b = b >= nb ? nb - 1 : b;
-            for (int dd = 0; dd < nb && best < 0; dd++) {
-                if (b - dd >= 0 && acc[4 * (b - dd) + 3] > 0) best = b - dd;
-                else if (b + dd < nb && acc[4 * (b + dd) + 3] > 0) best = b + dd;
-            }
+            int best = nearest[b];
             for (int ch = 0; ch < 3; ch++) mean[ch] = acc[4 * best + ch] / acc[4 * best + 3];
             L = mean;
         }
         for (int ch = 0; ch < 3; ch++) rad[3 * k + ch] = (float)L[ch];
     }
+    free(nearest);
     free(acc);
     return 0;
 }

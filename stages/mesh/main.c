@@ -1,7 +1,8 @@
 /* rhoscan-mesh: the mesh stage as a program (see stages.h and stage.h). */
-#include "stage.h"
+#include "stages.h"
 
 int main(int argc, char **argv)
 {
-    return rs_stage_main("mesh", argc, argv);
+    static const rs_stage_def def = RS_STAGE_DEF_MESH;
+    return rs_stage_main(&def, argc, argv);
 }

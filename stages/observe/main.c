@@ -1,7 +1,8 @@
 /* rhoscan-observe: the observe stage as a program (see stages.h and stage.h). */
-#include "stage.h"
+#include "stages.h"
 
 int main(int argc, char **argv)
 {
-    return rs_stage_main("observe", argc, argv);
+    static const rs_stage_def def = RS_STAGE_DEF_OBSERVE;
+    return rs_stage_main(&def, argc, argv);
 }

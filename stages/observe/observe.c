@@ -16,10 +16,31 @@
 #include "scene.h"
 #include "stages.h"
 
-static int cmp_float(const void *a, const void *b)
+/* The k-th smallest of v[0..n) (what v[k] would be after sorting; reorders v): Hoare's
+ * selection, linear time, where the qsort it replaces took 5 % of this stage on 2 M pixels. */
+static float kth_smallest(float *v, size_t n, size_t k)
 {
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
+    size_t lo = 0, hi = n - 1;
+    while (lo < hi) {
+        float pivot = v[lo + (hi - lo) / 2];
+        size_t i = lo, j = hi;
+        while (i <= j) {
+            while (v[i] < pivot) i++;
+            while (v[j] > pivot) j--;
+            if (i <= j) {
+                float t = v[i];
+                v[i] = v[j];
+                v[j] = t;
+                i++;
+                if (j == 0) break;
+                j--;
+            }
+        }
+        if (k <= j) hi = j;
+        else if (k >= i) lo = i;
+        else break;                            /* v[j + 1 .. i - 1] all equal the pivot */
+    }
+    return v[k];
 }
 
 typedef struct {
@@ -48,9 +69,7 @@ static void trace_pixels(const rs_scene *scene, const rs_capture *cap, double co
     if (azi)
         for (int c = 0; c < w; c++)
             for (int s = 0; s < 5; s++) {
-                double phi = M_PI * (1.0 - 2.0 * ((c + sub[s][0]) / w));
-                azi[2 * (5 * c + s)] = cos(phi);
-                azi[2 * (5 * c + s) + 1] = sin(phi);
+                rs_sincos_pi(1.0 - 2.0 * ((c + sub[s][0]) / w), &azi[2 * (5 * c + s) + 1], &azi[2 * (5 * c + s)]);
             }
     rs_progress *prog = rs_progress_start("observe: tracing pixels", (size_t)h);
 #pragma omp parallel
@@ -61,11 +80,7 @@ static void trace_pixels(const rs_scene *scene, const rs_capture *cap, double co
         for (int r = 0; r < h; r++) {
             if (!rays || !hits) continue;
             double st[5], ct[5];
-            for (int s = 0; s < 5; s++) {
-                double theta = M_PI * ((r + sub[s][1]) / h);
-                st[s] = sin(theta);
-                ct[s] = cos(theta);
-            }
+            for (int s = 0; s < 5; s++) rs_sincos_pi((r + sub[s][1]) / h, &st[s], &ct[s]);
             for (int c = 0; c < w; c++)
                 for (int s = 0; s < 5; s++) {
                     const double *cs = azi ? azi + 2 * (5 * c + s) : NULL;   /* out of memory: the slow way */
@@ -77,7 +92,7 @@ static void trace_pixels(const rs_scene *scene, const rs_capture *cap, double co
                     ray->tnear = 0;
                     ray->tfar = INFINITY;
                 }
-            rs_scene_intersect(scene, rays, hits, (size_t)w * 5);
+            rs_scene_intersect_coherent(scene, rays, hits, (size_t)w * 5);
             double omega = rs_pano_pixel_solid_angle(w, h, r);
             for (int c = 0; c < w; c++) {
                 const rs_hit *hc = &hits[5 * c];
@@ -191,6 +206,14 @@ static double pixel_noise(const rs_scene *scene, const rs_capture *cap, const pi
 {
     int w = cap->pano->width, h = cap->pano->height;
     size_t npx = (size_t)w * h;
+    /* Pixel directions from a column and a row table, the products rs_pano_uv_to_dir forms:
+     * the same bits without five sin-cos pairs per pixel. */
+    double *azi = malloc((size_t)w * 2 * sizeof *azi), *pol = malloc((size_t)h * 2 * sizeof *pol);
+    for (int c = 0; azi && pol && c < w; c++) rs_sincos_pi(1.0 - 2.0 * ((c + 0.5) / w), &azi[2 * c + 1], &azi[2 * c]);
+    for (int r = 0; azi && pol && r < h; r++) rs_sincos_pi((r + 0.5) / h, &pol[2 * r], &pol[2 * r + 1]);
+#define PIXEL_DIR(c, r)                                                                                 \
+    (azi && pol ? rs_v3_make(pol[2 * (r)] * azi[2 * (c)], pol[2 * (r)] * azi[2 * (c) + 1], pol[2 * (r) + 1]) \
+                : rs_pano_uv_to_dir(((c) + 0.5) / w, ((r) + 0.5) / h))   /* out of memory: the slow way */
 #pragma omp parallel for schedule(dynamic, 8)
     for (int r = 0; r < h; r++)
         for (int c = 0; c < w; c++) {
@@ -199,7 +222,7 @@ static double pixel_noise(const rs_scene *scene, const rs_capture *cap, const pi
             const float *a = cap->pano->data + 3 * k;
             if (px[k].face == RS_NO_HIT || !px[k].smooth || !rs_capture_pixel_ok(a)) continue;
             rs_v3 n = rs_scene_normal(scene, px[k].face);
-            rs_v3 x = rs_v3_scale(rs_pose_dir_to_world(&cap->pose, rs_pano_uv_to_dir((c + 0.5) / w, (r + 0.5) / h)),
+            rs_v3 x = rs_v3_scale(rs_pose_dir_to_world(&cap->pose, PIXEL_DIR(c, r)),
                                   px[k].depth);
             const int nb[4][2] = {{0, 2}, {0, -2}, {2, 0}, {-2, 0}};
             double acc = 0;
@@ -211,7 +234,7 @@ static double pixel_noise(const rs_scene *scene, const rs_capture *cap, const pi
                 const float *b = cap->pano->data + 3 * k2;
                 if (px[k2].face == RS_NO_HIT || !px[k2].smooth || !rs_capture_pixel_ok(b)) continue;
                 if (rs_v3_dot(n, rs_scene_normal(scene, px[k2].face)) < 0.999) continue;
-                rs_v3 x2 = rs_v3_scale(rs_pose_dir_to_world(&cap->pose, rs_pano_uv_to_dir((c2 + 0.5) / w, (r2 + 0.5) / h)),
+                rs_v3 x2 = rs_v3_scale(rs_pose_dir_to_world(&cap->pose, PIXEL_DIR(c2, r2)),
                                        px[k2].depth);
                 if (fabs(rs_v3_dot(n, rs_v3_sub(x2, x))) > 0.01 * px[k].depth) continue;
                 double d2 = 0;
@@ -228,6 +251,9 @@ static double pixel_noise(const rs_scene *scene, const rs_capture *cap, const pi
             }
             if (pairs) noise2[k] = (float)(acc / pairs);
         }
+#undef PIXEL_DIR
+    free(azi);
+    free(pol);
     float *vals = malloc((npx ? npx : 1) * sizeof *vals);
     size_t nv = 0;
     if (!vals) return 0;
@@ -235,8 +261,7 @@ static double pixel_noise(const rs_scene *scene, const rs_capture *cap, const pi
         if (noise2[k] >= 0) vals[nv++] = noise2[k];
     double med = 0;
     if (nv) {
-        qsort(vals, nv, sizeof *vals, cmp_float);
-        med = vals[nv / 2];
+        med = kth_smallest(vals, nv, nv / 2);
     }
     free(vals);
     return med;

@@ -1,7 +1,8 @@
 /* rhoscan-reflectance: the reflectance stage as a program (see stages.h and stage.h). */
-#include "stage.h"
+#include "stages.h"
 
 int main(int argc, char **argv)
 {
-    return rs_stage_main("reflectance", argc, argv);
+    static const rs_stage_def def = RS_STAGE_DEF_REFLECTANCE;
+    return rs_stage_main(&def, argc, argv);
 }

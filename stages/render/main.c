@@ -1,7 +1,8 @@
 /* rhoscan-render: the render stage as a program (see stages.h and stage.h). */
-#include "stage.h"
+#include "stages.h"
 
 int main(int argc, char **argv)
 {
-    return rs_stage_main("render", argc, argv);
+    static const rs_stage_def def = RS_STAGE_DEF_RENDER;
+    return rs_stage_main(&def, argc, argv);
 }
