@@ -231,7 +231,11 @@ def main():
         for name, sdir, res in rows:
             sj = os.path.join(sdir, 'scene.json')
             desc = json.load(open(sj)) if os.path.exists(sj) else json.load(open(os.path.join(sdir, 'truth.json')))
-            fh.write('- %s: `%s`\n' % (name, json.dumps({k: desc[k] for k in ('env', 'camera') if k in desc})))
+            # The truth's own noise sets how much of the "actual error" is Cycles', not rhoscan's.
+            spp = json.load(open(os.path.join(sdir, 'truth.json'))).get('samples')
+            fh.write('- %s (%s Cycles samples per pixel): `%s`\n' % (
+                name, spp if spp is not None else 'unknown',
+                json.dumps({k: desc[k] for k in ('env', 'camera') if k in desc})))
     print('wrote ' + a.out)
 
 
