@@ -12,37 +12,10 @@
 #include "mesh.h"
 #include "faceprop.h"
 #include "log.h"
+#include "select.h"
 #include "stages.h"
 #include "transport.h"
 #include "render_uncertainty.h"
-
-/* The k-th smallest of v[0..n) (Hoare's selection, expected O(n)): the same value a full sort
- * puts at index k, for a fraction of the cost on a 2M-pixel panorama (the sort was a third of
- * this stage's CPU time at 2000 facets). v is reordered. */
-static float select_kth(float *v, size_t n, size_t k)
-{
-    size_t lo = 0, hi = n - 1;
-    while (lo < hi) {
-        float pivot = v[lo + (hi - lo) / 2];
-        size_t i = lo, j = hi;
-        while (i <= j) {
-            while (v[i] < pivot) i++;
-            while (v[j] > pivot) j--;
-            if (i <= j) {
-                float t = v[i];
-                v[i] = v[j];
-                v[j] = t;
-                i++;
-                if (j == 0) break;
-                j--;
-            }
-        }
-        if (k <= j) hi = j;
-        else if (k >= i) lo = i;
-        else break;
-    }
-    return v[k];
-}
 
 /* Exposure that maps the 99th percentile of the given pixels' luminance to 1. */
 static float auto_exposure(const rs_image *img, const float *ids)
@@ -56,7 +29,7 @@ static float auto_exposure(const rs_image *img, const float *ids)
         if ((!ids || ids[k] >= 0) && isfinite(y) && y > 0) v[m++] = y;
     }
     float e = 1;
-    if (m) e = 1.0f / select_kth(v, m, (size_t)(0.99 * (m - 1)));
+    if (m) e = 1.0f / rs_select_kth(v, m, (size_t)(0.99 * (m - 1)));
     free(v);
     return isfinite(e) && e > 0 ? e : 1;
 }

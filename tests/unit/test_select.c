@@ -1,0 +1,56 @@
+/* Tests of rs_select_kth: for every k, the value a full sort puts at index k, on random arrays,
+ * arrays with many equal values, sorted and reversed ones, and a single element. */
+#include <stdlib.h>
+#include <string.h>
+#include "select.h"
+#include "testutil.h"
+
+static int cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+static void check_all_k(const float *src, size_t n)
+{
+    float *sorted = malloc(n * sizeof *sorted), *work = malloc(n * sizeof *work);
+    assert_non_null(sorted);
+    assert_non_null(work);
+    memcpy(sorted, src, n * sizeof *sorted);
+    qsort(sorted, n, sizeof *sorted, cmp_float);
+    for (size_t k = 0; k < n; k++) {
+        memcpy(work, src, n * sizeof *work);
+        assert_true(rs_select_kth(work, n, k) == sorted[k]);
+    }
+    free(sorted);
+    free(work);
+}
+
+static void test_select_matches_sort(void **state)
+{
+    (void)state;
+    enum { N = 257 };
+    float v[N];
+    unsigned s = 12345;
+    for (int trial = 0; trial < 20; trial++) {
+        size_t n = 1 + (size_t)trial * 13 % N;
+        for (size_t k = 0; k < n; k++) {
+            s = s * 1103515245u + 12345u;
+            /* trials alternate between spread values and a handful of repeated ones */
+            v[k] = trial % 2 ? (float)((s >> 16) % 5) : (float)(s >> 8) / 16777216.0f;
+        }
+        check_all_k(v, n);
+    }
+    for (size_t k = 0; k < N; k++) v[k] = (float)k;
+    check_all_k(v, N);
+    for (size_t k = 0; k < N; k++) v[k] = (float)(N - k);
+    check_all_k(v, N);
+    for (size_t k = 0; k < N; k++) v[k] = 1.0f;
+    check_all_k(v, N);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {cmocka_unit_test(test_select_matches_sort)};
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
