@@ -229,7 +229,7 @@ def load_scene(path, blender_worlds=()):
         "scan_el_deg": _vec(scn, "elevation_deg", 2, "scanner", path),
         "scan_noise_m": _num(scn, "range_noise_m", "scanner", path, 0.003, lo=0.0),
         "samples": _num(sc, "samples", "scene", path, 256, lo=1, integer=True),
-        "env_samples": _num(sc, "env_samples", "scene", path, 16, lo=1, integer=True),
+        "env_samples": _num(sc, "env_samples", "scene", path, 256, lo=1, integer=True),
         "pano_size": _ints(sc, "pano_size", 2, "scene", path) if "pano_size" in sc else [1024, 512],
         "seed": _num(sc, "seed", "scene", path, 0, lo=0, integer=True),
         "exr_half": sc.get("exr_half", True),
