@@ -13,7 +13,7 @@
 #define CV_LOW_SHARE 0.2       /* the low band: this share of the measured sky's solid angle */
 #define CV_MIN_SR 0.01         /* a held-out block needs this much measured sky to count */
 #define FIT_CELLS_W 64         /* the model is fitted on a grid of at most 64 x 32 cells */
-#define CV_MAX_W 2048          /* held-out blocks are measured on a map at most this wide */
+#define CV_MAX_W 1024          /* held-out blocks are measured on a map at most this wide */
 
 static double lum(const float *rgb) { return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]; }
 
@@ -262,7 +262,9 @@ static int cross_validate_block(int w, int h, const rs_pose *pose, const float *
                                 double *e_model, double *dist_f)
 {
     size_t npx = (size_t)w * h;
-    uint8_t *src_f = malloc(npx), *fill_f = malloc(npx);
+    /* calloc, not malloc: GCC 12 does not see that the loop below writes every byte and warns
+     * (-Wmaybe-uninitialized) where rs_skydist_to_source reads them. */
+    uint8_t *src_f = calloc(npx, 1), *fill_f = calloc(npx, 1);
     float *tmp = malloc(3 * npx * sizeof *tmp);
     rs_skysample *samples = malloc(max_cells(w, h) * sizeof *samples);
     int rc = -1;

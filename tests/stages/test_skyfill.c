@@ -9,8 +9,8 @@
 #include "solar.h"
 #include "testutil.h"
 
-#define W 512
-#define H 256
+/* The panorama's size: 512 x 256 but for test_cv_on_coarser_map. */
+static int W = 512, H = 256;
 
 static const double truth_perez[3][5] = {{-1, -0.30, 12, -3.2, 0.45}, {-1, -0.32, 10, -3.0, 0.45},
                                          {-1, -0.36, 8, -2.8, 0.5}};
@@ -385,11 +385,48 @@ static void test_solar_position(void **state)
     assert_true(fabs(d.x - 1) < 1e-12 && fabs(d.y) < 1e-12);
 }
 
+/* Held-out blocks of a panorama wider than 1024 are measured on a map box-filtered to 1024
+ * (skyfill.c, CV_MAX_W): the same sky at 2048 x 1024 gives the held-out errors, the fill's
+ * uncertainty rate and the harmonic order that 1024 x 512 gives directly. */
+static void test_cv_on_coarser_map(void **state)
+{
+    (void)state;
+    const double sun_az = 30, sun_el = 8;
+    double rel[2], rate[2];
+    int order[2];
+    for (int i = 0; i < 2; i++) {
+        W = i ? 2048 : 1024;
+        H = W / 2;
+        rs_capture cap = make_capture(sun_dir(sun_az, sun_el));
+        float *ids = courtyard_ids(sun_az);
+        rs_err err;
+        rs_skyenv env;
+        rs_skyenv_info info;
+        rs_skyenv_opts o = opts(RS_SKYFILL_MODEL);
+        assert_int_equal(rs_skyenv_build_opts(&cap, ids, &o, &env, &info, &err), 0);
+        rel[i] = info.fill.cv_rel_model;
+        rate[i] = rs_skyfill_rate_used(&info.fill, RS_SKYFILL_MODEL);
+        order[i] = info.fill.model.sh_order;
+        print_message("%d x %d: held-out error %.4f, rate %.4f per sqrt(radian), order %d (%d blocks)\n", W, H,
+                      rel[i], rate[i], order[i], info.fill.cv_folds);
+        assert_int_equal(info.fill.cv_folds, 9);
+        rs_skyenv_release(&env);
+        free(ids);
+        rs_capture_release(&cap);
+    }
+    W = 512;
+    H = 256;
+    assert_true(rel[0] > 0 && fabs(rel[1] / rel[0] - 1) < 0.05);
+    assert_true(rate[0] > 0 && fabs(rate[1] / rate[0] - 1) < 0.05);
+    assert_int_equal(order[1], order[0]);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_low_sun_courtyard),
         cmocka_unit_test(test_fill_sigma_grows_with_distance),
+        cmocka_unit_test(test_cv_on_coarser_map),
         cmocka_unit_test(test_sky_panorama),
         cmocka_unit_test(test_two_captures),
         cmocka_unit_test(test_find_hidden_sun),
