@@ -185,6 +185,9 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"sky", "sun_irradiance", RS_CFG_REAL, NULL, 0, 1e12, NULL, "pano x sr", "irradiance",
      "clipped sun: its direct normal irradiance in the panorama's radiance unit x sr (W m^-2 for W m^-2 sr^-1), "
      "e.g. from a pyrheliometer; the disc leaves the sky map and each facet gets DNI max(0, n.s) V"},
+    {"sky", "sun_color", RS_CFG_VEC3, "1 1 1", 0, 0, NULL, "", "irradiance",
+     "with sun_irradiance: the sun's colour (linear RGB of the panorama, any scale, each >= 0); scaled to "
+     "luminance 1, so that sun_irradiance stays the luminance of its DNI. A low sun is red"},
     {"sky", "sun_clip_level", RS_CFG_REAL, NULL, 0, 1e30, NULL, "pano", "irradiance",
      "with sun_irradiance: luminance from which sky pixels are the clipped disc; default 0.9 x the brightest near the sun"},
     {"sky", "sun_mask_deg", RS_CFG_REAL, "4", 0, 45, NULL, "deg", "irradiance",

@@ -75,6 +75,15 @@ int rs_sunsource_setup(const rs_config *cfg, rs_capture *cap, const float *facet
     if (!rs_config_has(cfg, "sky", "sun_irradiance")) return 0;
     sun->active = 1;
     sun->dni = rs_config_real(cfg, "sky", "sun_irradiance");
+    double col[3];
+    rs_config_reals(cfg, "sky", "sun_color", col);
+    float colf[3] = {(float)col[0], (float)col[1], (float)col[2]};
+    double col_lum = rs_skyenv_luminance(colf);
+    if (!(col[0] >= 0 && col[1] >= 0 && col[2] >= 0 && col_lum > 0))
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                          "[sky] sun_color = %g %g %g: expected three values >= 0, not all 0", col[0], col[1],
+                          col[2]);
+    for (int ch = 0; ch < 3; ch++) sun->rgb[ch] = col[ch] / col_lum;
     sun->halo_factor = rs_config_real(cfg, "irradiance", "sun_threshold");
     sun->cone_rad = rs_config_real(cfg, "irradiance", "sun_max_cone_deg") * M_PI / 180;
     size_t npx = (size_t)cap->pano->width * cap->pano->height;
@@ -107,8 +116,9 @@ int rs_sunsource_setup(const rs_config *cfg, rs_capture *cap, const float *facet
     }
     rs_sunsource_remove(sun, cap, facet_id, 1);
     double el = asin(fmax(-1, fmin(1, sun->dir_world.z))) * 180 / M_PI;
-    rs_log_info("irradiance: explicit sun of %g (DNI) at elevation %.2f deg (%s); %zu panorama pixels "
-                "(%.3g sr) of its disc and halo removed, holding %.3g of it", sun->dni, el, sun->dir_from,
+    rs_log_info("irradiance: explicit sun of %g (DNI; colour %.3g %.3g %.3g) at elevation %.2f deg (%s); %zu "
+                "panorama pixels (%.3g sr) of its disc and halo removed, holding %.3g of it", sun->dni, sun->rgb[0],
+                sun->rgb[1], sun->rgb[2], el, sun->dir_from,
                 sun->removed_px, sun->removed_sr, sun->removed_power);
     if (sun->removed_px == 0)
         rs_log_warn("irradiance: no bright sky pixel within %.2f deg of the given sun: is the sun hidden, or its "
@@ -199,8 +209,8 @@ int rs_sunsource_add(const rs_sunsource *sun, const rs_scene *scene, int rays, u
             int open = 0;
             for (int i = 0; i < rays; i++) open += !occl[i];
             double e = sun->dni * cosn * open / rays;
-            for (int ch = 0; ch < 3; ch++) fg[f].esky[ch] += e;
-            fg[f].esky_lum += e;              /* a grey sun: its luminance is its value */
+            for (int ch = 0; ch < 3; ch++) fg[f].esky[ch] += e * sun->rgb[ch];
+            fg[f].esky_lum += e;              /* rgb has luminance 1 */
         }
         free(ray);
         free(occl);
@@ -218,6 +228,8 @@ void rs_sunsource_report(const rs_sunsource *sun, rs_json *metrics)
     rs_json_push_num(d, sun->dir_world.y);
     rs_json_push_num(d, sun->dir_world.z);
     rs_json_set_str(o, "direction_from", sun->dir_from);
+    rs_json *c = rs_json_set_arr(o, "color_at_unit_luminance");
+    for (int ch = 0; ch < 3; ch++) rs_json_push_num(c, sun->rgb[ch]);
     rs_json_set_num(o, "clip_level", sun->clip_level);
     rs_json_set_int(o, "removed_pixels", (long long)sun->removed_px);
     rs_json_set_num(o, "removed_solid_angle_sr", sun->removed_sr);

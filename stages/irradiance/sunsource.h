@@ -18,7 +18,8 @@
 
 typedef struct rs_sunsource {
     int active;                /* 0: no [sky] sun_irradiance, everything here does nothing */
-    double dni;                /* direct normal irradiance, the panorama's radiance unit x sr */
+    double dni;                /* direct normal irradiance (luminance), the panorama's radiance unit x sr */
+    double rgb[3];             /* [sky] sun_color at luminance 1: the DNI per channel is dni x rgb */
     rs_v3 dir_world;           /* unit, toward the sun */
     const char *dir_from;      /* "config", "solar position" or "clipped disc" */
     double clip_level;         /* luminance from which a capture pixel is the clipped disc */
@@ -30,7 +31,7 @@ typedef struct rs_sunsource {
                                   what the panorama had of the sun (a lower bound when clipped) */
 } rs_sunsource;
 
-/* Reads [sky] sun_irradiance and sun_clip_level; when set, takes the sun's direction from fill
+/* Reads [sky] sun_irradiance, sun_color and sun_clip_level; when set, takes the sun's direction from fill
  * (the config's azimuth and elevation or the solar position, when fill->sun_given) or else from
  * the centroid of the largest blob of capture sky pixels at or above the clip level (and then
  * sets fill->sun_given and sun_dir, so the fill knows where the removed sun was), and removes
@@ -46,7 +47,7 @@ int rs_sunsource_setup(const rs_config *cfg, rs_capture *cap, const float *facet
  * sun (and their solid angle and power when count_power). Does nothing when !sun->active. */
 size_t rs_sunsource_remove(rs_sunsource *sun, rs_capture *c, const float *facet_id, int count_power);
 
-/* Adds E_sun = dni max(0, n.s) V to E_sky (all three channels and its luminance) of every
+/* Adds E_sun = dni rgb max(0, n.s) V to E_sky (each channel, and dni max(0, n.s) V to its luminance) of every
  * gathered facet (fg[f].rays > 0 or fg[f].sky_sh), V being the share of rays shadow rays (from Sobol points on
  * the facet toward Sobol points on the sun's disc) that escape. rays >= 1. -1: out of memory. */
 int rs_sunsource_add(const rs_sunsource *sun, const rs_scene *scene, int rays, uint32_t seed, size_t nf,

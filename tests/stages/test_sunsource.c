@@ -1,6 +1,7 @@
 /* [sky] sun_irradiance: a synthetic sky whose sun is clipped. Without the key a roof's E_sky
  * lacks the clipped energy; with it (sun placed by the config or by the clipped disc) E_sky is
- * within 1 % of the analytic value, and a facet in the roof's shadow gets no sun term. */
+ * within 1 % of the analytic value, and a facet in the roof's shadow gets no sun term.
+ * [sky] sun_color gives each channel its share of the DNI. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -70,9 +71,9 @@ static void write_scene(const char *dir, double *dni, double *clipped_dni)
                   "skip_unseen = false\n[sky]\nfill = row\n");
 }
 
-/* Runs the pipeline up to irradiance with extra --set options; reads E_sky (green) per facet
- * and the facet centroids. */
-static void run(const char *dir, const char *sets, double **esky, rs_v3 **centroid, size_t *nf)
+/* Runs the pipeline up to irradiance with extra --set options; reads E_sky of channel ch per
+ * facet and the facet centroids. */
+static void run_channel(const char *dir, const char *sets, int ch, double **esky, rs_v3 **centroid, size_t *nf)
 {
     char cmd[8192], *out = NULL;
     snprintf(cmd, sizeof cmd, "cd '%s' && '%s/rhoscan' run --force %s scene.ini", dir, rs_test_bin_dir(), sets);
@@ -95,11 +96,17 @@ static void run(const char *dir, const char *sets, double **esky, rs_v3 **centro
         rs_v3 n;
         double a;
         rs_mesh_face(m, f, &(*centroid)[f], &n, &a);
-        (*esky)[f] = rgb[3 * f + 1];
+        (*esky)[f] = rgb[3 * f + ch];
     }
     free(rgb);
     rs_ply_free(ply);
     rs_mesh_free(m);
+}
+
+/* The same for the green channel. */
+static void run(const char *dir, const char *sets, double **esky, rs_v3 **centroid, size_t *nf)
+{
+    run_channel(dir, sets, 1, esky, centroid, nf);
 }
 
 /* Mean E over the facets whose centroid lies in the box. */
@@ -182,6 +189,42 @@ static void test_clipped_sun(void **state)
     rs_test_rmtree(dir);
 }
 
+/* A coloured sun: each channel of the roof's E_sky gains dni x sin(el) x its share of the colour
+ * at luminance 1 (the sky is grey), within 1 %; a black colour is an error naming the key. */
+static void test_sun_color(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("sunsource");
+    double dni, clipped;
+    write_scene(dir, &dni, &clipped);
+    const double col[3] = {2.0, 1.0, 0.5}, lum = 0.2126 * col[0] + 0.7152 * col[1] + 0.0722 * col[2];
+    double s = sin(SUN_EL_DEG * M_PI / 180);
+    char sets[512];
+    snprintf(sets, sizeof sets, "--set sky.sun_irradiance=%.9g --set sky.sun_azimuth_deg=0 --set "
+             "sky.sun_elevation_deg=%g --set 'sky.sun_color=%g %g %g'", dni, SUN_EL_DEG, col[0], col[1], col[2]);
+    for (int ch = 0; ch < 3; ch++) {
+        double *e;
+        rs_v3 *c;
+        size_t nf;
+        /* Rerunning with the same settings is skipped by the driver; the work folder is reread. */
+        run_channel(dir, sets, ch, &e, &c, &nf);
+        double roof = mean_in(e, c, nf, -2, -1, -1, 1, 0.5, 1.5), expect = M_PI * L_SKY + dni * s * col[ch] / lum;
+        print_message("channel %d: roof E_sky %.4f, expected %.4f\n", ch, roof, expect);
+        assert_true(fabs(roof - expect) < 0.01 * expect);
+        free(e);
+        free(c);
+    }
+    char cmd[4096], *out = NULL;
+    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/rhoscan' run --force %s --set 'sky.sun_color=0 0 0' scene.ini", dir,
+             rs_test_bin_dir(), sets);
+    int rc = rs_test_run(cmd, &out);
+    print_message("exit %d: %s\n", rc, out);
+    assert_int_equal(rc, 1);
+    assert_non_null(strstr(out, "sun_color"));
+    free(out);
+    rs_test_rmtree(dir);
+}
+
 /* The key without a direction on a panorama with nothing clipped is an error naming it. */
 static void test_no_sun_found(void **state)
 {
@@ -205,6 +248,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_clipped_sun),
+        cmocka_unit_test(test_sun_color),
         cmocka_unit_test(test_no_sun_found),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
