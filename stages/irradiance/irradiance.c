@@ -304,9 +304,26 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_progress_end(prog);
     double gather_s = rs_now() - t0;
     rs_report_time(rep, "gather", gather_s);
-    if (failed || rs_sunsource_add(&sun, scene, sun_samples, (uint32_t)rs_config_int(cfg, "irradiance", "seed"), nf,
-                                   fg) != 0) {
+    if (failed) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory during the gather");
+        goto out;
+    }
+    /* Before the explicit sun is added: the second gather has no sun term, and its difference
+     * from the first must be noise alone (with the sun in one of them the factor was 12 to 24). */
+    double mc_factor;
+    size_t mc_facets;
+    t0 = rs_now();
+    if (rs_gather_mc_calibration(&g, nf, fg, radiance, observed, 512, &mc_factor, &mc_facets) != 0) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory measuring the gather's noise");
+        goto out;
+    }
+    rs_report_time(rep, "mc_calibration", rs_now() - t0);
+    rs_json_set_num(rep->metrics, "mc_sigma_factor", mc_factor);
+    rs_json_set_int(rep->metrics, "mc_calibration_facets", (long long)mc_facets);
+    rs_log_info("irradiance: Monte Carlo noise from %zu facets gathered twice: %.3g x the independent-sample formula",
+                mc_facets, mc_factor);
+    if (rs_sunsource_add(&sun, scene, sun_samples, (uint32_t)rs_config_int(cfg, "irradiance", "seed"), nf, fg) != 0) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory adding the explicit sun");
         goto out;
     }
     if (gs.gathered < nf)
@@ -409,18 +426,6 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_num(rep->metrics, "sky_fill_sigma_used", fl > 0 ? fs / fl : 0);
     rs_json_set_num(rep->metrics, "sky_cv_max_row", info.fill.cv_max_row);
     rs_json_set_num(rep->metrics, "sky_cv_max_model", info.fill.cv_max_model);
-    double mc_factor;
-    size_t mc_facets;
-    t0 = rs_now();
-    if (rs_gather_mc_calibration(&g, nf, fg, radiance, observed, 512, &mc_factor, &mc_facets) != 0) {
-        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory measuring the gather's noise");
-        goto out;
-    }
-    rs_report_time(rep, "mc_calibration", rs_now() - t0);
-    rs_json_set_num(rep->metrics, "mc_sigma_factor", mc_factor);
-    rs_json_set_int(rep->metrics, "mc_calibration_facets", (long long)mc_facets);
-    rs_log_info("irradiance: Monte Carlo noise from %zu facets gathered twice: %.3g x the independent-sample formula",
-                mc_facets, mc_factor);
     rc = write_outputs(cfg, mesh, fg, radiance, observed, fill_rate, mc_factor, rep, err);
 out:
     if (fg)
