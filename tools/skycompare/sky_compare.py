@@ -5,7 +5,10 @@ usage: sky_compare.py --bin BUILD --shared SHARED --out docs/SKY.md --work DIR N
 
 Each SCENE_DIR is a tools/refscene output (pano.exr, env.exr, scan.ptx, truth.ply, truth.json).
 For every scene, rhoscan runs from the scan (ingest, mesh, observe once; irradiance and reflectance
-per method; no render) with [sky] fill = row, fill = model, and "true sky":
+per method; no render) with [sky] fill = row, fill = model, fill = model with the sun measured
+from the scene's sky file ("model + measured sun": its DNI, colour and direction as
+sun_irradiance, sun_color, sun_azimuth_deg, sun_elevation_deg, as a pyrheliometer and the solar
+position would give them; when the file is at hand and has a sun), and "true sky":
 env.exr (the sky alone, rendered from the camera with the model hidden) given as the [sky]
 panorama, placed 1 km above the camera so that only the model's ground hides any of it. The
 shared evaluator (SHARED/tools/eval_albedo.py) measures the area-weighted mean relative albedo
@@ -52,6 +55,53 @@ def per_facet_error(shared, truth_ply, albedo_ply):
     rel = (np.abs(alb - t) / np.maximum(t, 1e-6)).mean(1)
     area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
     return rel[sel], fp['albedo_sigma_rel'][sel], fp['albedo_bound80_rel'][sel], fp['sky_filled'][sel], area[sel]
+
+
+def sky_file(shared, name):
+    """The path a refscene env.file names ('shared:', 'blender-data:'), or None when absent."""
+    if name.startswith('shared:'):
+        path = os.path.join(shared, name[len('shared:'):])
+    elif name.startswith('blender-data:'):
+        folder = os.environ.get('RS_BLENDER_WORLDS', '/usr/share/blender/datafiles/studiolights/world')
+        path = os.path.join(folder, name[len('blender-data:'):])
+    else:
+        return None
+    return path if os.path.exists(path) else None
+
+
+def measured_sun(shared, env):
+    """What a pyrheliometer (a 2.5 degree half-angle field of view) and the solar position would
+    give for the scene's sky: the sun's direct normal irradiance (luminance, the panorama's unit x
+    sr), its colour and its world direction, from the sky file's pixels within 2.5 degrees of the
+    brightest one and above 50 x the median sky (disc and halo). None when the file is absent or
+    the sky has no sun: a DNI below 0.065 x the diffuse horizontal irradiance is Perez's first
+    clearness bin (epsilon < 1.065), an overcast sky."""
+    import OpenImageIO as oiio
+    path = sky_file(shared, env['file'])
+    if path is None:
+        return None
+    img = oiio.ImageBuf(path).get_pixels(oiio.FLOAT)[..., :3] * env.get('strength', 1.0)
+    H, W = img.shape[:2]
+    polar = np.pi * (np.arange(H) + 0.5) / H
+    az = np.pi * (1 - 2 * (np.arange(W) + 0.5) / W)
+    om = ((np.pi / H) * (2 * np.pi / W) * np.sin(polar))[:, None] * np.ones((1, W))
+    L = img @ np.array([0.2126, 0.7152, 0.0722])
+    d = np.stack([np.sin(polar)[:, None] * np.cos(az)[None, :], np.sin(polar)[:, None] * np.sin(az)[None, :],
+                  np.cos(polar)[:, None] * np.ones((1, W))], -1)
+    peak = np.unravel_index(np.argmax(L), L.shape)
+    sun = (L > 50 * np.median(L[:H // 2])) & (d @ d[peak] > np.cos(np.radians(2.5)))
+    if not sun.any():
+        return None
+    w = L * om * sun
+    c = (d * w[..., None]).sum((0, 1))
+    c /= np.linalg.norm(c)
+    rgb = (img * (om * sun)[..., None]).sum((0, 1))
+    dhi = (L * om * ~sun * np.maximum(d[..., 2], 0)).sum()
+    if rgb @ [0.2126, 0.7152, 0.0722] < 0.065 * dhi:
+        return None
+    azimuth = np.degrees(np.arctan2(c[1], c[0])) - env.get('rotation_z_deg', 0)
+    azimuth = (azimuth + 180) % 360 - 180
+    return float(rgb @ [0.2126, 0.7152, 0.0722]), rgb, float(azimuth), float(np.degrees(np.arcsin(c[2])))
 
 
 def calibrated_ratio(sig):
@@ -137,6 +187,14 @@ def main():
         rot = ' '.join('%.17g' % (0 if abs(v) < 1e-12 else v) for row in R for v in row)
         cam = truth['camera_position']
         wdir = os.path.join(a.work, name)
+        scene_methods = list(methods)
+        sun = measured_sun(a.shared, truth['env']) if truth.get('env') else None
+        if sun is not None:
+            dni, rgb, az, el = sun
+            scene_methods.append(('model + measured sun', [
+                '--set', 'sky.fill=model', '--set', 'sky.sun_irradiance=%.9g' % dni,
+                '--set', 'sky.sun_color=%.9g %.9g %.9g' % tuple(rgb), '--set', 'sky.sun_azimuth_deg=%.6f' % az,
+                '--set', 'sky.sun_elevation_deg=%.6f' % el]))
         os.makedirs(wdir, exist_ok=True)
         cfg = os.path.join(wdir, 'scene.ini')
         with open(cfg, 'w') as fh:
@@ -153,7 +211,7 @@ def main():
         if not (a.reuse and os.path.exists(os.path.join(work, 'observe.ply'))):
             for stage in ('ingest', 'mesh', 'observe'):  # shared by the methods; render is not needed
                 run([rhoscan, 'run', '--only', stage, cfg], log)
-        for m, sets in methods + [('true sky', true_sky)]:
+        for m, sets in scene_methods + [('true sky', true_sky)]:
             for stage in ('irradiance', 'reflectance'):
                 run([rhoscan, 'run', '--only', stage, cfg] + sets, log)
             kept = os.path.join(wdir, 'albedo_%s.ply' % m.replace(' ', '_'))
@@ -180,7 +238,11 @@ def main():
     with open(a.out, 'w') as fh:
         fh.write('# Sky completion: albedo error by fill method\n\n'
                  'Generated by `tools/skycompare/sky_compare.py` (do not edit by hand). Each scene runs from its scan '
-                 'with `[sky] fill = row`, `fill = model`, and with the true sky: env.exr (the environment alone, '
+                 'with `[sky] fill = row`, `fill = model`, `fill = model` with the sun measured as a pyrheliometer '
+                 'and the solar position would give it ("model + measured sun": `sun_irradiance`, `sun_color`, '
+                 '`sun_azimuth_deg`, `sun_elevation_deg` from the sky file\'s pixels within 2.5 degrees of its '
+                 'brightest and above 50 x the median sky, disc and halo; no row for a sky without a sun, '
+                 'DNI < 0.065 x the diffuse horizontal irradiance), and with the true sky: env.exr (the environment alone, '
                  'rendered from the camera with the model hidden) as `[sky] panorama`. Errors are the shared '
                  'evaluator\'s area-weighted mean relative albedo error over interior facets (`eval_albedo.py`); '
                  '"worst part" is the largest per-part mean. "sky filled" is the area-weighted mean share of E_sky '
