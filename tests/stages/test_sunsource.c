@@ -135,6 +135,19 @@ static char *read_text(const char *path)
     return buf;
 }
 
+/* rhoscan run in dir with sets fails with exit 1 and a message naming both words. */
+static void expect_input_error(const char *dir, const char *sets, const char *word1, const char *word2)
+{
+    char cmd[4096], *out = NULL;
+    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/rhoscan' run --force %s scene.ini", dir, rs_test_bin_dir(), sets);
+    int rc = rs_test_run(cmd, &out);
+    print_message("exit %d: %s\n", rc, out);
+    assert_int_equal(rc, 1);
+    assert_non_null(strstr(out, word1));
+    assert_non_null(strstr(out, word2));
+    free(out);
+}
+
 static void test_clipped_sun(void **state)
 {
     (void)state;
@@ -221,14 +234,8 @@ static void test_sun_color(void **state)
         free(e);
         free(c);
     }
-    char cmd[4096], *out = NULL;
-    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/rhoscan' run --force %s --set 'sky.sun_color=0 0 0' scene.ini", dir,
-             rs_test_bin_dir(), sets);
-    int rc = rs_test_run(cmd, &out);
-    print_message("exit %d: %s\n", rc, out);
-    assert_int_equal(rc, 1);
-    assert_non_null(strstr(out, "sun_color"));
-    free(out);
+    strncat(sets, " --set 'sky.sun_color=0 0 0'", sizeof sets - strlen(sets) - 1);
+    expect_input_error(dir, sets, "sun_color", "expected three values >= 0");
     rs_test_rmtree(dir);
 }
 
@@ -239,15 +246,8 @@ static void test_no_sun_found(void **state)
     const char *dir = rs_test_tmpdir("sunsource");
     double dni, clipped;
     write_scene(dir, &dni, &clipped);
-    char cmd[4096], *out = NULL;
-    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/rhoscan' run --set sky.sun_irradiance=10 --set sky.sun_clip_level=1e9 "
-             "scene.ini", dir, rs_test_bin_dir());
-    int rc = rs_test_run(cmd, &out);
-    print_message("exit %d: %s\n", rc, out);
-    assert_int_equal(rc, 1);
-    assert_non_null(strstr(out, "sun_irradiance"));
-    assert_non_null(strstr(out, "sun_azimuth_deg"));
-    free(out);
+    expect_input_error(dir, "--set sky.sun_irradiance=10 --set sky.sun_clip_level=1e9", "sun_irradiance",
+                       "sun_azimuth_deg");
     rs_test_rmtree(dir);
 }
 
