@@ -183,7 +183,7 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"sky", "north_deg", RS_CFG_REAL, "90", -360, 360, NULL, "deg", "irradiance",
      "world azimuth atan2(y, x) of geographic north (90: +Y is north)"},
     {"sky", "sun_irradiance", RS_CFG_REAL, NULL, 0, 1e12, NULL, "pano x sr", "irradiance",
-     "clipped sun: its direct normal irradiance in the panorama's radiance unit x sr (W m^-2 for W m^-2 sr^-1), "
+     "clipped or hidden sun: its direct normal irradiance in the panorama's radiance unit x sr (W m^-2 for W m^-2 sr^-1), "
      "e.g. from a pyrheliometer; the disc leaves the sky map and each facet gets DNI max(0, n.s) V"},
     {"sky", "sun_color", RS_CFG_VEC3, "1 1 1", 0, 0, NULL, "", "irradiance",
      "with sun_irradiance: the sun's colour (linear RGB of the panorama, any scale, each >= 0); scaled to "
