@@ -57,35 +57,27 @@ def per_facet_error(shared, truth_ply, albedo_ply):
     return rel[sel], fp['albedo_sigma_rel'][sel], fp['albedo_bound80_rel'][sel], fp['sky_filled'][sel], area[sel]
 
 
-def sky_file(shared, name):
-    """The path a refscene env.file names ('shared:', 'blender-data:'), or None when absent."""
-    if name.startswith('shared:'):
-        path = os.path.join(shared, name[len('shared:'):])
-    elif name.startswith('blender-data:'):
-        folder = os.environ.get('RS_BLENDER_WORLDS', '/usr/share/blender/datafiles/studiolights/world')
-        path = os.path.join(folder, name[len('blender-data:'):])
-    else:
-        return None
-    return path if os.path.exists(path) else None
-
-
-def measured_sun(shared, env):
+def measured_sun(env, json_path):
     """What a pyrheliometer (a 2.5 degree half-angle field of view) and the solar position would
     give for the scene's sky: the sun's direct normal irradiance (luminance, the panorama's unit x
     sr), its colour and its world direction, from the sky file's pixels within 2.5 degrees of the
     brightest one and above 50 x the median sky (disc and halo). None when the file is absent or
     the sky has no sun: a DNI below 0.065 x the diffuse horizontal irradiance is Perez's first
-    clearness bin (epsilon < 1.065), an overcast sky."""
+    clearness bin (epsilon < 1.065), an overcast sky. json_path: the scene's JSON, for a file
+    named relative to it."""
     import OpenImageIO as oiio
-    path = sky_file(shared, env['file'])
-    if path is None:
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', 'refscene'))
+    from scenedesc import resolve_path      # refscene's own reading of env.file
+    path = resolve_path(env['file'], json_path)
+    if not os.path.isfile(path):
         return None
     img = oiio.ImageBuf(path).get_pixels(oiio.FLOAT)[..., :3] * env.get('strength', 1.0)
     H, W = img.shape[:2]
     polar = np.pi * (np.arange(H) + 0.5) / H
     az = np.pi * (1 - 2 * (np.arange(W) + 0.5) / W)
     om = ((np.pi / H) * (2 * np.pi / W) * np.sin(polar))[:, None] * np.ones((1, W))
-    L = img @ np.array([0.2126, 0.7152, 0.0722])
+    lum = np.array([0.2126, 0.7152, 0.0722])
+    L = img @ lum
     d = np.stack([np.sin(polar)[:, None] * np.cos(az)[None, :], np.sin(polar)[:, None] * np.sin(az)[None, :],
                   np.cos(polar)[:, None] * np.ones((1, W))], -1)
     peak = np.unravel_index(np.argmax(L), L.shape)
@@ -96,12 +88,12 @@ def measured_sun(shared, env):
     c = (d * w[..., None]).sum((0, 1))
     c /= np.linalg.norm(c)
     rgb = (img * (om * sun)[..., None]).sum((0, 1))
-    dhi = (L * om * ~sun * np.maximum(d[..., 2], 0)).sum()
-    if rgb @ [0.2126, 0.7152, 0.0722] < 0.065 * dhi:
+    dni = float(rgb @ lum)
+    if dni < 0.065 * (L * om * ~sun * np.maximum(d[..., 2], 0)).sum():   # DHI
         return None
     azimuth = np.degrees(np.arctan2(c[1], c[0])) - env.get('rotation_z_deg', 0)
     azimuth = (azimuth + 180) % 360 - 180
-    return float(rgb @ [0.2126, 0.7152, 0.0722]), rgb, float(azimuth), float(np.degrees(np.arcsin(c[2])))
+    return dni, rgb, float(azimuth), float(np.degrees(np.arcsin(c[2])))
 
 
 def calibrated_ratio(sig):
@@ -177,6 +169,7 @@ def main():
     ap.add_argument('--reuse', action='store_true', help='keep the mesh and observation of an earlier run')
     ap.add_argument('scenes', nargs='+', help='NAME=SCENE_DIR')
     a = ap.parse_args()
+    os.environ['RHOSCAN_SHARED'] = os.path.abspath(a.shared)   # where refscene's 'shared:' names point
     os.makedirs(a.work, exist_ok=True)
     rows, unc = [], []
     methods = [('row', ['--set', 'sky.fill=row']), ('model', ['--set', 'sky.fill=model'])]
@@ -188,7 +181,7 @@ def main():
         cam = truth['camera_position']
         wdir = os.path.join(a.work, name)
         scene_methods = list(methods)
-        sun = measured_sun(a.shared, truth['env']) if truth.get('env') else None
+        sun = measured_sun(truth['env'], os.path.join(sdir, 'scene.json')) if truth.get('env') else None
         if sun is not None:
             dni, rgb, az, el = sun
             scene_methods.append(('model + measured sun', [
