@@ -516,3 +516,14 @@ double rs_gather_mc_sigma(const rs_facet_gather *fg, int samples, const double *
     double mean = s1 / n, var_cos = fmax(0, s2 / n - mean * mean) / n;
     return sqrt(var_cos + fg->map_var);
 }
+
+void rs_gather_inter_observed(const rs_facet_gather *fg, const double *radiance, const uint8_t *observed,
+                              double g[3])
+{
+    for (int ch = 0; ch < 3; ch++) g[ch] = fg->gseen[ch];
+    for (uint32_t q = 0; q < fg->nentries; q++) {
+        const rs_kentry *en = &fg->entries[q];
+        if (observed[en->col])
+            for (int ch = 0; ch < 3; ch++) g[ch] += en->k_unseen * radiance[3 * en->col + ch];
+    }
+}

@@ -80,6 +80,12 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
  * radiance[3 j..] when observed[j] (both may be NULL: they then carry 0). */
 double rs_gather_mc_sigma(const rs_facet_gather *fg, int samples, const double *radiance, const uint8_t *observed);
 
+/* G of a gathered facet from observed facets: the panorama readings (gseen) plus K_ij L_j for
+ * the hits the camera did not see, over observed j (unobserved ones are the reflectance
+ * stage's job). E_sky + G is what the albedo divides by. */
+void rs_gather_inter_observed(const rs_facet_gather *fg, const double *radiance, const uint8_t *observed,
+                              double g[3]);
+
 /* The independent-sample formula overstates the error of the scrambled Sobol sequences, by a
  * factor that depends on the scene (2.4 to 3.2 on the reference scenes, 1.25 on a test floor).
  * This measures it: every stride-th gathered facet (at most max_facets) is gathered again with
