@@ -45,8 +45,8 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
         for (int ch = 0; ch < 3; ch++) {
             esky[3 * f + ch] = fg[f].esky[ch];
             gseen[3 * f + ch] = fg[f].gseen[ch];
-            g[3 * f + ch] = fg[f].gseen[ch];
         }
+        rs_gather_inter_observed(&fg[f], radiance, observed, g + 3 * f);
         filled[f] = fg[f].esky_lum > 0 ? fg[f].filled_lum / fg[f].esky_lum : 0;
         sigma[f] = fg[f].fill_sigma_lum;       /* rs_facet_gather: summed, not in quadrature */
         /* Monte Carlo noise of E_sky + G (rays toward unobserved facets count 0 here), the
@@ -54,11 +54,6 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
         mc[f] = mc_factor *
                 rs_gather_mc_sigma(&fg[f], (int)rs_config_int(cfg, "irradiance", "samples"), radiance, observed);
         if (fg[f].sky_sh) mc[f] = fg[f].sh_sigma;   /* no rays: the projection's measured error bound */
-        for (uint32_t q = 0; q < fg[f].nentries; q++) {
-            const rs_kentry *en = &fg[f].entries[q];
-            if (observed[en->col])      /* unobserved facets are the reflectance stage's job */
-                for (int ch = 0; ch < 3; ch++) g[3 * f + ch] += en->k_unseen * radiance[3 * en->col + ch];
-        }
     }
     rs_ply_element *faces = rs_mesh_to_ply(mesh, ply);
     if (!faces || rs_faceprop_add_rgb(faces, "irradiance_sky", esky) != 0 ||
@@ -134,6 +129,41 @@ static int sky_fill_options(const rs_config *cfg, rs_skyfill_opts *o, rs_err *er
     o->sun_given = 1;
     o->sun_dir = rs_solar_world_dir(az, el, rs_config_real(cfg, "sky", "north_deg"));
     rs_log_info("irradiance: sun at azimuth %.2f, elevation %.2f degrees (NOAA solar position for %s)", az, el, when);
+    return 0;
+}
+
+/* The explicit sun's term, its DNI first estimated from the shadows when no one gave it. */
+static int add_explicit_sun(const rs_config *cfg, rs_report *rep, rs_sunsource *sun, const rs_scene *scene,
+                            const rs_capture *cap, rs_facet_gather *fg, const double *radiance,
+                            const uint8_t *observed, rs_err *err)
+{
+    const rs_mesh *mesh = rs_scene_mesh(scene);
+    size_t nf = mesh->nfaces;
+    float *vis = malloc((nf ? nf : 1) * sizeof *vis);
+    double t0 = rs_now();
+    if (!vis || rs_sunsource_visibility(sun, scene, (int)rs_config_int(cfg, "irradiance", "sun_samples"),
+                                        (uint32_t)rs_config_int(cfg, "irradiance", "seed"), nf, fg, vis) != 0 ||
+        (sun->from_shadows &&
+         rs_sunsource_from_shadows(sun, mesh, vis, fg, radiance, observed, cap->pose.position, cap->pano->height) != 0)) {
+        free(vis);
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory adding the explicit sun");
+    }
+    if (sun->from_shadows) {
+        const rs_sunshadow *e = &sun->shadow;
+        if (sun->shadow_rc == 0)
+            rs_log_info("irradiance: sun from the shadows: DNI %.4g +- %.2g (colour %.3g %.3g %.3g) from %zu lit "
+                        "facets paired with shadowed ones within %.2f m on their plane (%zu blocks; margin %.2f m)",
+                        sun->dni, e->sigma_lum, sun->rgb[0], sun->rgb[1], sun->rgb[2], e->lit_used, 3 * sun->margin,
+                        e->blocks, sun->margin);
+        else
+            rs_report_skip(rep, "sun from the shadows", "only %zu observed facets in full sun found one in full "
+                           "shadow within %.2f m on their plane (%zu lit, %zu shadowed beyond a %.2f m margin; %d "
+                           "needed): the hidden sun adds nothing, give [sky] sun_irradiance", e->lit_used,
+                           3 * sun->margin, e->lit, e->shadowed, sun->margin, RS_SUNSHADOW_MIN_LIT);
+    }
+    rs_sunsource_apply(sun, scene, nf, vis, fg);
+    rs_report_time(rep, "explicit_sun", rs_now() - t0);
+    free(vis);
     return 0;
 }
 
@@ -234,6 +264,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     so.other_masks = mask_ptrs;
     so.nothers = nothers;
     if (rs_skyenv_build_opts(&cap, ids->data, &so, &env, &info, err) != 0) goto out;
+    rs_sunsource_auto(cfg, &env, &so.fill, &sun);
     for (int i = 0; i < nothers; i++)
         rs_log_info("irradiance: capture %s: exposure factor %.4g %.4g %.4g from %.3g sr of shared sky", others[i].path,
                     info.other_scale[i][0], info.other_scale[i][1], info.other_scale[i][2], info.other_overlap_sr[i]);
@@ -322,10 +353,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_int(rep->metrics, "mc_calibration_facets", (long long)mc_facets);
     rs_log_info("irradiance: Monte Carlo noise from %zu facets gathered twice: %.3g x the independent-sample formula",
                 mc_facets, mc_factor);
-    if (rs_sunsource_add(&sun, scene, sun_samples, (uint32_t)rs_config_int(cfg, "irradiance", "seed"), nf, fg) != 0) {
-        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory adding the explicit sun");
-        goto out;
-    }
+    if (sun.active && add_explicit_sun(cfg, rep, &sun, scene, &cap, fg, radiance, observed, err) != 0) goto out;
     if (gs.gathered < nf)
         rs_report_skip(rep, "gather of unseen facets", "%zu facets that no camera sees light no facet it sees "
                        "(closure of the light paths in %d waves)", nf - gs.gathered, gs.waves);

@@ -72,9 +72,11 @@ int rs_sunsource_setup(const rs_config *cfg, rs_capture *cap, const float *facet
                        rs_sunsource *sun, rs_err *err)
 {
     memset(sun, 0, sizeof *sun);
-    if (!rs_config_has(cfg, "sky", "sun_irradiance")) return 0;
+    int shadows_on = strcmp(rs_config_string(cfg, "sky", "sun_from_shadows"), "on") == 0;
+    if (!rs_config_has(cfg, "sky", "sun_irradiance") && !shadows_on) return 0;
     sun->active = 1;
-    sun->dni = rs_config_real(cfg, "sky", "sun_irradiance");
+    sun->from_shadows = !rs_config_has(cfg, "sky", "sun_irradiance");   /* the given DNI wins */
+    sun->dni = sun->from_shadows ? 0 : rs_config_real(cfg, "sky", "sun_irradiance");
     double col[3];
     rs_config_reals(cfg, "sky", "sun_color", col);
     float colf[3] = {(float)col[0], (float)col[1], (float)col[2]};
@@ -107,23 +109,29 @@ int rs_sunsource_setup(const rs_config *cfg, rs_capture *cap, const float *facet
     if (!fill->sun_given) {
         if (!(sun->clip_level > 0) || !largest_blob_dir(cap, facet_id, sun->clip_level, &sun->dir_world))
             return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
-                              "[sky] sun_irradiance is set but no sky pixel of %s reaches the clip level %g: "
+                              "[sky] %s is set but no sky pixel of %s reaches the clip level %g: "
                               "expected [sky] sun_azimuth_deg and sun_elevation_deg, or datetime, to place the sun",
-                              cap->path, sun->clip_level);
+                              sun->from_shadows ? "sun_from_shadows = on" : "sun_irradiance", cap->path,
+                              sun->clip_level);
         sun->dir_from = "clipped disc";
         fill->sun_given = 1;
         fill->sun_dir = sun->dir_world;
     }
     rs_sunsource_remove(sun, cap, facet_id, 1);
     double el = asin(fmax(-1, fmin(1, sun->dir_world.z))) * 180 / M_PI;
-    rs_log_info("irradiance: explicit sun of %g (DNI; colour %.3g %.3g %.3g) at elevation %.2f deg (%s); %zu "
-                "panorama pixels (%.3g sr) of its disc and halo removed, holding %.3g of it", sun->dni, sun->rgb[0],
-                sun->rgb[1], sun->rgb[2], el, sun->dir_from,
-                sun->removed_px, sun->removed_sr, sun->removed_power);
-    if (sun->removed_px == 0)
+    if (sun->from_shadows)
+        rs_log_info("irradiance: explicit sun at elevation %.2f deg (%s), its DNI from the shadows; %zu panorama "
+                    "pixels (%.3g sr) of its disc and halo removed, holding %.3g of it", el, sun->dir_from,
+                    sun->removed_px, sun->removed_sr, sun->removed_power);
+    else
+        rs_log_info("irradiance: explicit sun of %g (DNI; colour %.3g %.3g %.3g) at elevation %.2f deg (%s); %zu "
+                    "panorama pixels (%.3g sr) of its disc and halo removed, holding %.3g of it", sun->dni,
+                    sun->rgb[0], sun->rgb[1], sun->rgb[2], el, sun->dir_from, sun->removed_px, sun->removed_sr,
+                    sun->removed_power);
+    if (sun->removed_px == 0 && !sun->from_shadows)
         rs_log_warn("irradiance: no bright sky pixel within %.2f deg of the given sun: is the sun hidden, or its "
                     "direction wrong?", sun->cone_rad * 180 / M_PI);
-    else if (sun->removed_power > sun->dni)
+    else if (!sun->from_shadows && sun->removed_power > sun->dni)
         rs_log_warn("irradiance: [sky] sun_irradiance = %g is less than the %.4g the panorama already holds "
                     "around the sun: is it in the panorama's units (radiance x sr)?", sun->dni, sun->removed_power);
     return 0;
@@ -164,9 +172,34 @@ size_t rs_sunsource_remove(rs_sunsource *sun, rs_capture *c, const float *facet_
     return removed;
 }
 
-int rs_sunsource_add(const rs_sunsource *sun, const rs_scene *scene, int rays, uint32_t seed, size_t nf,
-                     rs_facet_gather *fg)
+int rs_sunsource_auto(const rs_config *cfg, const rs_skyenv *env, const rs_skyfill_opts *fill, rs_sunsource *sun)
 {
+    if (sun->active || !fill->sun_given || strcmp(rs_config_string(cfg, "sky", "sun_from_shadows"), "auto") != 0)
+        return 0;
+    rs_v3 s = rs_v3_norm(fill->sun_dir);
+    if (!(s.z > 0)) return 0;                    /* below the horizon: no direct light */
+    int w = env->width, h = env->height, c, r;
+    rs_pano_world_to_pixel(&env->pose, w, h, s, &c, &r);
+    if (!env->filled[(size_t)r * w + c]) return 0;   /* a camera saw the sky there: the map has the sun */
+    double cone = cos(rs_config_real(cfg, "irradiance", "sun_max_cone_deg") * M_PI / 180);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++)
+            if (env->sun[(size_t)y * w + x] &&
+                rs_v3_dot(rs_pose_dir_to_world(&env->pose, rs_pano_pixel_dir(w, h, x, y)), s) >= cone)
+                return 0;                        /* bright pixels next to it: seen, at least in part */
+    sun->active = sun->from_shadows = 1;
+    sun->dir_world = s;
+    sun->dir_from = rs_config_has(cfg, "sky", "sun_azimuth_deg") ? "config" : "solar position";
+    for (int ch = 0; ch < 3; ch++) sun->rgb[ch] = 1;
+    rs_log_info("irradiance: no camera saw the sun at elevation %.2f deg (%s): its DNI comes from the model's "
+                "shadows ([sky] sun_from_shadows = auto)", asin(fmin(1, s.z)) * 180 / M_PI, sun->dir_from);
+    return 1;
+}
+
+int rs_sunsource_visibility(const rs_sunsource *sun, const rs_scene *scene, int rays, uint32_t seed, size_t nf,
+                            const rs_facet_gather *fg, float *vis)
+{
+    for (size_t f = 0; f < nf; f++) vis[f] = -1;
     if (!sun->active) return 0;
     if (rays < 1) rays = 1;
     const rs_mesh *m = rs_scene_mesh(scene);
@@ -186,8 +219,7 @@ int rs_sunsource_add(const rs_sunsource *sun, const rs_scene *scene, int rays, u
         for (size_t f = 0; f < nf; f++) {
             if (!ray || !occl || (!fg[f].rays && !fg[f].sky_sh)) continue;   /* not gathered */
             rs_v3 n = rs_scene_normal(scene, (uint32_t)f);
-            double cosn = rs_v3_dot(n, s);
-            if (!(cosn > 0)) continue;
+            if (!(rs_v3_dot(n, s) > 0)) continue;
             rs_v3 a = rs_mesh_vert(m, m->tris[3 * f]), b = rs_mesh_vert(m, m->tris[3 * f + 1]),
                   c = rs_mesh_vert(m, m->tris[3 * f + 2]);
             uint32_t fs = rs_hash_combine(rs_hash_combine(seed, (uint32_t)f), 0x5a11);
@@ -208,9 +240,7 @@ int rs_sunsource_add(const rs_sunsource *sun, const rs_scene *scene, int rays, u
             rs_scene_occluded(scene, ray, occl, (size_t)rays);
             int open = 0;
             for (int i = 0; i < rays; i++) open += !occl[i];
-            double e = sun->dni * cosn * open / rays;
-            for (int ch = 0; ch < 3; ch++) fg[f].esky[ch] += e * sun->rgb[ch];
-            fg[f].esky_lum += e;              /* rgb has luminance 1 */
+            vis[f] = (float)open / (float)rays;
         }
         free(ray);
         free(occl);
@@ -218,11 +248,61 @@ int rs_sunsource_add(const rs_sunsource *sun, const rs_scene *scene, int rays, u
     return failed ? -1 : 0;
 }
 
+int rs_sunsource_from_shadows(rs_sunsource *sun, const rs_mesh *mesh, const float *vis, const rs_facet_gather *fg,
+                              const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height)
+{
+    size_t nf = mesh->nfaces;
+    double *E = malloc((3 * nf + 1) * sizeof *E);
+    if (!E) return -1;
+    for (size_t f = 0; f < nf; f++) {
+        rs_gather_inter_observed(&fg[f], radiance, observed, E + 3 * f);
+        for (int ch = 0; ch < 3; ch++) E[3 * f + ch] += fg[f].esky[ch];
+    }
+    sun->margin = rs_sunshadow_margin(mesh, observed, cam, pano_height);
+    rs_sunshadow_input in = {.mesh = mesh, .vis = vis, .sun_dir = sun->dir_world, .E = E, .L = radiance,
+                             .observed = observed, .margin = sun->margin, .radius = 3 * sun->margin};
+    sun->shadow_rc = rs_sunshadow_estimate(&in, &sun->shadow);
+    free(E);
+    if (sun->shadow_rc < 0) return -1;
+    sun->dni = sun->shadow_rc == 0 ? sun->shadow.dni_lum : 0;
+    for (int ch = 0; ch < 3; ch++) sun->rgb[ch] = sun->dni > 0 ? sun->shadow.dni[ch] / sun->dni : 1;
+    return 0;
+}
+
+void rs_sunsource_apply(const rs_sunsource *sun, const rs_scene *scene, size_t nf, const float *vis,
+                        rs_facet_gather *fg)
+{
+    if (!sun->active || !(sun->dni > 0)) return;
+    for (size_t f = 0; f < nf; f++) {
+        if (!(vis[f] >= 0)) continue;
+        double u = fmax(0, rs_v3_dot(rs_scene_normal(scene, (uint32_t)f), sun->dir_world)) * vis[f];
+        double e = sun->dni * u;
+        for (int ch = 0; ch < 3; ch++) fg[f].esky[ch] += e * sun->rgb[ch];
+        fg[f].esky_lum += e;                  /* rgb has luminance 1 */
+        if (sun->from_shadows) {              /* inferred, not measured: filled light */
+            fg[f].filled_lum += e;
+            fg[f].fill_sigma_lum = hypot(fg[f].fill_sigma_lum, sun->shadow.sigma_lum * u);
+        }
+    }
+}
+
 void rs_sunsource_report(const rs_sunsource *sun, rs_json *metrics)
 {
     if (!sun->active) return;
     rs_json *o = rs_json_set_obj(metrics, "explicit_sun");
     rs_json_set_num(o, "direct_normal_irradiance", sun->dni);
+    rs_json_set_str(o, "irradiance_from", sun->from_shadows ? "shadows" : "config");
+    if (sun->from_shadows) {
+        rs_json *e = rs_json_set_obj(o, "from_shadows");
+        rs_json_set_bool(e, "estimated", sun->shadow_rc == 0);
+        rs_json_set_num(e, "sigma", sun->shadow.sigma_lum);
+        rs_json_set_num(e, "margin_m", sun->margin);
+        rs_json_set_num(e, "radius_m", 3 * sun->margin);
+        rs_json_set_int(e, "lit_facets", (long long)sun->shadow.lit);
+        rs_json_set_int(e, "shadowed_facets", (long long)sun->shadow.shadowed);
+        rs_json_set_int(e, "lit_facets_paired", (long long)sun->shadow.lit_used);
+        rs_json_set_int(e, "blocks", (long long)sun->shadow.blocks);
+    }
     rs_json *d = rs_json_set_arr(o, "direction");
     rs_json_push_num(d, sun->dir_world.x);
     rs_json_push_num(d, sun->dir_world.y);

@@ -1,6 +1,8 @@
-/* sunsource: a sun whose irradiance the config gives ([sky] sun_irradiance, e.g. from a
- * pyrheliometer) as an explicit source: its clipped disc leaves the panoramas, the gather adds
- * E_sun = DNI max(0, n.s) V per facet. Exports rs_sunsource_*. */
+/* sunsource: a sun that the panoramas do not hold as an explicit source: its clipped disc (if
+ * any) leaves the panoramas, the gather adds E_sun = DNI max(0, n.s) V per facet. The DNI is
+ * the config's ([sky] sun_irradiance, e.g. from a pyrheliometer) or, for a sun hidden from
+ * every capture or with [sky] sun_from_shadows = on, estimated from the model's shadows
+ * (sunshadow.h). Exports rs_sunsource_*. */
 #ifndef RS_SUNSOURCE_H
 #define RS_SUNSOURCE_H
 
@@ -11,17 +13,23 @@
 #include "config.h"
 #include "gather.h"
 #include "scene.h"
+#include "skyenv.h"
 #include "skyfill.h"
+#include "sunshadow.h"
 
 /* Half-angle of the sun's disc seen from the Earth (0.53 deg across, mean distance). */
 #define RS_SUN_RADIUS_RAD (0.2665 * M_PI / 180)
 
 typedef struct rs_sunsource {
-    int active;                /* 0: no [sky] sun_irradiance, everything here does nothing */
+    int active;                /* 0: no explicit sun, everything here does nothing */
+    int from_shadows;          /* dni and rgb are estimated from the shadows (rs_sunsource_from_shadows) */
     double dni;                /* direct normal irradiance (luminance), the panorama's radiance unit x sr */
     double rgb[3];             /* [sky] sun_color at luminance 1: the DNI per channel is dni x rgb */
     rs_v3 dir_world;           /* unit, toward the sun */
     const char *dir_from;      /* "config", "solar position" or "clipped disc" */
+    rs_sunshadow shadow;       /* with from_shadows: the estimate (dni_lum 0 when it failed) */
+    int shadow_rc;             /* its rs_sunshadow_estimate result */
+    double margin;             /* its margin (m) */
     double clip_level;         /* luminance from which a capture pixel is the clipped disc */
     double halo_factor;        /* pixels within cone_rad above this x the median sky go too */
     double cone_rad;
@@ -31,7 +39,7 @@ typedef struct rs_sunsource {
                                   what the panorama had of the sun (a lower bound when clipped) */
 } rs_sunsource;
 
-/* Reads [sky] sun_irradiance, sun_color and sun_clip_level; when set, takes the sun's direction from fill
+/* Reads [sky] sun_irradiance (or sun_from_shadows = on), sun_color and sun_clip_level; when set, takes the sun's direction from fill
  * (the config's azimuth and elevation or the solar position, when fill->sun_given) or else from
  * the centroid of the largest blob of capture sky pixels at or above the clip level (and then
  * sets fill->sun_given and sun_dir, so the fill knows where the removed sun was), and removes
@@ -47,11 +55,31 @@ int rs_sunsource_setup(const rs_config *cfg, rs_capture *cap, const float *facet
  * sun (and their solid angle and power when count_power). Does nothing when !sun->active. */
 size_t rs_sunsource_remove(rs_sunsource *sun, rs_capture *c, const float *facet_id, int count_power);
 
-/* Adds E_sun = dni rgb max(0, n.s) V to E_sky (each channel, and dni max(0, n.s) V to its luminance) of every
- * gathered facet (fg[f].rays > 0 or fg[f].sky_sh), V being the share of rays shadow rays (from Sobol points on
- * the facet toward Sobol points on the sun's disc) that escape. rays >= 1. -1: out of memory. */
-int rs_sunsource_add(const rs_sunsource *sun, const rs_scene *scene, int rays, uint32_t seed, size_t nf,
-                     rs_facet_gather *fg);
+/* [sky] sun_from_shadows = auto, once the sky map is built: when the config places the sun
+ * (fill->sun_given) above the horizon, sun_irradiance is not set, and no camera saw it (the
+ * map's pixel toward it is filled and no pixel of the sun set lies within cone_rad of it),
+ * activates sun with from_shadows. Returns whether it did. */
+int rs_sunsource_auto(const rs_config *cfg, const rs_skyenv *env, const rs_skyfill_opts *fill, rs_sunsource *sun);
+
+/* V per facet into vis[nf]: the share of `rays` shadow rays (from Sobol points on the facet
+ * toward Sobol points on the sun's disc) that escape, for every gathered facet (fg[f].rays > 0
+ * or fg[f].sky_sh) facing the sun; -1 for the others. rays >= 1. -1: out of memory. */
+int rs_sunsource_visibility(const rs_sunsource *sun, const rs_scene *scene, int rays, uint32_t seed, size_t nf,
+                            const rs_facet_gather *fg, float *vis);
+
+/* With from_shadows: estimates dni and rgb (rs_sunshadow_estimate; E = E_sky + G from fg and
+ * the observed radiance, the margin from the capture at cam with panoramas pano_height high).
+ * When there is too little evidence the sun adds nothing (dni 0) and shadow_rc says why.
+ * Returns 0, -1 out of memory. */
+int rs_sunsource_from_shadows(rs_sunsource *sun, const rs_mesh *mesh, const float *vis, const rs_facet_gather *fg,
+                              const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height);
+
+/* Adds E_sun = dni rgb max(0, n.s) V to E_sky (each channel, and dni max(0, n.s) V to its
+ * luminance) of every facet with vis >= 0. With from_shadows the sun counts as filled light
+ * (filled_lum), and its standard error shadow.sigma_lum max(0, n.s) V joins fill_sigma_lum in
+ * quadrature. */
+void rs_sunsource_apply(const rs_sunsource *sun, const rs_scene *scene, size_t nf, const float *vis,
+                        rs_facet_gather *fg);
 
 /* The source's figures under metrics "explicit_sun". */
 void rs_sunsource_report(const rs_sunsource *sun, rs_json *metrics);

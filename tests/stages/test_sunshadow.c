@@ -1,0 +1,269 @@
+/* [sky] sun_from_shadows: a sun no camera sees, its DNI from the model's shadows.
+ * - The estimator alone, on a plane with a shadow edge, an albedo edge, noise and pixels
+ *   that bleed across the shadow edge: the DNI per channel within 2 %.
+ * - End to end: a black wall hides the sun from the camera and shades the ground. A first run
+ *   with the sun's DNI given computes each ground facet's irradiance; the panorama is then
+ *   rendered from it with a known albedo; a second run, given only the sun's direction, finds
+ *   the DNI within 2 % and the sunlit ground's E_sky with it. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "faceprop.h"
+#include "image.h"
+#include "meshgen.h"
+#include "pano.h"
+#include "ply.h"
+#include "sunshadow.h"
+#include "testutil.h"
+
+/* Deterministic noise in [-1, 1]. */
+static double noise(uint32_t k)
+{
+    k ^= k >> 16;
+    k *= 0x7feb352dU;
+    k ^= k >> 15;
+    k *= 0x846ca68bU;
+    k ^= k >> 16;
+    return 2.0 * k / 4294967295.0 - 1;
+}
+
+/* A 10 x 10 m ground in 0.1 m cells, in shadow for x < 0 (a 0.1 m penumbra at the edge); the
+ * sun at 40 degrees; the albedo 0.3 0.3 0.3, 0.6 0.5 0.4 for y > 2 (an edge across the shadow's);
+ * 2 % noise on L; facets within 0.15 m of the shadow edge read the mean of both sides (pixels
+ * that bleed). */
+static void test_estimator(void **state)
+{
+    (void)state;
+    rs_meshgen g = rs_meshgen_new(20000, 40000);
+    rs_meshgen_rect(&g, rs_v3_make(-5, -5, 0), rs_v3_make(10, 0, 0), rs_v3_make(0, 10, 0), 100, 100);
+    rs_mesh *m = rs_meshgen_done(&g);
+    size_t nf = m->nfaces;
+    const double D[3] = {5.0, 4.0, 2.0};
+    const double el = 40 * M_PI / 180;
+    rs_v3 s = rs_v3_make(cos(el), 0, sin(el));
+    float *vis = malloc(nf * sizeof *vis);
+    double *E = malloc(3 * nf * sizeof *E), *L = malloc(3 * nf * sizeof *L), *mix = malloc(3 * nf * sizeof *mix);
+    uint8_t *observed = malloc(nf);
+    for (size_t f = 0; f < nf; f++) {
+        rs_v3 c, n;
+        double a;
+        rs_mesh_face(m, f, &c, &n, &a);
+        vis[f] = c.x < -0.05 ? 0 : c.x > 0.05 ? 1 : 0.5f;
+        observed[f] = 1;
+        const double rho[3] = {c.y > 2 ? 0.6 : 0.3, c.y > 2 ? 0.5 : 0.3, c.y > 2 ? 0.4 : 0.3};
+        for (int ch = 0; ch < 3; ch++) {
+            E[3 * f + ch] = (3.0 + 0.05 * c.x + 0.2 * ch) * (1 + 0.1 * sin(c.y));   /* smooth, varies */
+            double lit = rho[ch] / M_PI * (E[3 * f + ch] + D[ch] * sin(el) * 1.0);
+            double dark = rho[ch] / M_PI * E[3 * f + ch];
+            mix[3 * f + ch] = 0.5 * (lit + dark);
+            L[3 * f + ch] = rho[ch] / M_PI * (E[3 * f + ch] + D[ch] * sin(el) * vis[f]);
+            L[3 * f + ch] *= 1 + 0.02 * noise((uint32_t)(3 * f + ch));
+        }
+        if (fabs(c.x) < 0.15)
+            for (int ch = 0; ch < 3; ch++) L[3 * f + ch] = mix[3 * f + ch];
+    }
+    rs_sunshadow_input in = {.mesh = m, .vis = vis, .sun_dir = s, .E = E, .L = L, .observed = observed,
+                             .margin = 0.3, .radius = 0.9};
+    rs_sunshadow out;
+    assert_int_equal(rs_sunshadow_estimate(&in, &out), 0);
+    print_message("DNI %.4f %.4f %.4f (true %.1f %.1f %.1f), sigma %.4f; %zu lit (%zu paired), %zu shadowed, %zu "
+                  "blocks\n", out.dni[0], out.dni[1], out.dni[2], D[0], D[1], D[2], out.sigma_lum, out.lit,
+                  out.lit_used, out.shadowed, out.blocks);
+    for (int ch = 0; ch < 3; ch++) assert_true(fabs(out.dni[ch] - D[ch]) < 0.02 * D[ch]);
+    double dl = 0.2126 * D[0] + 0.7152 * D[1] + 0.0722 * D[2];
+    assert_true(out.sigma_lum > 0 && out.sigma_lum < 0.05 * dl);
+    assert_true(out.blocks >= 3);
+    /* The margin matters: with none the bleeding facets pull the estimate down. */
+    in.margin = 0;
+    assert_int_equal(rs_sunshadow_estimate(&in, &out), 0);
+    print_message("without the margin: DNI %.4f %.4f %.4f\n", out.dni[0], out.dni[1], out.dni[2]);
+    /* No shadow at all: no estimate. */
+    for (size_t f = 0; f < nf; f++) vis[f] = 1;
+    in.margin = 0.3;
+    assert_int_equal(rs_sunshadow_estimate(&in, &out), 1);
+    assert_int_equal(out.lit_used, 0);
+    free(vis);
+    free(E);
+    free(L);
+    free(mix);
+    free(observed);
+    rs_mesh_free(m);
+}
+
+#define W 1024
+#define SUN_EL_DEG 30.0
+#define L_SKY 1.0
+#define L_FAR 0.3                /* the ground beyond the model */
+#define DNI 20.0
+#define WALL_X 3.0
+#define WALL_H 6.0
+
+static const double albedo[3] = {0.5, 0.4, 0.3};
+
+/* What the camera at (0, 0, 1.6) sees along d: 0 sky or far ground, 1 the ground
+ * (x in [-14, 3], y in [-10, 10]), 2 the wall (x = 3, y in [-10, 10], z in [0, 6]). */
+static int camera_sees(rs_v3 d)
+{
+    const rs_v3 o = rs_v3_make(0, 0, 1.6);
+    double tw = d.x > 0 ? (WALL_X - o.x) / d.x : INFINITY, tg = d.z < 0 ? -o.z / d.z : INFINITY;
+    if (tw < tg) {
+        rs_v3 p = rs_v3_add(o, rs_v3_scale(d, tw));
+        if (fabs(p.y) <= 10 && p.z >= 0 && p.z <= WALL_H) return 2;
+    }
+    if (isfinite(tg)) {
+        rs_v3 p = rs_v3_add(o, rs_v3_scale(d, tg));
+        if (p.x >= -14 && p.x <= WALL_X && fabs(p.y) <= 10) return 1;
+    }
+    return 0;
+}
+
+/* The scene, and the panorama with ground pixels at ground[3 f..] of the facet facet_id gives
+ * (NULL: 0.2, what the first run reads does not depend on it: flat ground sees no ground). */
+static void write_pano(const char *dir, const rs_image *facet_id, const double *ground)
+{
+    rs_image *img = rs_image_new(W, W / 2, 3);
+    for (int r = 0; r < W / 2; r++)
+        for (int c = 0; c < W; c++) {
+            rs_v3 d = rs_pano_pixel_dir(W, W / 2, c, r);
+            int what = camera_sees(d);
+            float *px = rs_image_px(img, c, r);
+            for (int ch = 0; ch < 3; ch++) {
+                double v = d.z > 0 ? L_SKY : L_FAR;
+                if (what == 2) v = 0;                         /* the black wall */
+                if (what == 1) {
+                    v = 0.2;
+                    float id = facet_id ? facet_id->data[(size_t)r * W + c] : -1;
+                    if (ground && id >= 0) v = ground[3 * (size_t)id + ch];
+                }
+                px[ch] = (float)v;
+            }
+        }
+    static const char *const rgb[] = {"R", "G", "B"};
+    rs_err err;
+    assert_int_equal(rs_image_write_exr(img, rs_test_path(dir, "pano.exr"), rgb, 0, NULL, &err), 0);
+    rs_image_free(img);
+}
+
+static void run(const char *dir, const char *sets)
+{
+    char cmd[8192], *out = NULL;
+    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/rhoscan' run --force %s scene.ini", dir, rs_test_bin_dir(), sets);
+    int rc = rs_test_run(cmd, &out);
+    if (rc != 0) print_message("%s\n", out);
+    assert_int_equal(rc, 0);
+    free(out);
+}
+
+/* irradiance_sky (+ irradiance_inter when with_inter) of every facet, 3 per facet. */
+static double *read_irradiance(const char *dir, int with_inter, size_t *nf)
+{
+    rs_err err;
+    const char *path = rs_test_path(dir, "work/irradiance.ply");
+    rs_ply *ply = rs_ply_read(path, &err);
+    assert_non_null(ply);
+    const rs_ply_element *faces = rs_ply_find_element(ply, "face");
+    assert_non_null(faces);
+    *nf = faces->count;
+    double *e = malloc(3 * *nf * sizeof *e), *g = malloc(3 * *nf * sizeof *g);
+    assert_int_equal(rs_faceprop_get_rgb(ply, path, "irradiance_sky", *nf, e, &err), 0);
+    assert_int_equal(rs_faceprop_get_rgb(ply, path, "irradiance_inter", *nf, g, &err), 0);
+    for (size_t i = 0; with_inter && i < 3 * *nf; i++) e[i] += g[i];
+    free(g);
+    rs_ply_free(ply);
+    return e;
+}
+
+static double json_number(const char *path, const char *key)
+{
+    FILE *f = fopen(path, "rb");
+    assert_non_null(f);
+    static char buf[1 << 16];
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = 0;
+    char pat[128];
+    snprintf(pat, sizeof pat, "\"%s\": ", key);
+    const char *p = strstr(buf, pat);
+    assert_non_null(p);
+    return strtod(p + strlen(pat), NULL);
+}
+
+static void test_hidden_sun(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("sunshadow");
+    rs_meshgen g = rs_meshgen_new(20000, 20000);
+    rs_meshgen_rect(&g, rs_v3_make(-14, -10, 0), rs_v3_make(17, 0, 0), rs_v3_make(0, 20, 0), 68, 80);
+    rs_meshgen_rect(&g, rs_v3_make(WALL_X, -10, 0), rs_v3_make(0, 0, WALL_H), rs_v3_make(0, 20, 0), 12, 40);
+    rs_mesh *m = rs_meshgen_done(&g);
+    rs_ply *ply = rs_ply_new();
+    rs_mesh_to_ply(m, ply);
+    rs_err err;
+    assert_int_equal(rs_ply_write(ply, rs_test_path(dir, "mesh.ply"), 1, &err), 0);
+    rs_ply_free(ply);
+    write_pano(dir, NULL, NULL);
+    rs_test_write(rs_test_path(dir, "scene.ini"),
+                  "[pipeline]\nworkdir = work\n[mesh]\ninput_mesh = mesh.ply\n[capture]\npanorama = pano.exr\n"
+                  "position = 0 0 1.6\n[irradiance]\nsamples = 128\nsky_samples = 128\nsun_samples = 16\n"
+                  "skip_unseen = false\n[sky]\nfill = row\nsun_azimuth_deg = 0\nsun_elevation_deg = 30\n");
+    char sets[256];
+    snprintf(sets, sizeof sets, "--set sky.sun_irradiance=%g", DNI);
+    run(dir, sets);
+    size_t nf;
+    double *e1 = read_irradiance(dir, 1, &nf), *esky1 = read_irradiance(dir, 0, &nf);
+    assert_int_equal(nf, m->nfaces);
+    /* The panorama of a ground of known albedo under that light. */
+    double *ground = malloc(3 * nf * sizeof *ground);
+    for (size_t f = 0; f < nf; f++)
+        for (int ch = 0; ch < 3; ch++) ground[3 * f + ch] = albedo[ch] / M_PI * e1[3 * f + ch];
+    rs_image *ids = rs_image_read(rs_test_path(dir, "work/facet_id.exr"), &err);
+    assert_non_null(ids);
+    write_pano(dir, ids, ground);
+    rs_image_free(ids);
+    run(dir, "--set sky.sun_from_shadows=auto");
+    const char *json = rs_test_path(dir, "work/irradiance.json");
+    double dni = json_number(json, "direct_normal_irradiance"), sigma = json_number(json, "sigma");
+    print_message("DNI from the shadows %.4f +- %.4f (true %g)\n", dni, sigma, DNI);
+    assert_true(fabs(dni - DNI) < 0.02 * DNI);
+    assert_true(sigma > 0 && sigma < 0.05 * DNI);
+    /* Sunlit ground (x < -9: beyond the shadow's end at 3 - 6 cot 30 = -7.4): E_sky as given. */
+    double *esky2 = read_irradiance(dir, 0, &nf);
+    double s1 = 0, s2 = 0;
+    for (size_t f = 0; f < nf; f++) {
+        rs_v3 c, n;
+        double a;
+        rs_mesh_face(m, f, &c, &n, &a);
+        if (c.x > -9 || c.z > 0.01) continue;
+        s1 += esky1[3 * f + 1];
+        s2 += esky2[3 * f + 1];
+    }
+    print_message("sunlit ground E_sky (G): DNI given %.4f, from the shadows %.4f\n", s1, s2);
+    assert_true(fabs(s2 - s1) < 0.02 * s1);
+    /* Off: the hidden sun adds nothing, and the sunlit ground lacks its light. */
+    run(dir, "--set sky.sun_from_shadows=off");
+    double *esky3 = read_irradiance(dir, 0, &nf), s3 = 0;
+    for (size_t f = 0; f < nf; f++) {
+        rs_v3 c, n;
+        double a;
+        rs_mesh_face(m, f, &c, &n, &a);
+        if (c.x <= -9 && c.z < 0.01) s3 += esky3[3 * f + 1];
+    }
+    assert_true(s3 < 0.5 * s1);
+    free(e1);
+    free(esky1);
+    free(esky2);
+    free(esky3);
+    free(ground);
+    rs_mesh_free(m);
+    rs_test_rmtree(dir);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_estimator),
+        cmocka_unit_test(test_hidden_sun),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
