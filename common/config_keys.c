@@ -191,7 +191,9 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"sky", "sun_from_shadows", RS_CFG_ENUM, "auto", 0, 0, "auto|on|off", "", "irradiance",
      "a sun without sun_irradiance: its DNI and colour from the model's shadows (observed facets in full sun against "
      "ones in full shadow near them on the same plane). auto: when sun_azimuth_deg or datetime places it above the "
-     "horizon where no camera saw sky or a bright pixel; on: always (a clipped sun's disc leaves the panoramas); off: never"},
+     "horizon where no camera saw sky or a bright pixel, and when nothing places it and no sky pixel is bright, its "
+     "direction too, searched among those no camera saw for shadows that match the radiance; on: always (a clipped "
+     "sun's disc leaves the panoramas); off: never"},
     {"sky", "sun_clip_level", RS_CFG_REAL, NULL, 0, 1e30, NULL, "pano", "irradiance",
      "with sun_irradiance: luminance from which sky pixels are the clipped disc; default 0.9 x the brightest near the sun"},
     {"sky", "sun_mask_deg", RS_CFG_REAL, "4", 0, 45, NULL, "deg", "irradiance",

@@ -155,6 +155,9 @@ static int add_explicit_sun(const rs_config *cfg, rs_report *rep, rs_sunsource *
                         "facets paired with shadowed ones within %.2f m on their plane (%zu blocks; margin %.2f m)",
                         sun->dni, e->sigma_lum, sun->rgb[0], sun->rgb[1], sun->rgb[2], e->lit_used, 3 * sun->margin,
                         e->blocks, sun->margin);
+        else if (sun->shadow_rc == 2)
+            rs_report_skip(rep, "sun from the shadows", "the searched sun's DNI %.3g is within 5 standard errors "
+                           "(%.2g) of 0: no sun added", e->dni_lum, e->sigma_lum);
         else
             rs_report_skip(rep, "sun from the shadows", "only %zu observed facets in full sun found one in full "
                            "shadow within %.2f m on their plane (%zu lit, %zu shadowed beyond a %.2f m margin; %d "
@@ -353,6 +356,24 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_int(rep->metrics, "mc_calibration_facets", (long long)mc_facets);
     rs_log_info("irradiance: Monte Carlo noise from %zu facets gathered twice: %.3g x the independent-sample formula",
                 mc_facets, mc_factor);
+    if (sun.search) {
+        t0 = rs_now();
+        if (rs_sunsource_search(&sun, scene, &env, fg, radiance, observed, cap.pose.position, cap.pano->height) != 0) {
+            rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory searching the shadows for the sun");
+            goto out;
+        }
+        rs_report_time(rep, "sun_search", rs_now() - t0);
+        if (sun.searched)
+            rs_log_info("irradiance: no camera saw a sun and nothing placed one; the shadows put it at azimuth %.2f, "
+                        "elevation %.2f deg (median log contrast %.3f over %zu lit-shadowed pairs, %d directions "
+                        "tried)", atan2(sun.dir_world.y, sun.dir_world.x) * 180 / M_PI,
+                        asin(fmin(1, sun.dir_world.z)) * 180 / M_PI, sun.found.score, sun.found.pairs,
+                        sun.found.candidates);
+        else
+            rs_report_skip(rep, "sun from the shadows", "no bright sky pixel and no sun placed by the config; no "
+                           "direction the cameras did not see casts shadows that match the radiance (best median "
+                           "log contrast %.3f, %g needed): no sun added", sun.found.score, RS_SUNSEARCH_MIN_SCORE);
+    }
     if (sun.active && add_explicit_sun(cfg, rep, &sun, scene, &cap, fg, radiance, observed, err) != 0) goto out;
     if (gs.gathered < nf)
         rs_report_skip(rep, "gather of unseen facets", "%zu facets that no camera sees light no facet it sees "

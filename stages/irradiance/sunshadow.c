@@ -279,3 +279,61 @@ out:
     free(dl);
     return rc;
 }
+
+int rs_sunshadow_pairs_build(const rs_mesh *mesh, const uint8_t *observed, double margin, double radius,
+                             int max_per_facet, rs_sunshadow_pairs *out)
+{
+    memset(out, 0, sizeof *out);
+    size_t nf = mesh->nfaces, cap = nf * (size_t)max_per_facet;
+    rs_v3 *cen = calloc(nf ? nf : 1, sizeof *cen), *nrm = calloc(nf ? nf : 1, sizeof *nrm);
+    uint32_t *cnt = calloc(nf ? nf : 1, sizeof *cnt);
+    out->a = malloc((cap ? cap : 1) * sizeof *out->a);
+    out->b = malloc((cap ? cap : 1) * sizeof *out->b);
+    cell_index g = {0};
+    int rc = -1;
+    if (!cen || !nrm || !cnt || !out->a || !out->b) goto done;
+    for (size_t f = 0; f < nf; f++) {
+        double area;
+        rs_mesh_face(mesh, f, &cen[f], &nrm[f], &area);
+    }
+    if (index_build(&g, cen, nf, radius) != 0) goto done;
+    /* Serial: each pair is taken once (i < j) and both ends count toward their cap. */
+    for (size_t i = 0; i < nf; i++) {
+        if (!observed[i] || rs_v3_len(nrm[i]) == 0) continue;
+        for (int dx = -1; dx <= 1 && cnt[i] < (uint32_t)max_per_facet; dx++)
+            for (int dy = -1; dy <= 1 && cnt[i] < (uint32_t)max_per_facet; dy++)
+                for (int dz = -1; dz <= 1 && cnt[i] < (uint32_t)max_per_facet; dz++) {
+                    size_t lo, hi;
+                    index_range(&g, cell_key(&g, cen[i], dx, dy, dz), &lo, &hi);
+                    for (size_t q = lo; q < hi && cnt[i] < (uint32_t)max_per_facet; q++) {
+                        uint32_t j = g.facet[q];
+                        if (j <= i || !observed[j] || cnt[j] >= (uint32_t)max_per_facet) continue;
+                        rs_v3 off = rs_v3_sub(cen[j], cen[i]);
+                        double d = rs_v3_len(off);
+                        if (d < margin || d > radius || rs_v3_dot(nrm[i], nrm[j]) < 0.996 ||
+                            fabs(rs_v3_dot(nrm[i], off)) > 0.1 * radius)
+                            continue;
+                        out->a[out->n] = (uint32_t)i;
+                        out->b[out->n++] = j;
+                        cnt[i]++;
+                        cnt[j]++;
+                    }
+                }
+    }
+    rc = 0;
+done:
+    free(g.key);
+    free(g.facet);
+    free(cen);
+    free(nrm);
+    free(cnt);
+    if (rc) rs_sunshadow_pairs_free(out);
+    return rc;
+}
+
+void rs_sunshadow_pairs_free(rs_sunshadow_pairs *p)
+{
+    free(p->a);
+    free(p->b);
+    memset(p, 0, sizeof *p);
+}

@@ -48,4 +48,17 @@ double rs_sunshadow_margin(const rs_mesh *mesh, const uint8_t *observed, rs_v3 c
  * partner (out still holds the counts), -1 out of memory. */
 int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out);
 
+/* For the search of a sun whose direction nobody gave (sunsearch.h): pairs of observed facets
+ * on one plane (as above) at a distance in [margin, radius], at most max_per_facet per facet
+ * (the nearest beyond the margin are not preferred: the grid's order), each pair once. */
+typedef struct rs_sunshadow_pairs {
+    uint32_t *a, *b;
+    size_t n;
+} rs_sunshadow_pairs;
+
+/* Returns 0, -1 out of memory. rs_sunshadow_pairs_free releases. */
+int rs_sunshadow_pairs_build(const rs_mesh *mesh, const uint8_t *observed, double margin, double radius,
+                             int max_per_facet, rs_sunshadow_pairs *out);
+void rs_sunshadow_pairs_free(rs_sunshadow_pairs *p);
+
 #endif

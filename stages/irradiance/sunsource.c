@@ -174,8 +174,11 @@ size_t rs_sunsource_remove(rs_sunsource *sun, rs_capture *c, const float *facet_
 
 int rs_sunsource_auto(const rs_config *cfg, const rs_skyenv *env, const rs_skyfill_opts *fill, rs_sunsource *sun)
 {
-    if (sun->active || !fill->sun_given || strcmp(rs_config_string(cfg, "sky", "sun_from_shadows"), "auto") != 0)
+    if (sun->active || strcmp(rs_config_string(cfg, "sky", "sun_from_shadows"), "auto") != 0) return 0;
+    if (!fill->sun_given) {
+        sun->search = env->bright_pixels == 0;   /* no sun in the sky: perhaps behind the building */
         return 0;
+    }
     rs_v3 s = rs_v3_norm(fill->sun_dir);
     if (!(s.z > 0)) return 0;                    /* below the horizon: no direct light */
     int w = env->width, h = env->height, c, r;
@@ -248,22 +251,54 @@ int rs_sunsource_visibility(const rs_sunsource *sun, const rs_scene *scene, int 
     return failed ? -1 : 0;
 }
 
+/* E_sky + G of every facet, 3 each (NULL: out of memory). */
+static double *irradiance_without_sun(const rs_facet_gather *fg, size_t nf, const double *radiance,
+                                      const uint8_t *observed)
+{
+    double *E = malloc((3 * nf + 1) * sizeof *E);
+    for (size_t f = 0; E && f < nf; f++) {
+        rs_gather_inter_observed(&fg[f], radiance, observed, E + 3 * f);
+        for (int ch = 0; ch < 3; ch++) E[3 * f + ch] += fg[f].esky[ch];
+    }
+    return E;
+}
+
+int rs_sunsource_search(rs_sunsource *sun, const rs_scene *scene, const rs_skyenv *env, const rs_facet_gather *fg,
+                        const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height)
+{
+    const rs_mesh *mesh = rs_scene_mesh(scene);
+    double *E = irradiance_without_sun(fg, mesh->nfaces, radiance, observed);
+    if (!E) return -1;
+    double margin = rs_sunshadow_margin(mesh, observed, cam, pano_height);
+    rs_sunshadow_pairs pairs;
+    int rc = rs_sunshadow_pairs_build(mesh, observed, margin, 3 * margin, 8, &pairs);
+    if (rc == 0) rc = rs_sunsearch_run(scene, env, &pairs, E, radiance, observed, &sun->found);
+    rs_sunshadow_pairs_free(&pairs);
+    free(E);
+    if (rc < 0) return -1;
+    if (rc == 0 && sun->found.score >= RS_SUNSEARCH_MIN_SCORE) {
+        sun->active = sun->from_shadows = sun->searched = 1;
+        sun->dir_world = sun->found.dir;
+        sun->dir_from = "shadows";
+        for (int ch = 0; ch < 3; ch++) sun->rgb[ch] = 1;
+    }
+    return 0;
+}
+
 int rs_sunsource_from_shadows(rs_sunsource *sun, const rs_mesh *mesh, const float *vis, const rs_facet_gather *fg,
                               const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height)
 {
     size_t nf = mesh->nfaces;
-    double *E = malloc((3 * nf + 1) * sizeof *E);
+    double *E = irradiance_without_sun(fg, nf, radiance, observed);
     if (!E) return -1;
-    for (size_t f = 0; f < nf; f++) {
-        rs_gather_inter_observed(&fg[f], radiance, observed, E + 3 * f);
-        for (int ch = 0; ch < 3; ch++) E[3 * f + ch] += fg[f].esky[ch];
-    }
     sun->margin = rs_sunshadow_margin(mesh, observed, cam, pano_height);
     rs_sunshadow_input in = {.mesh = mesh, .vis = vis, .sun_dir = sun->dir_world, .E = E, .L = radiance,
                              .observed = observed, .margin = sun->margin, .radius = 3 * sun->margin};
     sun->shadow_rc = rs_sunshadow_estimate(&in, &sun->shadow);
     free(E);
     if (sun->shadow_rc < 0) return -1;
+    if (sun->shadow_rc == 0 && sun->searched && !(sun->shadow.dni_lum > 5 * sun->shadow.sigma_lum))
+        sun->shadow_rc = 2;                   /* the best of many directions: demand more */
     sun->dni = sun->shadow_rc == 0 ? sun->shadow.dni_lum : 0;
     for (int ch = 0; ch < 3; ch++) sun->rgb[ch] = sun->dni > 0 ? sun->shadow.dni[ch] / sun->dni : 1;
     return 0;
@@ -295,6 +330,11 @@ void rs_sunsource_report(const rs_sunsource *sun, rs_json *metrics)
     if (sun->from_shadows) {
         rs_json *e = rs_json_set_obj(o, "from_shadows");
         rs_json_set_bool(e, "estimated", sun->shadow_rc == 0);
+        if (sun->searched) {
+            rs_json_set_num(e, "search_score", sun->found.score);
+            rs_json_set_int(e, "search_pairs", (long long)sun->found.pairs);
+            rs_json_set_int(e, "search_candidates", sun->found.candidates);
+        }
         rs_json_set_num(e, "sigma", sun->shadow.sigma_lum);
         rs_json_set_num(e, "margin_m", sun->margin);
         rs_json_set_num(e, "radius_m", 3 * sun->margin);

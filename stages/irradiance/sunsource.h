@@ -15,6 +15,7 @@
 #include "scene.h"
 #include "skyenv.h"
 #include "skyfill.h"
+#include "sunsearch.h"
 #include "sunshadow.h"
 
 /* Half-angle of the sun's disc seen from the Earth (0.53 deg across, mean distance). */
@@ -28,7 +29,10 @@ typedef struct rs_sunsource {
     rs_v3 dir_world;           /* unit, toward the sun */
     const char *dir_from;      /* "config", "solar position" or "clipped disc" */
     rs_sunshadow shadow;       /* with from_shadows: the estimate (dni_lum 0 when it failed) */
-    int shadow_rc;             /* its rs_sunshadow_estimate result */
+    int shadow_rc;             /* its rs_sunshadow_estimate result; 2: a searched sun, not significant */
+    int search;                /* auto, nothing places the sun and no camera saw one: search the shadows */
+    int searched;              /* the direction came from rs_sunsource_search */
+    rs_sunsearch found;        /* its result */
     double margin;             /* its margin (m) */
     double clip_level;         /* luminance from which a capture pixel is the clipped disc */
     double halo_factor;        /* pixels within cone_rad above this x the median sky go too */
@@ -58,7 +62,8 @@ size_t rs_sunsource_remove(rs_sunsource *sun, rs_capture *c, const float *facet_
 /* [sky] sun_from_shadows = auto, once the sky map is built: when the config places the sun
  * (fill->sun_given) above the horizon, sun_irradiance is not set, and no camera saw it (the
  * map's pixel toward it is filled and no pixel of the sun set lies within cone_rad of it),
- * activates sun with from_shadows. Returns whether it did. */
+ * activates sun with from_shadows. When nothing places the sun and the map has no bright
+ * pixel at all, sets sun->search instead (rs_sunsource_search). Returns whether it activated. */
 int rs_sunsource_auto(const rs_config *cfg, const rs_skyenv *env, const rs_skyfill_opts *fill, rs_sunsource *sun);
 
 /* V per facet into vis[nf]: the share of `rays` shadow rays (from Sobol points on the facet
@@ -66,6 +71,13 @@ int rs_sunsource_auto(const rs_config *cfg, const rs_skyenv *env, const rs_skyfi
  * or fg[f].sky_sh) facing the sun; -1 for the others. rays >= 1. -1: out of memory. */
 int rs_sunsource_visibility(const rs_sunsource *sun, const rs_scene *scene, int rays, uint32_t seed, size_t nf,
                             const rs_facet_gather *fg, float *vis);
+
+/* With sun->search, after the gather: the direction from the shadows (sunsearch.h) among the
+ * directions the map filled; when one is found, activates sun with from_shadows and searched
+ * (its DNI must then come out above 5 standard errors, else it adds nothing). Returns 0, -1
+ * out of memory. */
+int rs_sunsource_search(rs_sunsource *sun, const rs_scene *scene, const rs_skyenv *env, const rs_facet_gather *fg,
+                        const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height);
 
 /* With from_shadows: estimates dni and rgb (rs_sunshadow_estimate; E = E_sky + G from fg and
  * the observed radiance, the margin from the capture at cam with panoramas pano_height high).

@@ -4,7 +4,8 @@
  * - End to end: a black wall hides the sun from the camera and shades the ground. A first run
  *   with the sun's DNI given computes each ground facet's irradiance; the panorama is then
  *   rendered from it with a known albedo; a second run, given only the sun's direction, finds
- *   the DNI within 2 % and the sunlit ground's E_sky with it. */
+ *   the DNI within 2 % and the sunlit ground's E_sky with it. Given nothing, the shadows give
+ *   the direction within 2 degrees; with no sun at all the search adds none. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -189,13 +190,20 @@ static double json_number(const char *path, const char *key)
     return strtod(p + strlen(pat), NULL);
 }
 
-static void test_hidden_sun(void **state)
+#define SCENE_HEAD "[pipeline]\nworkdir = work\n[mesh]\ninput_mesh = mesh.ply\n[capture]\npanorama = pano.exr\n" \
+    "position = 0 0 1.6\n[irradiance]\nsamples = 128\nsky_samples = 128\nsun_samples = 16\nskip_unseen = false\n" \
+    "[sky]\nfill = row\n"
+#define SUN_GIVEN "sun_azimuth_deg = 0\nsun_elevation_deg = 30\n"
+
+/* The ground and the wall (10 m wide, narrower than the ground, so that the shadow has side
+ * edges that fix the sun's azimuth); a first run with the sun's DNI given (0: no sun) computes
+ * every facet's E_sky + G; the panorama is then rendered from it with the known albedo, and the
+ * config left with or without the sun's direction. Returns the mesh, and the first run's E_sky. */
+static rs_mesh *hidden_sun_scene(const char *dir, double dni, int keep_direction, double **esky_given)
 {
-    (void)state;
-    const char *dir = rs_test_tmpdir("sunshadow");
     rs_meshgen g = rs_meshgen_new(20000, 20000);
     rs_meshgen_rect(&g, rs_v3_make(-14, -10, 0), rs_v3_make(17, 0, 0), rs_v3_make(0, 20, 0), 68, 80);
-    rs_meshgen_rect(&g, rs_v3_make(WALL_X, -10, 0), rs_v3_make(0, 0, WALL_H), rs_v3_make(0, 20, 0), 12, 40);
+    rs_meshgen_rect(&g, rs_v3_make(WALL_X, -5, 0), rs_v3_make(0, 0, WALL_H), rs_v3_make(0, 10, 0), 12, 20);
     rs_mesh *m = rs_meshgen_done(&g);
     rs_ply *ply = rs_ply_new();
     rs_mesh_to_ply(m, ply);
@@ -203,58 +211,130 @@ static void test_hidden_sun(void **state)
     assert_int_equal(rs_ply_write(ply, rs_test_path(dir, "mesh.ply"), 1, &err), 0);
     rs_ply_free(ply);
     write_pano(dir, NULL, NULL);
-    rs_test_write(rs_test_path(dir, "scene.ini"),
-                  "[pipeline]\nworkdir = work\n[mesh]\ninput_mesh = mesh.ply\n[capture]\npanorama = pano.exr\n"
-                  "position = 0 0 1.6\n[irradiance]\nsamples = 128\nsky_samples = 128\nsun_samples = 16\n"
-                  "skip_unseen = false\n[sky]\nfill = row\nsun_azimuth_deg = 0\nsun_elevation_deg = 30\n");
+    rs_test_write(rs_test_path(dir, "scene.ini"), SCENE_HEAD SUN_GIVEN);
     char sets[256];
-    snprintf(sets, sizeof sets, "--set sky.sun_irradiance=%g", DNI);
+    snprintf(sets, sizeof sets, "--set sky.sun_irradiance=%g", dni);
     run(dir, sets);
     size_t nf;
-    double *e1 = read_irradiance(dir, 1, &nf), *esky1 = read_irradiance(dir, 0, &nf);
+    double *e = read_irradiance(dir, 1, &nf);
+    *esky_given = read_irradiance(dir, 0, &nf);
     assert_int_equal(nf, m->nfaces);
-    /* The panorama of a ground of known albedo under that light. */
     double *ground = malloc(3 * nf * sizeof *ground);
     for (size_t f = 0; f < nf; f++)
-        for (int ch = 0; ch < 3; ch++) ground[3 * f + ch] = albedo[ch] / M_PI * e1[3 * f + ch];
+        for (int ch = 0; ch < 3; ch++) ground[3 * f + ch] = albedo[ch] / M_PI * e[3 * f + ch];
     rs_image *ids = rs_image_read(rs_test_path(dir, "work/facet_id.exr"), &err);
     assert_non_null(ids);
     write_pano(dir, ids, ground);
     rs_image_free(ids);
+    free(e);
+    free(ground);
+    rs_test_write(rs_test_path(dir, "scene.ini"), keep_direction ? SCENE_HEAD SUN_GIVEN : SCENE_HEAD);
+    return m;
+}
+
+/* Sum of the green E_sky of the sunlit ground (x < -9: beyond the shadow's end at
+ * 3 - 6 cot 30 = -7.4) in the latest run. */
+static double sunlit_ground(const char *dir, const rs_mesh *m)
+{
+    size_t nf;
+    double *e = read_irradiance(dir, 0, &nf), sum = 0;
+    for (size_t f = 0; f < nf; f++) {
+        rs_v3 c, n;
+        double a;
+        rs_mesh_face(m, f, &c, &n, &a);
+        if (c.x <= -9 && c.z < 0.01) sum += e[3 * f + 1];
+    }
+    free(e);
+    return sum;
+}
+
+static double given_sunlit_ground(const rs_mesh *m, const double *esky)
+{
+    double sum = 0;
+    for (size_t f = 0; f < m->nfaces; f++) {
+        rs_v3 c, n;
+        double a;
+        rs_mesh_face(m, f, &c, &n, &a);
+        if (c.x <= -9 && c.z < 0.01) sum += esky[3 * f + 1];
+    }
+    return sum;
+}
+
+/* The direction given, the DNI from the shadows; off leaves the sun out. */
+static void test_hidden_sun(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("sunshadow");
+    double *esky1;
+    rs_mesh *m = hidden_sun_scene(dir, DNI, 1, &esky1);
     run(dir, "--set sky.sun_from_shadows=auto");
     const char *json = rs_test_path(dir, "work/irradiance.json");
     double dni = json_number(json, "direct_normal_irradiance"), sigma = json_number(json, "sigma");
     print_message("DNI from the shadows %.4f +- %.4f (true %g)\n", dni, sigma, DNI);
     assert_true(fabs(dni - DNI) < 0.02 * DNI);
     assert_true(sigma > 0 && sigma < 0.05 * DNI);
-    /* Sunlit ground (x < -9: beyond the shadow's end at 3 - 6 cot 30 = -7.4): E_sky as given. */
-    double *esky2 = read_irradiance(dir, 0, &nf);
-    double s1 = 0, s2 = 0;
-    for (size_t f = 0; f < nf; f++) {
-        rs_v3 c, n;
-        double a;
-        rs_mesh_face(m, f, &c, &n, &a);
-        if (c.x > -9 || c.z > 0.01) continue;
-        s1 += esky1[3 * f + 1];
-        s2 += esky2[3 * f + 1];
-    }
-    print_message("sunlit ground E_sky (G): DNI given %.4f, from the shadows %.4f\n", s1, s2);
+    double s1 = given_sunlit_ground(m, esky1), s2 = sunlit_ground(dir, m);
+    print_message("sunlit ground E_sky: DNI given %.4f, from the shadows %.4f\n", s1, s2);
     assert_true(fabs(s2 - s1) < 0.02 * s1);
-    /* Off: the hidden sun adds nothing, and the sunlit ground lacks its light. */
     run(dir, "--set sky.sun_from_shadows=off");
-    double *esky3 = read_irradiance(dir, 0, &nf), s3 = 0;
-    for (size_t f = 0; f < nf; f++) {
-        rs_v3 c, n;
-        double a;
-        rs_mesh_face(m, f, &c, &n, &a);
-        if (c.x <= -9 && c.z < 0.01) s3 += esky3[3 * f + 1];
-    }
-    assert_true(s3 < 0.5 * s1);
-    free(e1);
+    assert_true(sunlit_ground(dir, m) < 0.5 * s1);
     free(esky1);
-    free(esky2);
-    free(esky3);
-    free(ground);
+    rs_mesh_free(m);
+    rs_test_rmtree(dir);
+}
+
+/* Nothing places the sun: the shadows give its direction, within 2 degrees, and its DNI. */
+static void test_searched_sun(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("sunshadow");
+    double *esky1;
+    rs_mesh *m = hidden_sun_scene(dir, DNI, 0, &esky1);
+    run(dir, "");
+    const char *json = rs_test_path(dir, "work/irradiance.json");
+    double dni = json_number(json, "direct_normal_irradiance");
+    FILE *f = fopen(json, "rb");
+    assert_non_null(f);
+    static char buf[1 << 16];
+    buf[fread(buf, 1, sizeof buf - 1, f)] = 0;
+    fclose(f);
+    assert_non_null(strstr(buf, "\"direction_from\": \"shadows\""));
+    const char *p = strstr(strstr(buf, "\"explicit_sun\""), "\"direction\": [");
+    assert_non_null(p);
+    double d[3];
+    assert_int_equal(sscanf(p, "\"direction\": [%lf, %lf, %lf]", &d[0], &d[1], &d[2]), 3);
+    double el = SUN_EL_DEG * M_PI / 180, ang = acos(fmin(1, d[0] * cos(el) + d[2] * sin(el))) * 180 / M_PI;
+    double s1 = given_sunlit_ground(m, esky1), s2 = sunlit_ground(dir, m);
+    print_message("searched sun %.2f deg from the true one, DNI %.4f (true %g); sunlit ground E_sky %.4f against "
+                  "%.4f\n", ang, dni, DNI, s2, s1);
+    assert_true(ang < 2);
+    assert_true(fabs(dni - DNI) < 0.05 * DNI);
+    assert_true(fabs(s2 - s1) < 0.02 * s1);
+    free(esky1);
+    rs_mesh_free(m);
+    rs_test_rmtree(dir);
+}
+
+/* No sun at all (an overcast sky): the search adds none. */
+static void test_no_sun_to_find(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("sunshadow");
+    double *esky1;
+    rs_mesh *m = hidden_sun_scene(dir, 0, 0, &esky1);
+    run(dir, "");
+    FILE *f = fopen(rs_test_path(dir, "work/irradiance.json"), "rb");
+    assert_non_null(f);
+    static char buf[1 << 16];
+    buf[fread(buf, 1, sizeof buf - 1, f)] = 0;
+    fclose(f);
+    const char *p = strstr(buf, "\"direct_normal_irradiance\": ");
+    double dni = p ? strtod(p + strlen("\"direct_normal_irradiance\": "), NULL) : 0;
+    double s1 = given_sunlit_ground(m, esky1), s2 = sunlit_ground(dir, m);
+    print_message("overcast: DNI %g, open ground E_sky %.4f against %.4f\n", dni, s2, s1);
+    assert_true(dni == 0);
+    assert_true(fabs(s2 - s1) < 0.01 * s1);
+    free(esky1);
     rs_mesh_free(m);
     rs_test_rmtree(dir);
 }
@@ -264,6 +344,8 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_estimator),
         cmocka_unit_test(test_hidden_sun),
+        cmocka_unit_test(test_searched_sun),
+        cmocka_unit_test(test_no_sun_to_find),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
