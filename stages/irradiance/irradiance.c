@@ -151,13 +151,14 @@ static int add_explicit_sun(const rs_config *cfg, rs_report *rep, rs_sunsource *
     if (sun->from_shadows) {
         const rs_sunshadow *e = &sun->shadow;
         if (sun->shadow_rc == 0)
-            rs_log_info("irradiance: sun from the shadows: DNI %.4g +- %.2g (colour %.3g %.3g %.3g) from %zu lit "
-                        "facets paired with shadowed ones within %.2f m on their plane (%zu blocks; margin %.2f m)",
-                        sun->dni, e->sigma_lum, sun->rgb[0], sun->rgb[1], sun->rgb[2], e->lit_used, 3 * sun->margin,
+            rs_log_info("irradiance: sun from the shadows: DNI %.4g +- %.2g (statistical %.2g, from the sky fill "
+                        "%.2g; colour %.3g %.3g %.3g) from %zu lit facets paired with shadowed ones within %.2f m on "
+                        "their plane (%zu blocks; margin %.2f m)", sun->dni, e->sigma_lum, e->sigma_stat_lum,
+                        e->sigma_sys_lum, sun->rgb[0], sun->rgb[1], sun->rgb[2], e->lit_used, 3 * sun->margin,
                         e->blocks, sun->margin);
         else if (sun->shadow_rc == 2)
             rs_report_skip(rep, "sun from the shadows", "the searched sun's DNI %.3g is within 5 standard errors "
-                           "(%.2g) of 0: no sun added", e->dni_lum, e->sigma_lum);
+                           "(%.2g) of 0: no sun added", e->dni_lum, e->sigma_stat_lum);
         else
             rs_report_skip(rep, "sun from the shadows", "only %zu observed facets in full sun found one in full "
                            "shadow within %.2f m on their plane (%zu lit, %zu shadowed beyond a %.2f m margin; %d "

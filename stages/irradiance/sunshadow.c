@@ -119,9 +119,10 @@ double rs_sunshadow_margin(const rs_mesh *mesh, const uint8_t *observed, rs_v3 c
 }
 
 /* Per channel D of lit facet i from every shadowed partner within the radius on its plane,
- * medians into d[3]; returns the partner count. */
+ * medians into d[0..3); d[3] the median of what E's uncertainty (E_sigma) makes of the
+ * luminance of D, hypot(Y_i / Y_j sigma_j, sigma_i) / cos_i. Returns the partner count. */
 static size_t lit_facet_dni(const rs_sunshadow_input *in, const cell_index *g, const rs_v3 *cen, const rs_v3 *nrm,
-                            const uint8_t *st, size_t i, float *scratch, double d[3])
+                            const uint8_t *st, size_t i, float *scratch, double d[4])
 {
     double cosi = rs_v3_dot(nrm[i], in->sun_dir);
     const double *Li = in->L + 3 * i, *Ei = in->E + 3 * i;
@@ -141,10 +142,13 @@ static size_t lit_facet_dni(const rs_sunshadow_input *in, const cell_index *g, c
                     const double *Lj = in->L + 3 * (size_t)j, *Ej = in->E + 3 * (size_t)j;
                     for (int ch = 0; ch < 3; ch++)
                         scratch[ch * MAX_PARTNERS + m] = (float)((Li[ch] * Ej[ch] / Lj[ch] - Ei[ch]) / cosi);
+                    double ratio = luminance(Li) / luminance(Lj);
+                    scratch[3 * MAX_PARTNERS + m] =
+                        in->E_sigma ? (float)(hypot(ratio * in->E_sigma[j], in->E_sigma[i]) / cosi) : 0;
                     m++;
                 }
             }
-    for (int ch = 0; ch < 3 && m; ch++) d[ch] = rs_select_kth(scratch + ch * MAX_PARTNERS, m, m / 2);
+    for (int ch = 0; ch < 4 && m; ch++) d[ch] = rs_select_kth(scratch + ch * MAX_PARTNERS, m, m / 2);
     return m;
 }
 
@@ -163,7 +167,7 @@ int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out)
     rs_v3 *cen = malloc((nf ? nf : 1) * sizeof *cen), *nrm = malloc((nf ? nf : 1) * sizeof *nrm);
     uint8_t *st = malloc(nf ? nf : 1);
     uint32_t *lit = malloc((nf ? nf : 1) * sizeof *lit);
-    float *dl = malloc((3 * nf + 1) * sizeof *dl);    /* per used lit facet: D per channel */
+    float *dl = malloc((4 * nf + 1) * sizeof *dl);    /* per used lit facet: D per channel, E's share */
     cell_index g = {0};
     int rc = -1;
     if (!cen || !nrm || !st || !lit || !dl) goto out;
@@ -200,18 +204,18 @@ int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out)
     int failed = !used;
 #pragma omp parallel
     {
-        float *scratch = malloc(3 * MAX_PARTNERS * sizeof *scratch);
+        float *scratch = malloc(4 * MAX_PARTNERS * sizeof *scratch);
         if (!scratch) {
 #pragma omp atomic write
             failed = 1;
         }
 #pragma omp for schedule(dynamic, 64)
         for (size_t k = 0; k < nlit; k++) {
-            double d[3];
+            double d[4];
             if (!scratch || !used) continue;
             if (lit_facet_dni(in, &g, cen, nrm, st, lit[k], scratch, d) == 0) continue;
             used[k] = 1;
-            for (int ch = 0; ch < 3; ch++) dl[3 * k + ch] = (float)d[ch];
+            for (int ch = 0; ch < 4; ch++) dl[4 * k + ch] = (float)d[ch];
         }
         free(scratch);
     }
@@ -223,7 +227,7 @@ int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out)
     size_t nu = 0;
     for (size_t k = 0; k < nlit; k++)
         if (used[k]) {
-            memmove(dl + 3 * nu, dl + 3 * k, 3 * sizeof *dl);
+            memmove(dl + 4 * nu, dl + 4 * k, 4 * sizeof *dl);
             lit[nu++] = lit[k];
         }
     free(used);
@@ -241,7 +245,7 @@ int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out)
         goto out;
     }
     for (int ch = 0; ch < 3; ch++) {
-        for (size_t k = 0; k < nu; k++) col[k] = dl[3 * k + ch];
+        for (size_t k = 0; k < nu; k++) col[k] = dl[4 * k + ch];
         out->dni[ch] = fmax(0, rs_select_kth(col, nu, nu / 2));
     }
     out->dni_lum = luminance(out->dni);
@@ -250,7 +254,7 @@ int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out)
      * 1.2533 x 1.4826 MAD / sqrt(blocks). With fewer than 3 blocks, the spread over facets. */
     cell_index bg = {.cell = 2 * in->radius};
     for (size_t k = 0; k < nu; k++) {
-        double d[3] = {dl[3 * k], dl[3 * k + 1], dl[3 * k + 2]};
+        double d[3] = {dl[4 * k], dl[4 * k + 1], dl[4 * k + 2]};
         bk[k] = (key_facet){cell_key(&bg, cen[lit[k]], 0, 0, 0), (uint32_t)k};
         col[k] = (float)luminance(d);
     }
@@ -262,8 +266,13 @@ int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out)
         blk[nb++] = rs_select_kth(tmp, n, n / 2);
     }
     out->blocks = nb;
-    out->sigma_lum = nb >= 3 ? 1.2533 * 1.4826 * mad(blk, nb, out->dni_lum) / sqrt((double)nb)
-                             : 1.4826 * mad(col, nu, out->dni_lum);
+    out->sigma_stat_lum = nb >= 3 ? 1.2533 * 1.4826 * mad(blk, nb, out->dni_lum) / sqrt((double)nb)
+                                  : 1.4826 * mad(col, nu, out->dni_lum);
+    /* What the uncertainty of E (the sky fill's) makes of it: the same for every pair, not
+     * averaged away; the median over lit facets. */
+    for (size_t k = 0; k < nu; k++) col[k] = dl[4 * k + 3];
+    out->sigma_sys_lum = rs_select_kth(col, nu, nu / 2);
+    out->sigma_lum = hypot(out->sigma_stat_lum, out->sigma_sys_lum);
     free(col);
     free(blk);
     free(tmp);

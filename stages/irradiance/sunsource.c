@@ -291,13 +291,21 @@ int rs_sunsource_from_shadows(rs_sunsource *sun, const rs_mesh *mesh, const floa
     size_t nf = mesh->nfaces;
     double *E = irradiance_without_sun(fg, nf, radiance, observed);
     if (!E) return -1;
+    double *E_sigma = malloc((nf ? nf : 1) * sizeof *E_sigma);
+    if (!E_sigma) {
+        free(E);
+        return -1;
+    }
+    for (size_t f = 0; f < nf; f++) E_sigma[f] = fg[f].fill_sigma_lum;
     sun->margin = rs_sunshadow_margin(mesh, observed, cam, pano_height);
     rs_sunshadow_input in = {.mesh = mesh, .vis = vis, .sun_dir = sun->dir_world, .E = E, .L = radiance,
-                             .observed = observed, .margin = sun->margin, .radius = 3 * sun->margin};
+                             .observed = observed, .E_sigma = E_sigma, .margin = sun->margin,
+                             .radius = 3 * sun->margin};
     sun->shadow_rc = rs_sunshadow_estimate(&in, &sun->shadow);
     free(E);
+    free(E_sigma);
     if (sun->shadow_rc < 0) return -1;
-    if (sun->shadow_rc == 0 && sun->searched && !(sun->shadow.dni_lum > 5 * sun->shadow.sigma_lum))
+    if (sun->shadow_rc == 0 && sun->searched && !(sun->shadow.dni_lum > 5 * sun->shadow.sigma_stat_lum))
         sun->shadow_rc = 2;                   /* the best of many directions: demand more */
     sun->dni = sun->shadow_rc == 0 ? sun->shadow.dni_lum : 0;
     for (int ch = 0; ch < 3; ch++) sun->rgb[ch] = sun->dni > 0 ? sun->shadow.dni[ch] / sun->dni : 1;
@@ -336,6 +344,8 @@ void rs_sunsource_report(const rs_sunsource *sun, rs_json *metrics)
             rs_json_set_int(e, "search_candidates", sun->found.candidates);
         }
         rs_json_set_num(e, "sigma", sun->shadow.sigma_lum);
+        rs_json_set_num(e, "sigma_statistical", sun->shadow.sigma_stat_lum);
+        rs_json_set_num(e, "sigma_from_sky_fill", sun->shadow.sigma_sys_lum);
         rs_json_set_num(e, "margin_m", sun->margin);
         rs_json_set_num(e, "radius_m", 3 * sun->margin);
         rs_json_set_int(e, "lit_facets", (long long)sun->shadow.lit);

@@ -75,6 +75,19 @@ static void test_estimator(void **state)
     double dl = 0.2126 * D[0] + 0.7152 * D[1] + 0.0722 * D[2];
     assert_true(out.sigma_lum > 0 && out.sigma_lum < 0.05 * dl);
     assert_true(out.blocks >= 3);
+    assert_true(out.sigma_sys_lum == 0);
+    /* E's uncertainty carries into D: hypot(r c, c) / cos_i with r = Y_lit / Y_dark in [1, 3]. */
+    const double c = 0.1;
+    double *esig = malloc(nf * sizeof *esig);
+    for (size_t f = 0; f < nf; f++) esig[f] = c;
+    in.E_sigma = esig;
+    assert_int_equal(rs_sunshadow_estimate(&in, &out), 0);
+    print_message("sigma from E's: %.4f (bounds %.4f %.4f)\n", out.sigma_sys_lum, c * sqrt(2) / sin(el),
+                  c * hypot(3, 1) / sin(el));
+    assert_true(out.sigma_sys_lum >= c * sqrt(2) / sin(el) && out.sigma_sys_lum <= c * hypot(3, 1) / sin(el));
+    assert_true(fabs(out.sigma_lum - hypot(out.sigma_stat_lum, out.sigma_sys_lum)) < 1e-12);
+    in.E_sigma = NULL;
+    free(esig);
     /* The margin matters: with none the bleeding facets pull the estimate down. */
     in.margin = 0;
     assert_int_equal(rs_sunshadow_estimate(&in, &out), 0);
