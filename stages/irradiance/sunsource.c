@@ -164,6 +164,7 @@ size_t rs_sunsource_remove(rs_sunsource *sun, rs_capture *c, const float *facet_
             double om = rs_pano_pixel_solid_angle(w, h, row);
             sun->removed_sr += om;
             sun->removed_power += y * om;
+            for (int ch = 0; ch < 3; ch++) sun->removed_rgb[ch] += px[ch] * om;
         }
         px[0] = px[1] = px[2] = -1;          /* not ok: the sky map fills it as unseen sky */
         removed++;
@@ -264,7 +265,7 @@ static double *irradiance_without_sun(const rs_facet_gather *fg, size_t nf, cons
 }
 
 int rs_sunsource_search(rs_sunsource *sun, const rs_scene *scene, const rs_skyenv *env, const rs_facet_gather *fg,
-                        const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height)
+                        const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height, rs_v3 sky_dir)
 {
     const rs_mesh *mesh = rs_scene_mesh(scene);
     double *E = irradiance_without_sun(fg, mesh->nfaces, radiance, observed);
@@ -276,7 +277,8 @@ int rs_sunsource_search(rs_sunsource *sun, const rs_scene *scene, const rs_skyen
     rs_sunshadow_pairs_free(&pairs);
     free(E);
     if (rc < 0) return -1;
-    if (rc == 0 && sun->found.score >= RS_SUNSEARCH_MIN_SCORE) {
+    sun->found_off_deg = acos(fmax(-1, fmin(1, rs_v3_dot(rs_v3_norm(sky_dir), sun->found.dir)))) * 180 / M_PI;
+    if (rc == 0 && sun->found.score >= RS_SUNSEARCH_MIN_SCORE && sun->found_off_deg <= RS_SUNSOURCE_AGREE_DEG) {
         sun->active = sun->from_shadows = sun->searched = 1;
         sun->dir_world = sun->found.dir;
         sun->dir_from = "shadows";
@@ -309,6 +311,11 @@ int rs_sunsource_from_shadows(rs_sunsource *sun, const rs_mesh *mesh, const floa
         sun->shadow_rc = 2;                   /* the best of many directions: demand more */
     sun->dni = sun->shadow_rc == 0 ? sun->shadow.dni_lum : 0;
     for (int ch = 0; ch < 3; ch++) sun->rgb[ch] = sun->dni > 0 ? sun->shadow.dni[ch] / sun->dni : 1;
+    if (sun->shadow_rc != 0 && sun->removed_power > 0) {   /* no shadows to read: keep what was seen */
+        sun->fell_back = 1;
+        sun->dni = sun->removed_power;
+        for (int ch = 0; ch < 3; ch++) sun->rgb[ch] = sun->removed_rgb[ch] / sun->removed_power;
+    }
     return 0;
 }
 
@@ -338,10 +345,12 @@ void rs_sunsource_report(const rs_sunsource *sun, rs_json *metrics)
     if (sun->from_shadows) {
         rs_json *e = rs_json_set_obj(o, "from_shadows");
         rs_json_set_bool(e, "estimated", sun->shadow_rc == 0);
+        rs_json_set_bool(e, "fell_back_to_panorama", sun->fell_back);
         if (sun->searched) {
             rs_json_set_num(e, "search_score", sun->found.score);
             rs_json_set_int(e, "search_pairs", (long long)sun->found.pairs);
             rs_json_set_int(e, "search_candidates", sun->found.candidates);
+            rs_json_set_num(e, "search_off_sky_estimate_deg", sun->found_off_deg);
         }
         rs_json_set_num(e, "sigma", sun->shadow.sigma_lum);
         rs_json_set_num(e, "sigma_statistical", sun->shadow.sigma_stat_lum);

@@ -33,6 +33,7 @@ typedef struct rs_sunsource {
     int search;                /* auto, nothing places the sun and no camera saw one: search the shadows */
     int searched;              /* the direction came from rs_sunsource_search */
     rs_sunsearch found;        /* its result */
+    double found_off_deg;      /* its angle to the sky's own estimate (rs_sunsource_search) */
     double margin;             /* its margin (m) */
     double clip_level;         /* luminance from which a capture pixel is the clipped disc */
     double halo_factor;        /* pixels within cone_rad above this x the median sky go too */
@@ -41,6 +42,8 @@ typedef struct rs_sunsource {
     double removed_sr;         /* their solid angle in the capture */
     double removed_power;      /* sum of luminance x solid angle over the capture's removed pixels:
                                   what the panorama had of the sun (a lower bound when clipped) */
+    double removed_rgb[3];     /* the same per channel */
+    int fell_back;             /* on, no estimate: the DNI is removed_power (what the panorama held) */
 } rs_sunsource;
 
 /* Reads [sky] sun_irradiance (or sun_from_shadows = on), sun_color and sun_clip_level; when set, takes the sun's direction from fill
@@ -73,15 +76,20 @@ int rs_sunsource_visibility(const rs_sunsource *sun, const rs_scene *scene, int 
                             const rs_facet_gather *fg, float *vis);
 
 /* With sun->search, after the gather: the direction from the shadows (sunsearch.h) among the
- * directions the map filled; when one is found, activates sun with from_shadows and searched
- * (its DNI must then come out above 5 standard errors, else it adds nothing). Returns 0, -1
- * out of memory. */
+ * directions the map filled. It is taken only within RS_SUNSOURCE_AGREE_DEG of sky_dir, the
+ * direction whose clear-sky distribution explains the visible sky best (the model fill's
+ * search): two independent cues must agree, so that shadows cast by a dim sun the cameras did
+ * see cannot put a second one behind the building. When taken, activates sun with from_shadows
+ * and searched (its DNI must then come out above 5 standard errors, else it adds nothing).
+ * Returns 0, -1 out of memory. */
+#define RS_SUNSOURCE_AGREE_DEG 30.0
 int rs_sunsource_search(rs_sunsource *sun, const rs_scene *scene, const rs_skyenv *env, const rs_facet_gather *fg,
-                        const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height);
+                        const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height, rs_v3 sky_dir);
 
 /* With from_shadows: estimates dni and rgb (rs_sunshadow_estimate; E = E_sky + G from fg and
  * the observed radiance, the margin from the capture at cam with panoramas pano_height high).
- * When there is too little evidence the sun adds nothing (dni 0) and shadow_rc says why.
+ * When there is too little evidence (shadow_rc says why) a sun whose disc was removed from the
+ * panorama gets back what the panorama held of it (fell_back), any other adds nothing (dni 0).
  * Returns 0, -1 out of memory. */
 int rs_sunsource_from_shadows(rs_sunsource *sun, const rs_mesh *mesh, const float *vis, const rs_facet_gather *fg,
                               const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height);

@@ -5,7 +5,8 @@
  *   with the sun's DNI given computes each ground facet's irradiance; the panorama is then
  *   rendered from it with a known albedo; a second run, given only the sun's direction, finds
  *   the DNI within 2 % and the sunlit ground's E_sky with it. Given nothing, the shadows give
- *   the direction within 2 degrees; with no sun at all the search adds none. */
+ *   the direction within 2 degrees; with no sun at all, or a sky whose glow puts the sun
+ *   elsewhere, the search adds none. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -15,7 +16,9 @@
 #include "meshgen.h"
 #include "pano.h"
 #include "ply.h"
+#include "skymodel.h"
 #include "sunshadow.h"
+#include "sunsource.h"
 #include "testutil.h"
 
 /* Deterministic noise in [-1, 1]. */
@@ -105,6 +108,47 @@ static void test_estimator(void **state)
     rs_mesh_free(m);
 }
 
+/* sun_from_shadows = on where nothing is shadowed: the sun keeps what the panorama held of
+ * its removed disc (DNI and colour), rather than vanishing. */
+static void test_fallback(void **state)
+{
+    (void)state;
+    rs_meshgen g = rs_meshgen_new(1000, 2000);
+    rs_meshgen_rect(&g, rs_v3_make(-5, -5, 0), rs_v3_make(10, 0, 0), rs_v3_make(0, 10, 0), 20, 20);
+    rs_mesh *m = rs_meshgen_done(&g);
+    size_t nf = m->nfaces;
+    float *vis = malloc(nf * sizeof *vis);
+    double *L = malloc(3 * nf * sizeof *L);
+    uint8_t *observed = malloc(nf);
+    rs_facet_gather *fg = calloc(nf, sizeof *fg);
+    for (size_t f = 0; f < nf; f++) {
+        vis[f] = 1;                                   /* all in the sun */
+        observed[f] = 1;
+        for (int ch = 0; ch < 3; ch++) {
+            L[3 * f + ch] = 1;
+            fg[f].esky[ch] = 3;
+        }
+    }
+    rs_sunsource sun = {.active = 1, .from_shadows = 1, .dir_world = rs_v3_make(0.6, 0, 0.8),
+                        .removed_power = 6.0, .removed_rgb = {9.0, 5.5, 2.0}};
+    assert_int_equal(rs_sunsource_from_shadows(&sun, m, vis, fg, L, observed, rs_v3_make(0, 0, 1.6), 512), 0);
+    print_message("no shadow: rc %d, DNI %.3f, colour %.3f %.3f %.3f\n", sun.shadow_rc, sun.dni, sun.rgb[0],
+                  sun.rgb[1], sun.rgb[2]);
+    assert_int_equal(sun.shadow_rc, 1);
+    assert_true(sun.fell_back);
+    assert_true(sun.dni == 6.0);
+    assert_true(fabs(sun.rgb[0] - 1.5) < 1e-12 && fabs(sun.rgb[2] - 2.0 / 6) < 1e-12);
+    sun.removed_power = 0;                            /* a hidden sun: nothing to fall back on */
+    sun.fell_back = 0;
+    assert_int_equal(rs_sunsource_from_shadows(&sun, m, vis, fg, L, observed, rs_v3_make(0, 0, 1.6), 512), 0);
+    assert_true(!sun.fell_back && sun.dni == 0);
+    free(vis);
+    free(L);
+    free(observed);
+    free(fg);
+    rs_mesh_free(m);
+}
+
 #define W 1024
 #define SUN_EL_DEG 30.0
 #define L_SKY 1.0
@@ -132,9 +176,23 @@ static int camera_sees(rs_v3 d)
     return 0;
 }
 
-/* The scene, and the panorama with ground pixels at ground[3 f..] of the facet facet_id gives
- * (NULL: 0.2, what the first run reads does not depend on it: flat ground sees no ground). */
-static void write_pano(const char *dir, const rs_image *facet_id, const double *ground)
+/* The sky: 1, or with glow the CIE clear sky (standard type 12: Perez a..e = -1, -0.32, 10,
+ * -3, 0.45) around the sun, 1 at the zenith: the circumsolar glow tells the sky model where a
+ * clear sky's sun is. */
+static double sky_radiance(rs_v3 d, int glow, double glow_az)
+{
+    static const double cie12[5] = {-1, -0.32, 10, -3, 0.45};
+    double el = SUN_EL_DEG * M_PI / 180;
+    double cosang = (d.x * cos(glow_az) + d.y * sin(glow_az)) * cos(el) + d.z * sin(el);
+    if (!glow) return L_SKY;
+    return L_SKY * rs_skymodel_perez(cie12, d.z, acos(fmax(-1, fmin(1, cosang)))) /
+           rs_skymodel_perez(cie12, 1, M_PI / 2 - el);
+}
+
+/* The panorama: sky, far ground, the black wall, and ground pixels at ground[3 f..] of the facet
+ * facet_id gives (NULL: 0.2, what the first run reads does not depend on it: flat ground sees
+ * no ground). */
+static void write_pano(const char *dir, const rs_image *facet_id, const double *ground, int glow, double glow_az)
 {
     rs_image *img = rs_image_new(W, W / 2, 3);
     for (int r = 0; r < W / 2; r++)
@@ -143,7 +201,7 @@ static void write_pano(const char *dir, const rs_image *facet_id, const double *
             int what = camera_sees(d);
             float *px = rs_image_px(img, c, r);
             for (int ch = 0; ch < 3; ch++) {
-                double v = d.z > 0 ? L_SKY : L_FAR;
+                double v = d.z > 0 ? sky_radiance(d, glow, glow_az) : L_FAR;
                 if (what == 2) v = 0;                         /* the black wall */
                 if (what == 1) {
                     v = 0.2;
@@ -209,10 +267,12 @@ static double json_number(const char *path, const char *key)
 #define SUN_GIVEN "sun_azimuth_deg = 0\nsun_elevation_deg = 30\n"
 
 /* The ground and the wall (10 m wide, narrower than the ground, so that the shadow has side
- * edges that fix the sun's azimuth); a first run with the sun's DNI given (0: no sun) computes
+ * edges that fix the sun's azimuth); a clear sky around the sun when there is one. A first
+ * run with the sun's DNI given (0: no sun, no glow) computes
  * every facet's E_sky + G; the panorama is then rendered from it with the known albedo, and the
  * config left with or without the sun's direction. Returns the mesh, and the first run's E_sky. */
-static rs_mesh *hidden_sun_scene(const char *dir, double dni, int keep_direction, double **esky_given)
+static rs_mesh *hidden_sun_scene(const char *dir, double dni, int keep_direction, double glow_az,
+                                 double **esky_given)
 {
     rs_meshgen g = rs_meshgen_new(20000, 20000);
     rs_meshgen_rect(&g, rs_v3_make(-14, -10, 0), rs_v3_make(17, 0, 0), rs_v3_make(0, 20, 0), 68, 80);
@@ -223,7 +283,7 @@ static rs_mesh *hidden_sun_scene(const char *dir, double dni, int keep_direction
     rs_err err;
     assert_int_equal(rs_ply_write(ply, rs_test_path(dir, "mesh.ply"), 1, &err), 0);
     rs_ply_free(ply);
-    write_pano(dir, NULL, NULL);
+    write_pano(dir, NULL, NULL, dni > 0, glow_az);
     rs_test_write(rs_test_path(dir, "scene.ini"), SCENE_HEAD SUN_GIVEN);
     char sets[256];
     snprintf(sets, sizeof sets, "--set sky.sun_irradiance=%g", dni);
@@ -237,7 +297,7 @@ static rs_mesh *hidden_sun_scene(const char *dir, double dni, int keep_direction
         for (int ch = 0; ch < 3; ch++) ground[3 * f + ch] = albedo[ch] / M_PI * e[3 * f + ch];
     rs_image *ids = rs_image_read(rs_test_path(dir, "work/facet_id.exr"), &err);
     assert_non_null(ids);
-    write_pano(dir, ids, ground);
+    write_pano(dir, ids, ground, dni > 0, glow_az);
     rs_image_free(ids);
     free(e);
     free(ground);
@@ -279,13 +339,14 @@ static void test_hidden_sun(void **state)
     (void)state;
     const char *dir = rs_test_tmpdir("sunshadow");
     double *esky1;
-    rs_mesh *m = hidden_sun_scene(dir, DNI, 1, &esky1);
+    rs_mesh *m = hidden_sun_scene(dir, DNI, 1, 0, &esky1);
     run(dir, "--set sky.sun_from_shadows=auto");
     const char *json = rs_test_path(dir, "work/irradiance.json");
-    double dni = json_number(json, "direct_normal_irradiance"), sigma = json_number(json, "sigma");
-    print_message("DNI from the shadows %.4f +- %.4f (true %g)\n", dni, sigma, DNI);
+    double dni = json_number(json, "direct_normal_irradiance"), sigma = json_number(json, "sigma"),
+           stat = json_number(json, "sigma_statistical");
+    print_message("DNI from the shadows %.4f +- %.4f, statistical %.4f (true %g)\n", dni, sigma, stat, DNI);
     assert_true(fabs(dni - DNI) < 0.02 * DNI);
-    assert_true(sigma > 0 && sigma < 0.05 * DNI);
+    assert_true(stat > 0 && stat < 0.05 * DNI && sigma >= stat);
     double s1 = given_sunlit_ground(m, esky1), s2 = sunlit_ground(dir, m);
     print_message("sunlit ground E_sky: DNI given %.4f, from the shadows %.4f\n", s1, s2);
     assert_true(fabs(s2 - s1) < 0.02 * s1);
@@ -302,7 +363,7 @@ static void test_searched_sun(void **state)
     (void)state;
     const char *dir = rs_test_tmpdir("sunshadow");
     double *esky1;
-    rs_mesh *m = hidden_sun_scene(dir, DNI, 0, &esky1);
+    rs_mesh *m = hidden_sun_scene(dir, DNI, 0, 0, &esky1);
     run(dir, "");
     const char *json = rs_test_path(dir, "work/irradiance.json");
     double dni = json_number(json, "direct_normal_irradiance");
@@ -334,7 +395,7 @@ static void test_no_sun_to_find(void **state)
     (void)state;
     const char *dir = rs_test_tmpdir("sunshadow");
     double *esky1;
-    rs_mesh *m = hidden_sun_scene(dir, 0, 0, &esky1);
+    rs_mesh *m = hidden_sun_scene(dir, 0, 0, 0, &esky1);
     run(dir, "");
     FILE *f = fopen(rs_test_path(dir, "work/irradiance.json"), "rb");
     assert_non_null(f);
@@ -352,13 +413,36 @@ static void test_no_sun_to_find(void **state)
     rs_test_rmtree(dir);
 }
 
+/* Shadows of a sun at azimuth 0 under a sky whose glow says azimuth 180 (the cues disagree):
+ * no sun is added, and the summary says why. */
+static void test_cues_disagree(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("sunshadow");
+    double *esky1;
+    rs_mesh *m = hidden_sun_scene(dir, DNI, 0, M_PI, &esky1);
+    run(dir, "");
+    FILE *f = fopen(rs_test_path(dir, "work/irradiance.json"), "rb");
+    assert_non_null(f);
+    static char buf[1 << 16];
+    buf[fread(buf, 1, sizeof buf - 1, f)] = 0;
+    fclose(f);
+    assert_null(strstr(buf, "\"explicit_sun\""));
+    assert_non_null(strstr(buf, "from where the visible sky puts the sun"));
+    free(esky1);
+    rs_mesh_free(m);
+    rs_test_rmtree(dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_estimator),
+        cmocka_unit_test(test_fallback),
         cmocka_unit_test(test_hidden_sun),
         cmocka_unit_test(test_searched_sun),
         cmocka_unit_test(test_no_sun_to_find),
+        cmocka_unit_test(test_cues_disagree),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
