@@ -135,6 +135,21 @@ int rs_sunsearch_run(const rs_scene *scene, const rs_skyenv *env, const rs_sunsh
     memset(out, 0, sizeof *out);
     const rs_mesh *m = rs_scene_mesh(scene);
     size_t nf = m->nfaces;
+    size_t stride = (pairs->n + RS_SUNSEARCH_MAX_PAIRS - 1) / RS_SUNSEARCH_MAX_PAIRS;
+    rs_sunshadow_pairs sub = {.n = 0};
+    if (stride > 1) {                           /* every stride-th pair: spread over the model */
+        sub.a = malloc(RS_SUNSEARCH_MAX_PAIRS * sizeof *sub.a);
+        sub.b = malloc(RS_SUNSEARCH_MAX_PAIRS * sizeof *sub.b);
+        if (!sub.a || !sub.b) {
+            rs_sunshadow_pairs_free(&sub);
+            return -1;
+        }
+        for (size_t p = 0; p < pairs->n && sub.n < RS_SUNSEARCH_MAX_PAIRS; p += stride) {
+            sub.a[sub.n] = pairs->a[p];
+            sub.b[sub.n++] = pairs->b[p];
+        }
+        pairs = &sub;
+    }
     search_ctx c = {.scene = scene, .env = env, .pairs = pairs};
     c.slot = malloc((nf ? nf : 1) * sizeof *c.slot);
     c.facets = malloc((nf ? nf : 1) * sizeof *c.facets);
@@ -215,6 +230,7 @@ done:
     free(c.org);
     free(c.nrm);
     free(c.log_ratio);
+    rs_sunshadow_pairs_free(&sub);
     free(dirs);
     free(med);
     free(edge);

@@ -20,6 +20,9 @@
 
 /* Fewest lit-shadowed pairs for a direction to be scored. */
 #define RS_SUNSEARCH_MIN_PAIRS 50
+/* Most pairs a direction is scored on (every k-th beyond): it bounds the rays per direction,
+ * about 2 per pair, so the search costs the same at 10^6 facets as at 10^5. */
+#define RS_SUNSEARCH_MAX_PAIRS 100000
 /* Smallest median log contrast taken for a sun (a 10.5 % jump): an overcast sky's shadows
  * score about 0. */
 #define RS_SUNSEARCH_MIN_SCORE 0.1
