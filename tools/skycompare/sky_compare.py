@@ -132,6 +132,12 @@ METHOD = """## How the sky is completed (stages/irradiance: skyenv.c, skyfill.c,
   horizon take the model. Hidden directions below the horizon take the mean visible ground of the
   same world elevation band (nearest band with any), and when no ground is visible at all
   `ground_albedo` x E_horizontal / pi of the completed sky.
+- A sun no camera saw (`[sky] sun_from_shadows`, stages/irradiance/sunshadow.c): with its direction
+  known, its DNI and colour come from the model's shadows. An observed facet in full sun and one in
+  full shadow near it on the same plane are taken to share an albedo, so
+  D = (L_i E_j / L_j - E_i) / cos_i per channel (E = E_sky + G without the sun); medians over
+  partners and over lit facets; facets within a margin of the shadow edge (4 pixel footprints plus
+  twice the facet size) are left out. Its standard error (from blocks) joins the fill uncertainty.
 - Uncertainty of the fill: the measured sky above the horizon is split into 8 azimuth sectors and
   the lowest 20 % (by solid angle); each block is held out in turn and predicted by both methods
   from the rest (the model's harmonic order is the one with the smallest RMS error). A fill
@@ -184,10 +190,16 @@ def main():
         sun = measured_sun(truth['env'], os.path.join(sdir, 'scene.json')) if truth.get('env') else None
         if sun is not None:
             dni, rgb, az, el = sun
+            direction = ['--set', 'sky.sun_azimuth_deg=%.6f' % az, '--set', 'sky.sun_elevation_deg=%.6f' % el]
             scene_methods.append(('model + measured sun', [
                 '--set', 'sky.fill=model', '--set', 'sky.sun_irradiance=%.9g' % dni,
-                '--set', 'sky.sun_color=%.9g %.9g %.9g' % tuple(rgb), '--set', 'sky.sun_azimuth_deg=%.6f' % az,
-                '--set', 'sky.sun_elevation_deg=%.6f' % el]))
+                '--set', 'sky.sun_color=%.9g %.9g %.9g' % tuple(rgb)] + direction))
+            # What a timestamp gives (the solar position): the direction alone. A sun no camera saw
+            # then takes its DNI from the shadows (sun_from_shadows = auto); "sun from shadows"
+            # forces that estimate for a visible sun too, to check it against the sky file's.
+            scene_methods.append(('model + sun direction', ['--set', 'sky.fill=model'] + direction))
+            scene_methods.append(('sun from shadows', ['--set', 'sky.fill=model', '--set',
+                                                       'sky.sun_from_shadows=on'] + direction))
         os.makedirs(wdir, exist_ok=True)
         cfg = os.path.join(wdir, 'scene.ini')
         with open(cfg, 'w') as fh:
@@ -225,7 +237,8 @@ def main():
                       'med_sig': float(np.median(sig)), 'med_bound': float(np.median(bound)),
                       'med_err': float(np.median(rel)), 'mc_factor': im.get('mc_sigma_factor'),
                       'ratio_calibrated': float(calibrated_ratio(sig)),
-                      'ratio_per_facet': float(np.median(bound[rel > 0] / rel[rel > 0]))}
+                      'ratio_per_facet': float(np.median(bound[rel > 0] / rel[rel > 0])),
+                      'sun': im.get('explicit_sun'), 'sun_true': sun}
             print('%s / %s: interior mean %.4f, worst part %.4f' % (name, m, res[m]['interior'], res[m]['worst']))
         rows.append((name, sdir, res))
     with open(a.out, 'w') as fh:
@@ -235,7 +248,10 @@ def main():
                  'and the solar position would give it ("model + measured sun": `sun_irradiance`, `sun_color`, '
                  '`sun_azimuth_deg`, `sun_elevation_deg` from the sky file\'s pixels within 2.5 degrees of its '
                  'brightest and above 50 x the median sky, disc and halo; no row for a sky without a sun, '
-                 'DNI < 0.065 x the diffuse horizontal irradiance), and with the true sky: env.exr (the environment alone, '
+                 'DNI < 0.065 x the diffuse horizontal irradiance), `fill = model` with the sun\'s direction alone '
+                 '("model + sun direction", what a timestamp and the solar position give: a sun no camera saw then '
+                 'takes its DNI from the shadows, `sun_from_shadows = auto`), the same with `sun_from_shadows = on` '
+                 '("sun from shadows": the estimate replaces even a sun the panorama shows), and with the true sky: env.exr (the environment alone, '
                  'rendered from the camera with the model hidden) as `[sky] panorama`. Errors are the shared '
                  'evaluator\'s area-weighted mean relative albedo error over interior facets (`eval_albedo.py`); '
                  '"worst part" is the largest per-part mean. "sky filled" is the area-weighted mean share of E_sky '
@@ -272,6 +288,25 @@ def main():
                     r['ratio_per_facet'], 100 * r['cover1'],
                     100 * r['med_bound'], 100 * r['med_err'],
                     '%.2f' % r['mc_factor'] if r['mc_factor'] is not None else '-'))
+        fh.write('\n## The sun from the shadows\n\n'
+                 'The DNI (luminance, the panorama\'s unit x sr) and colour rhoscan estimated from the shadows '
+                 '(stages/irradiance/sunshadow.c), against the sky file\'s sun as "model + measured sun" takes it. '
+                 '"used by" names the method rows that estimated it: "model + sun direction" does so only when no '
+                 'camera saw the sun (`sun_from_shadows = auto`), "sun from shadows" always (`on`, the panorama\'s '
+                 'own sun removed).\n\n'
+                 '| scene | used by | DNI estimated | its sigma | DNI of the sky file | colour estimated | colour of the '
+                 'sky file | lit facets paired | blocks |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- |\n')
+        for name, sdir, res in rows:
+            for m, r in res.items():
+                es, st = r.get('sun'), r.get('sun_true')
+                if not es or es.get('irradiance_from') != 'shadows' or not st:
+                    continue
+                fs = es['from_shadows']
+                fh.write('| %s | %s | %s | %s | %.3f | %s | %s | %d | %d |\n' % (
+                    name, m, '%.3f' % es['direct_normal_irradiance'] if fs['estimated'] else 'none',
+                    '%.3f' % fs['sigma'] if fs['estimated'] else '-', st[0],
+                    ' '.join('%.2f' % v for v in es['color_at_unit_luminance']),
+                    ' '.join('%.2f' % (v / st[0]) for v in st[1]), fs['lit_facets_paired'], fs['blocks']))
         fh.write('\n' + METHOD)
     # Does the fill uncertainty cover the change the fill causes (against the true-sky run)?
     for name, sdir, res in rows:
