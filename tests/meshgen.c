@@ -2,6 +2,8 @@
 #include "meshgen.h"
 
 #include <stdlib.h>
+#include "ply.h"
+#include "testutil.h"
 
 rs_meshgen rs_meshgen_new(size_t max_verts, size_t max_faces)
 {
@@ -55,4 +57,13 @@ rs_mesh *rs_meshgen_done(rs_meshgen *g)
     g->m->nverts = g->nv;
     g->m->nfaces = g->nf;
     return g->m;
+}
+
+void rs_meshgen_write(const rs_mesh *m, const char *path)
+{
+    rs_ply *ply = rs_ply_new();
+    rs_mesh_to_ply(m, ply);
+    rs_err err;
+    assert_int_equal(rs_ply_write(ply, path, 1, &err), 0);
+    rs_ply_free(ply);
 }

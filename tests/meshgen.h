@@ -17,5 +17,7 @@ size_t rs_meshgen_rect(rs_meshgen *g, rs_v3 origin, rs_v3 e1, rs_v3 e2, int nu, 
 /* Axis-aligned box [lo, hi] with n x n cells per side; inward: normals point inside. */
 void rs_meshgen_box(rs_meshgen *g, rs_v3 lo, rs_v3 hi, int n, int inward);
 rs_mesh *rs_meshgen_done(rs_meshgen *g);
+/* Writes m as a binary PLY mesh at path; fails the test when it cannot. */
+void rs_meshgen_write(const rs_mesh *m, const char *path);
 
 #endif

@@ -100,3 +100,24 @@ int rs_test_run(const char *cmd, char **output)
     if (status == -1) return -1;
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
+
+const char *rs_test_read_text(const char *path)
+{
+    static char buf[1 << 16];
+    FILE *f = fopen(path, "rb");
+    assert_non_null(f);
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = 0;
+    return buf;
+}
+
+double rs_test_json_number(const char *path, const char *key)
+{
+    const char *text = rs_test_read_text(path);
+    char pat[128];
+    snprintf(pat, sizeof pat, "\"%s\": ", key);
+    const char *p = strstr(text, pat);
+    assert_non_null(p);
+    return strtod(p + strlen(pat), NULL);
+}

@@ -19,6 +19,13 @@ const char *rs_test_path(const char *dir, const char *name);
 /* Writes text to a file; aborts the test on failure. */
 void rs_test_write(const char *path, const char *text);
 
+/* The whole text file (at most 64 KB) in a static buffer, valid until the next call; fails the
+ * test when it cannot be read. */
+const char *rs_test_read_text(const char *path);
+/* The number after "key": in a stage's JSON file (its first occurrence); fails the test when
+ * the key is absent. */
+double rs_test_json_number(const char *path, const char *key);
+
 /* RHOSCAN_SHARED_DIR when it exists. When it does not: prints why and exits 77 (ctest skip),
  * or exits 1 under CI=true, where the data must be there. */
 const char *rs_test_shared_dir(void);

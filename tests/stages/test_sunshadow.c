@@ -246,21 +246,6 @@ static double *read_irradiance(const char *dir, int with_inter, size_t *nf)
     return e;
 }
 
-static double json_number(const char *path, const char *key)
-{
-    FILE *f = fopen(path, "rb");
-    assert_non_null(f);
-    static char buf[1 << 16];
-    size_t n = fread(buf, 1, sizeof buf - 1, f);
-    fclose(f);
-    buf[n] = 0;
-    char pat[128];
-    snprintf(pat, sizeof pat, "\"%s\": ", key);
-    const char *p = strstr(buf, pat);
-    assert_non_null(p);
-    return strtod(p + strlen(pat), NULL);
-}
-
 #define SCENE_HEAD "[pipeline]\nworkdir = work\n[mesh]\ninput_mesh = mesh.ply\n[capture]\npanorama = pano.exr\n" \
     "position = 0 0 1.6\n[irradiance]\nsamples = 128\nsky_samples = 128\nsun_samples = 16\nskip_unseen = false\n" \
     "[sky]\nfill = row\n"
@@ -278,11 +263,8 @@ static rs_mesh *hidden_sun_scene(const char *dir, double dni, int keep_direction
     rs_meshgen_rect(&g, rs_v3_make(-14, -10, 0), rs_v3_make(17, 0, 0), rs_v3_make(0, 20, 0), 68, 80);
     rs_meshgen_rect(&g, rs_v3_make(WALL_X, -5, 0), rs_v3_make(0, 0, WALL_H), rs_v3_make(0, 10, 0), 12, 20);
     rs_mesh *m = rs_meshgen_done(&g);
-    rs_ply *ply = rs_ply_new();
-    rs_mesh_to_ply(m, ply);
+    rs_meshgen_write(m, rs_test_path(dir, "mesh.ply"));
     rs_err err;
-    assert_int_equal(rs_ply_write(ply, rs_test_path(dir, "mesh.ply"), 1, &err), 0);
-    rs_ply_free(ply);
     write_pano(dir, NULL, NULL, dni > 0, glow_az);
     rs_test_write(rs_test_path(dir, "scene.ini"), SCENE_HEAD SUN_GIVEN);
     char sets[256];
@@ -342,8 +324,8 @@ static void test_hidden_sun(void **state)
     rs_mesh *m = hidden_sun_scene(dir, DNI, 1, 0, &esky1);
     run(dir, "--set sky.sun_from_shadows=auto");
     const char *json = rs_test_path(dir, "work/irradiance.json");
-    double dni = json_number(json, "direct_normal_irradiance"), sigma = json_number(json, "sigma"),
-           stat = json_number(json, "sigma_statistical");
+    double dni = rs_test_json_number(json, "direct_normal_irradiance"), sigma = rs_test_json_number(json, "sigma"),
+           stat = rs_test_json_number(json, "sigma_statistical");
     print_message("DNI from the shadows %.4f +- %.4f, statistical %.4f (true %g)\n", dni, sigma, stat, DNI);
     assert_true(fabs(dni - DNI) < 0.02 * DNI);
     assert_true(stat > 0 && stat < 0.05 * DNI && sigma >= stat);
@@ -366,12 +348,8 @@ static void test_searched_sun(void **state)
     rs_mesh *m = hidden_sun_scene(dir, DNI, 0, 0, &esky1);
     run(dir, "");
     const char *json = rs_test_path(dir, "work/irradiance.json");
-    double dni = json_number(json, "direct_normal_irradiance");
-    FILE *f = fopen(json, "rb");
-    assert_non_null(f);
-    static char buf[1 << 16];
-    buf[fread(buf, 1, sizeof buf - 1, f)] = 0;
-    fclose(f);
+    double dni = rs_test_json_number(json, "direct_normal_irradiance");
+    const char *buf = rs_test_read_text(json);
     assert_non_null(strstr(buf, "\"direction_from\": \"shadows\""));
     const char *p = strstr(strstr(buf, "\"explicit_sun\""), "\"direction\": [");
     assert_non_null(p);
@@ -397,11 +375,7 @@ static void test_no_sun_to_find(void **state)
     double *esky1;
     rs_mesh *m = hidden_sun_scene(dir, 0, 0, 0, &esky1);
     run(dir, "");
-    FILE *f = fopen(rs_test_path(dir, "work/irradiance.json"), "rb");
-    assert_non_null(f);
-    static char buf[1 << 16];
-    buf[fread(buf, 1, sizeof buf - 1, f)] = 0;
-    fclose(f);
+    const char *buf = rs_test_read_text(rs_test_path(dir, "work/irradiance.json"));
     const char *p = strstr(buf, "\"direct_normal_irradiance\": ");
     double dni = p ? strtod(p + strlen("\"direct_normal_irradiance\": "), NULL) : 0;
     double s1 = given_sunlit_ground(m, esky1), s2 = sunlit_ground(dir, m);
@@ -422,11 +396,7 @@ static void test_cues_disagree(void **state)
     double *esky1;
     rs_mesh *m = hidden_sun_scene(dir, DNI, 0, M_PI, &esky1);
     run(dir, "");
-    FILE *f = fopen(rs_test_path(dir, "work/irradiance.json"), "rb");
-    assert_non_null(f);
-    static char buf[1 << 16];
-    buf[fread(buf, 1, sizeof buf - 1, f)] = 0;
-    fclose(f);
+    const char *buf = rs_test_read_text(rs_test_path(dir, "work/irradiance.json"));
     assert_null(strstr(buf, "\"explicit_sun\""));
     assert_non_null(strstr(buf, "from where the visible sky puts the sun"));
     free(esky1);

@@ -45,11 +45,8 @@ static void write_scene(const char *dir, double *dni, double *clipped_dni)
     rs_meshgen_rect(&g, rs_v3_make(-4, -2, 0), rs_v3_make(8, 0, 0), rs_v3_make(0, 4, 0), 16, 8);
     rs_meshgen_rect(&g, rs_v3_make(-2, -1, 1), rs_v3_make(1, 0, 0), rs_v3_make(0, 2, 0), 2, 4);
     rs_mesh *m = rs_meshgen_done(&g);
-    rs_ply *ply = rs_ply_new();
-    rs_mesh_to_ply(m, ply);
+    rs_meshgen_write(m, rs_test_path(dir, "mesh.ply"));
     rs_err err;
-    assert_int_equal(rs_ply_write(ply, rs_test_path(dir, "mesh.ply"), 1, &err), 0);
-    rs_ply_free(ply);
     rs_mesh_free(m);
     rs_image *img = rs_image_new(W, W / 2, 3);
     *dni = *clipped_dni = 0;
@@ -124,17 +121,6 @@ static double mean_in(const double *e, const rs_v3 *c, size_t nf, double x0, dou
     return sum / n;
 }
 
-static char *read_text(const char *path)
-{
-    FILE *f = fopen(path, "rb");
-    assert_non_null(f);
-    static char buf[1 << 16];
-    size_t n = fread(buf, 1, sizeof buf - 1, f);
-    fclose(f);
-    buf[n] = 0;
-    return buf;
-}
-
 /* rhoscan run in dir with sets fails with exit 1 and a message naming both words. */
 static void expect_input_error(const char *dir, const char *sets, const char *word1, const char *word2)
 {
@@ -169,7 +155,7 @@ static void test_clipped_sun(void **state)
     snprintf(sets, sizeof sets, "--set sky.sun_irradiance=%.9g --set sky.sun_azimuth_deg=0 --set "
              "sky.sun_elevation_deg=%g", dni, SUN_EL_DEG);
     run(dir, sets, &e1, &c, &nf);
-    char *json = read_text(rs_test_path(dir, "work/irradiance.json"));
+    const char *json = rs_test_read_text(rs_test_path(dir, "work/irradiance.json"));
     assert_non_null(strstr(json, "\"direction_from\": \"config\""));
     /* The gather's noise is calibrated against a second gather without the sun term, so the sun
      * must not be in the first either (it was: a factor of 12 to 24 on the reference scenes). */
@@ -181,7 +167,7 @@ static void test_clipped_sun(void **state)
     free(c);
     snprintf(sets, sizeof sets, "--set sky.sun_irradiance=%.9g", dni);
     run(dir, sets, &e2, &c, &nf);
-    json = read_text(rs_test_path(dir, "work/irradiance.json"));
+    json = rs_test_read_text(rs_test_path(dir, "work/irradiance.json"));
     assert_non_null(strstr(json, "\"direction_from\": \"clipped disc\""));
 
     /* The roof (z = 1): nothing above it. */
