@@ -358,6 +358,15 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_int(rep->metrics, "mc_calibration_facets", (long long)mc_facets);
     rs_log_info("irradiance: Monte Carlo noise from %zu facets gathered twice: %.3g x the independent-sample formula",
                 mc_facets, mc_factor);
+    /* An overcast sky (the fitted Perez distribution has almost no circumsolar term) casts no
+     * shadow to read; the row fill fits no model, and the search's other tests stand alone. */
+    double glow = so.fill.method == RS_SKYFILL_MODEL && info.fill.fit_samples ? info.fill.model.perez[1][2] : -1;
+    if (sun.search && glow >= 0 && glow < RS_SUNSEARCH_MIN_GLOW) {
+        sun.search = 0;
+        rs_report_skip(rep, "sun from the shadows", "no bright sky pixel and no sun placed by the config, and the "
+                       "visible sky has no circumsolar glow (Perez c = %.2f < %g): overcast, no sun searched", glow,
+                       RS_SUNSEARCH_MIN_GLOW);
+    }
     if (sun.search) {
         t0 = rs_now();
         if (rs_sunsource_search(&sun, scene, &env, fg, radiance, observed, cap.pose.position, cap.pano->height,
@@ -446,6 +455,8 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     if (so.fill.method == RS_SKYFILL_MODEL) {
         rs_json_set_int(rep->metrics, "sky_model_sh_order", info.fill.model.sh_order);
         rs_json_set_num(rep->metrics, "sky_model_fit_rms_log", info.fill.model.fit_rms_log);
+        rs_json *pz = rs_json_set_arr(rep->metrics, "sky_model_perez_green");   /* a b c d e */
+        for (int k = 0; k < 5; k++) rs_json_push_num(pz, info.fill.model.perez[1][k]);
         rs_json_set_int(rep->metrics, "sky_ground_from_albedo", info.fill.ground_from_albedo);
     }
     if (nothers) rs_json_set_int(rep->metrics, "sky_other_capture_pixels", (long long)info.other_pixels);

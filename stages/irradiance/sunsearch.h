@@ -27,6 +27,11 @@
  * score about 0. */
 #define RS_SUNSEARCH_MIN_SCORE 0.1
 
+/* Smallest circumsolar term c of the Perez fit to the visible sky (green; CIE clear skies 10,
+ * overcast 0; the reference skies 5.9 to 8.2) for a search: below it the sky is overcast and
+ * no sun casts shadows, while an albedo edge could still look like one. */
+#define RS_SUNSEARCH_MIN_GLOW 2.0
+
 typedef struct rs_sunsearch {
     rs_v3 dir;                 /* unit, world, toward the sun */
     double score;              /* its median log contrast */
