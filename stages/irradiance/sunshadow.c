@@ -21,10 +21,17 @@ typedef struct cell_index {
     size_t n;
 } cell_index;
 
+/* floor(v / cell) as an integer, clamped so that the cast is defined whatever the input. */
+static int64_t cell_coord(double v, double cell)
+{
+    double q = floor(v / cell);
+    if (isnan(q)) return 0;
+    return q > 1e15 ? (int64_t)1e15 : q < -1e15 ? -(int64_t)1e15 : (int64_t)q;
+}
+
 static uint64_t cell_key(const cell_index *g, rs_v3 p, int dx, int dy, int dz)
 {
-    int64_t x = (int64_t)floor(p.x / g->cell) + dx, y = (int64_t)floor(p.y / g->cell) + dy,
-            z = (int64_t)floor(p.z / g->cell) + dz;
+    int64_t x = cell_coord(p.x, g->cell) + dx, y = cell_coord(p.y, g->cell) + dy, z = cell_coord(p.z, g->cell) + dz;
     const int64_t bias = (int64_t)1 << 20, mask = ((int64_t)1 << 21) - 1;
     return (uint64_t)((x + bias) & mask) << 42 | (uint64_t)((y + bias) & mask) << 21 | (uint64_t)((z + bias) & mask);
 }
@@ -140,11 +147,11 @@ static size_t lit_facet_dni(const rs_sunshadow_input *in, const cell_index *g, c
                         fabs(rs_v3_dot(nrm[i], off)) > 0.1 * in->radius)
                         continue;      /* not on i's plane (5 degrees, a tenth of the radius) */
                     const double *Lj = in->L + 3 * (size_t)j, *Ej = in->E + 3 * (size_t)j;
-                    for (int ch = 0; ch < 3; ch++)
-                        scratch[ch * MAX_PARTNERS + m] = (float)((Li[ch] * Ej[ch] / Lj[ch] - Ei[ch]) / cosi);
-                    double ratio = luminance(Li) / luminance(Lj);
-                    scratch[3 * MAX_PARTNERS + m] =
-                        in->E_sigma ? (float)(hypot(ratio * in->E_sigma[j], in->E_sigma[i]) / cosi) : 0;
+                    double d[4], ratio = luminance(Li) / luminance(Lj);
+                    for (int ch = 0; ch < 3; ch++) d[ch] = (Li[ch] * Ej[ch] / Lj[ch] - Ei[ch]) / cosi;
+                    d[3] = in->E_sigma ? hypot(ratio * in->E_sigma[j], in->E_sigma[i]) / cosi : 0;
+                    if (!(isfinite(d[0]) && isfinite(d[1]) && isfinite(d[2]) && isfinite(d[3]))) continue;
+                    for (int ch = 0; ch < 4; ch++) scratch[ch * MAX_PARTNERS + m] = (float)d[ch];
                     m++;
                 }
             }
@@ -162,6 +169,7 @@ static double mad(float *v, size_t n, double med)
 int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out)
 {
     memset(out, 0, sizeof *out);
+    if (!(in->radius > 0) || !(in->margin >= 0)) return 1;   /* nothing observed to size them */
     const rs_mesh *m = in->mesh;
     size_t nf = m->nfaces;
     rs_v3 *cen = malloc((nf ? nf : 1) * sizeof *cen), *nrm = malloc((nf ? nf : 1) * sizeof *nrm);
@@ -293,6 +301,7 @@ int rs_sunshadow_pairs_build(const rs_mesh *mesh, const uint8_t *observed, doubl
                              int max_per_facet, rs_sunshadow_pairs *out)
 {
     memset(out, 0, sizeof *out);
+    if (!(radius > 0)) return 0;                /* nothing observed: no pairs */
     size_t nf = mesh->nfaces, cap = nf * (size_t)max_per_facet;
     rs_v3 *cen = calloc(nf ? nf : 1, sizeof *cen), *nrm = calloc(nf ? nf : 1, sizeof *nrm);
     uint32_t *cnt = calloc(nf ? nf : 1, sizeof *cnt);

@@ -95,6 +95,33 @@ static void test_estimator(void **state)
     in.margin = 0;
     assert_int_equal(rs_sunshadow_estimate(&in, &out), 0);
     print_message("without the margin: DNI %.4f %.4f %.4f\n", out.dni[0], out.dni[1], out.dni[2]);
+    /* Bad values (NaN and infinite E, zero and negative radiance, NaN visibility, a NaN
+     * uncertainty) leave their facets out; the rest still gives the estimate. */
+    in.margin = 0.3;
+    for (size_t f = 0; f < nf; f += 7) {
+        E[3 * f + (f % 3)] = (f % 2) ? NAN : INFINITY;
+        L[3 * f + 1 + 3 * ((f / 7) % 2)] = (f % 3) ? 0 : -1;
+    }
+    for (size_t f = 0; f < nf; f += 2003) vis[f] = NAN;   /* few: unknown ones count as neither kind */
+    double *nan_sigma = malloc(nf * sizeof *nan_sigma);
+    for (size_t f = 0; f < nf; f++) nan_sigma[f] = (f % 11) ? 0.01 : NAN;
+    in.E_sigma = nan_sigma;
+    assert_int_equal(rs_sunshadow_estimate(&in, &out), 0);
+    print_message("with bad values: DNI %.4f %.4f %.4f, sigma %.4f\n", out.dni[0], out.dni[1], out.dni[2],
+                  out.sigma_lum);
+    for (int ch = 0; ch < 3; ch++) assert_true(fabs(out.dni[ch] - D[ch]) < 0.03 * D[ch]);
+    assert_true(isfinite(out.sigma_lum));
+    in.E_sigma = NULL;
+    free(nan_sigma);
+    /* Nothing observed: no margin to size the search by, no estimate. */
+    memset(observed, 0, nf);
+    in.margin = rs_sunshadow_margin(m, observed, rs_v3_make(0, 0, 1.6), 512);
+    in.radius = 3 * in.margin;
+    assert_true(in.margin == 0);
+    assert_int_equal(rs_sunshadow_estimate(&in, &out), 1);
+    memset(observed, 1, nf);
+    in.margin = 0.3;
+    in.radius = 0.9;
     /* No shadow at all: no estimate. */
     for (size_t f = 0; f < nf; f++) vis[f] = 1;
     in.margin = 0.3;
