@@ -27,7 +27,7 @@ static int hidden(const rs_skyenv *env, rs_v3 s)
     if (!(s.z > 0.02)) return 0;
     int c, r;
     rs_pano_world_to_pixel(&env->pose, env->width, env->height, s, &c, &r);
-    return env->filled[(size_t)r * env->width + c] && !env->sun[(size_t)r * env->width + c];
+    return env->filled[(size_t)r * env->width + c];
 }
 
 /* Scores of direction s: the median contrast over lit-shadowed pairs (-INFINITY with too few),

@@ -185,12 +185,17 @@ int rs_sunsource_auto(const rs_config *cfg, const rs_skyenv *env, const rs_skyfi
     int w = env->width, h = env->height, c, r;
     rs_pano_world_to_pixel(&env->pose, w, h, s, &c, &r);
     if (!env->filled[(size_t)r * w + c]) return 0;   /* a camera saw the sky there: the map has the sun */
+    /* Bright measured pixels next to it: seen, at least in part. Not env->sun, which is empty
+     * when nothing samples the sun explicitly. */
     double cone = cos(rs_config_real(cfg, "irradiance", "sun_max_cone_deg") * M_PI / 180);
+    double bright = rs_config_real(cfg, "irradiance", "sun_threshold") * env->sky_median;
     for (int y = 0; y < h; y++)
-        for (int x = 0; x < w; x++)
-            if (env->sun[(size_t)y * w + x] &&
+        for (int x = 0; x < w; x++) {
+            size_t k = (size_t)y * w + x;
+            if (!env->filled[k] && rs_skyenv_luminance(env->radiance + 3 * k) > bright &&
                 rs_v3_dot(rs_pose_dir_to_world(&env->pose, rs_pano_pixel_dir(w, h, x, y)), s) >= cone)
-                return 0;                        /* bright pixels next to it: seen, at least in part */
+                return 0;
+        }
     sun->active = sun->from_shadows = 1;
     sun->dir_world = s;
     sun->dir_from = rs_config_has(cfg, "sky", "sun_azimuth_deg") ? "config" : "solar position";
@@ -329,7 +334,7 @@ void rs_sunsource_apply(const rs_sunsource *sun, const rs_scene *scene, size_t n
         double e = sun->dni * u;
         for (int ch = 0; ch < 3; ch++) fg[f].esky[ch] += e * sun->rgb[ch];
         fg[f].esky_lum += e;                  /* rgb has luminance 1 */
-        if (sun->from_shadows) {              /* inferred, not measured: filled light */
+        if (sun->from_shadows && !sun->fell_back) {   /* inferred, not measured: filled light */
             fg[f].filled_lum += e;
             fg[f].fill_sigma_lum = hypot(fg[f].fill_sigma_lum, sun->shadow.sigma_lum * u);
         }
@@ -341,7 +346,7 @@ void rs_sunsource_report(const rs_sunsource *sun, rs_json *metrics)
     if (!sun->active) return;
     rs_json *o = rs_json_set_obj(metrics, "explicit_sun");
     rs_json_set_num(o, "direct_normal_irradiance", sun->dni);
-    rs_json_set_str(o, "irradiance_from", sun->from_shadows ? "shadows" : "config");
+    rs_json_set_str(o, "irradiance_from", sun->fell_back ? "panorama" : sun->from_shadows ? "shadows" : "config");
     if (sun->from_shadows) {
         rs_json *e = rs_json_set_obj(o, "from_shadows");
         rs_json_set_bool(e, "estimated", sun->shadow_rc == 0);

@@ -165,6 +165,14 @@ static void test_fallback(void **state)
     assert_true(sun.fell_back);
     assert_true(sun.dni == 6.0);
     assert_true(fabs(sun.rgb[0] - 1.5) < 1e-12 && fabs(sun.rgb[2] - 2.0 / 6) < 1e-12);
+    /* Applied, it is measured light (the panorama's), not filled: E_sky gains dni rgb cos. */
+    rs_err err;
+    rs_scene *scene = rs_scene_new(m, &err);
+    assert_non_null(scene);
+    rs_sunsource_apply(&sun, scene, nf, vis, fg);
+    assert_true(fabs(fg[0].esky[0] - (3 + 6.0 * 1.5 * 0.8)) < 1e-9);
+    assert_true(fg[0].filled_lum == 0 && fg[0].fill_sigma_lum == 0);
+    rs_scene_free(scene);
     sun.removed_power = 0;                            /* a hidden sun: nothing to fall back on */
     sun.fell_back = 0;
     assert_int_equal(rs_sunsource_from_shadows(&sun, m, vis, fg, L, observed, rs_v3_make(0, 0, 1.6), 512), 0);

@@ -299,7 +299,7 @@ def main():
         for name, sdir, res in rows:
             for m, r in res.items():
                 es, st = r.get('sun'), r.get('sun_true')
-                if not es or es.get('irradiance_from') != 'shadows' or not st:
+                if not es or 'from_shadows' not in es or not st:
                     continue
                 fs = es['from_shadows']
                 fh.write('| %s | %s | %s | %s | %.3f | %s | %s | %d | %d |\n' % (
