@@ -192,8 +192,10 @@ int rs_sunsearch_run(const rs_scene *scene, const rs_skyenv *env, const rs_sunsh
     if (score_all(&c, dirs, n, 0, med, edge, np) != 0) goto done;
     out->candidates = n;
     int top = best_apart(dirs, med, n, NULL, 0, 0);
-    rc = 1;
-    if (top < 0) goto done;
+    if (top < 0) {
+        rc = 1;                                 /* no direction had enough pairs */
+        goto done;
+    }
     double tau = 0.5 * med[top];
     if (score_all(&c, dirs, n, tau, med, edge, np) != 0) goto done;
     out->candidates += n;
