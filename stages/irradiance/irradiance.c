@@ -172,6 +172,43 @@ static int add_explicit_sun(const rs_config *cfg, rs_report *rep, rs_sunsource *
     return 0;
 }
 
+/* [sky] sun_from_shadows = auto with nothing placing the sun and no bright sky pixel: look for
+ * it in the shadows (rs_sunsource_search), unless the visible sky is overcast. */
+static int search_hidden_sun(rs_report *rep, rs_sunsource *sun, const rs_scene *scene, const rs_skyenv *env,
+                             const rs_skyfill_report *fill, rs_skyfill_method method, const rs_capture *cap,
+                             const rs_facet_gather *fg, const double *radiance, const uint8_t *observed, rs_err *err)
+{
+    /* An overcast sky (the fitted Perez distribution has almost no circumsolar term) casts no
+     * shadow to read; the row fill fits no model, and the search's other tests stand alone. */
+    double glow = method == RS_SKYFILL_MODEL && fill->fit_samples ? fill->model.perez[1][2] : -1;
+    if (glow >= 0 && glow < RS_SUNSEARCH_MIN_GLOW) {
+        rs_report_skip(rep, "sun from the shadows", "no bright sky pixel and no sun placed by the config, and the "
+                       "visible sky has no circumsolar glow (Perez c = %.2f < %g): overcast, no sun searched", glow,
+                       RS_SUNSEARCH_MIN_GLOW);
+        return 0;
+    }
+    double t0 = rs_now();
+    if (rs_sunsource_search(sun, scene, env, fg, radiance, observed, cap->pose.position, cap->pano->height,
+                            fill->sun_dir) != 0)
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory searching the shadows for the sun");
+    rs_report_time(rep, "sun_search", rs_now() - t0);
+    if (sun->searched)
+        rs_log_info("irradiance: no camera saw a sun and nothing placed one; the shadows put it at azimuth %.2f, "
+                    "elevation %.2f deg (median log contrast %.3f over %zu lit-shadowed pairs, %d directions tried; "
+                    "%.1f deg from where the visible sky puts it)", atan2(sun->dir_world.y, sun->dir_world.x) * 180 / M_PI,
+                    asin(fmin(1, sun->dir_world.z)) * 180 / M_PI, sun->found.score, sun->found.pairs,
+                    sun->found.candidates, sun->found_off_deg);
+    else if (sun->found.score >= RS_SUNSEARCH_MIN_SCORE)
+        rs_report_skip(rep, "sun from the shadows", "the shadows' best direction (median log contrast %.3f) is %.1f deg "
+                       "from where the visible sky puts the sun (at most %g): no sun added", sun->found.score,
+                       sun->found_off_deg, RS_SUNSOURCE_AGREE_DEG);
+    else
+        rs_report_skip(rep, "sun from the shadows", "no bright sky pixel and no sun placed by the config; no direction "
+                       "the cameras did not see casts shadows that match the radiance (best median log contrast %.3f, "
+                       "%g needed): no sun added", sun->found.score, RS_SUNSEARCH_MIN_SCORE);
+    return 0;
+}
+
 static const char *sun_source_name(rs_sun_source s)
 {
     return s == RS_SUN_CONFIG ? "config" : (s == RS_SUN_PIXELS ? "sun pixels" : "searched");
@@ -358,39 +395,9 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_int(rep->metrics, "mc_calibration_facets", (long long)mc_facets);
     rs_log_info("irradiance: Monte Carlo noise from %zu facets gathered twice: %.3g x the independent-sample formula",
                 mc_facets, mc_factor);
-    /* An overcast sky (the fitted Perez distribution has almost no circumsolar term) casts no
-     * shadow to read; the row fill fits no model, and the search's other tests stand alone. */
-    double glow = so.fill.method == RS_SKYFILL_MODEL && info.fill.fit_samples ? info.fill.model.perez[1][2] : -1;
-    if (sun.search && glow >= 0 && glow < RS_SUNSEARCH_MIN_GLOW) {
-        sun.search = 0;
-        rs_report_skip(rep, "sun from the shadows", "no bright sky pixel and no sun placed by the config, and the "
-                       "visible sky has no circumsolar glow (Perez c = %.2f < %g): overcast, no sun searched", glow,
-                       RS_SUNSEARCH_MIN_GLOW);
-    }
-    if (sun.search) {
-        t0 = rs_now();
-        if (rs_sunsource_search(&sun, scene, &env, fg, radiance, observed, cap.pose.position, cap.pano->height,
-                                info.fill.sun_dir) != 0) {
-            rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory searching the shadows for the sun");
-            goto out;
-        }
-        rs_report_time(rep, "sun_search", rs_now() - t0);
-        if (sun.searched)
-            rs_log_info("irradiance: no camera saw a sun and nothing placed one; the shadows put it at azimuth %.2f, "
-                        "elevation %.2f deg (median log contrast %.3f over %zu lit-shadowed pairs, %d directions "
-                        "tried; %.1f deg from where the visible sky puts it)",
-                        atan2(sun.dir_world.y, sun.dir_world.x) * 180 / M_PI,
-                        asin(fmin(1, sun.dir_world.z)) * 180 / M_PI, sun.found.score, sun.found.pairs,
-                        sun.found.candidates, sun.found_off_deg);
-        else if (sun.found.score >= RS_SUNSEARCH_MIN_SCORE)
-            rs_report_skip(rep, "sun from the shadows", "the shadows' best direction (median log contrast %.3f) is "
-                           "%.1f deg from where the visible sky puts the sun (at most %g): no sun added",
-                           sun.found.score, sun.found_off_deg, RS_SUNSOURCE_AGREE_DEG);
-        else
-            rs_report_skip(rep, "sun from the shadows", "no bright sky pixel and no sun placed by the config; no "
-                           "direction the cameras did not see casts shadows that match the radiance (best median "
-                           "log contrast %.3f, %g needed): no sun added", sun.found.score, RS_SUNSEARCH_MIN_SCORE);
-    }
+    if (sun.search && search_hidden_sun(rep, &sun, scene, &env, &info.fill, so.fill.method, &cap, fg, radiance,
+                                        observed, err) != 0)
+        goto out;
     if (sun.active && add_explicit_sun(cfg, rep, &sun, scene, &cap, fg, radiance, observed, err) != 0) goto out;
     if (gs.gathered < nf)
         rs_report_skip(rep, "gather of unseen facets", "%zu facets that no camera sees light no facet it sees "
