@@ -143,8 +143,8 @@ static int add_explicit_sun(const rs_config *cfg, rs_report *rep, rs_sunsource *
     double t0 = rs_now();
     if (!vis || rs_sunsource_visibility(sun, scene, (int)rs_config_int(cfg, "irradiance", "sun_samples"),
                                         (uint32_t)rs_config_int(cfg, "irradiance", "seed"), nf, fg, vis) != 0 ||
-        (sun->from_shadows &&
-         rs_sunsource_from_shadows(sun, mesh, vis, fg, radiance, observed, cap->pose.position, cap->pano->height) != 0)) {
+        (sun->from_shadows && rs_sunsource_from_shadows(sun, mesh, vis, fg, radiance, observed, cap->pose.position,
+                                                        cap->pano->height) != 0)) {
         free(vis);
         return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory adding the explicit sun");
     }
@@ -163,8 +163,9 @@ static int add_explicit_sun(const rs_config *cfg, rs_report *rep, rs_sunsource *
             rs_report_skip(rep, "sun from the shadows", "only %zu observed facets in full sun found one in full "
                            "shadow within %.2f m on their plane (%zu lit, %zu shadowed beyond a %.2f m margin; %d "
                            "needed): %s", e->lit_used, 3 * sun->margin, e->lit, e->shadowed, sun->margin,
-                           RS_SUNSHADOW_MIN_LIT, sun->fell_back ? "the sun keeps the power the panorama held of it"
-                                                                : "the hidden sun adds nothing, give [sky] sun_irradiance");
+                           RS_SUNSHADOW_MIN_LIT,
+                           sun->fell_back ? "the sun keeps the power the panorama held of it"
+                                          : "the hidden sun adds nothing, give [sky] sun_irradiance");
     }
     rs_sunsource_apply(sun, scene, nf, vis, fg);
     rs_report_time(rep, "explicit_sun", rs_now() - t0);
@@ -195,12 +196,13 @@ static int search_hidden_sun(rs_report *rep, rs_sunsource *sun, const rs_scene *
     if (sun->searched)
         rs_log_info("irradiance: no camera saw a sun and nothing placed one; the shadows put it at azimuth %.2f, "
                     "elevation %.2f deg (median log contrast %.3f over %zu lit-shadowed pairs, %d directions tried; "
-                    "%.1f deg from where the visible sky puts it)", atan2(sun->dir_world.y, sun->dir_world.x) * 180 / M_PI,
+                    "%.1f deg from where the visible sky puts it)",
+                    atan2(sun->dir_world.y, sun->dir_world.x) * 180 / M_PI,
                     asin(fmin(1, sun->dir_world.z)) * 180 / M_PI, sun->found.score, sun->found.pairs,
                     sun->found.candidates, sun->found_off_deg);
     else if (sun->found.score >= RS_SUNSEARCH_MIN_SCORE)
-        rs_report_skip(rep, "sun from the shadows", "the shadows' best direction (median log contrast %.3f) is %.1f deg "
-                       "from where the visible sky puts the sun (at most %g): no sun added", sun->found.score,
+        rs_report_skip(rep, "sun from the shadows", "the shadows' best direction (median log contrast %.3f) is "
+                       "%.1f deg from where the visible sky puts the sun (at most %g): no sun added", sun->found.score,
                        sun->found_off_deg, RS_SUNSOURCE_AGREE_DEG);
     else
         rs_report_skip(rep, "sun from the shadows", "no bright sky pixel and no sun placed by the config; no direction "

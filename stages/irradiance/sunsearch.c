@@ -109,7 +109,8 @@ static int local_grid(const rs_skyenv *env, rs_v3 centre, double half, double st
     int n = 0, k = (int)floor(half / step + 1e-9);
     for (int i = -k; i <= k; i++)
         for (int j = -k; j <= k; j++) {
-            rs_v3 d = rs_v3_norm(rs_v3_add(centre, rs_v3_add(rs_v3_scale(t, tan(i * step)), rs_v3_scale(b, tan(j * step)))));
+            rs_v3 off = rs_v3_add(rs_v3_scale(t, tan(i * step)), rs_v3_scale(b, tan(j * step)));
+            rs_v3 d = rs_v3_norm(rs_v3_add(centre, off));
             if (hidden(env, d)) dirs[n++] = d;
         }
     return n;

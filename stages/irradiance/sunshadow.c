@@ -204,7 +204,8 @@ int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out)
             continue;
         }
         if (st[f] == DARK) out->shadowed++;
-        else if (rs_v3_dot(nrm[f], in->sun_dir) > 0.1) lit[nlit++] = (uint32_t)f;  /* grazing: D / cos_i amplifies noise */
+        else if (rs_v3_dot(nrm[f], in->sun_dir) > 0.1)     /* grazing: D / cos_i amplifies noise */
+            lit[nlit++] = (uint32_t)f;
     }
     free(cand);
     out->lit = nlit;
