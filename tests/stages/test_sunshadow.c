@@ -257,7 +257,10 @@ static void run(const char *dir, const char *sets)
     char cmd[8192], *out = NULL;
     snprintf(cmd, sizeof cmd, "cd '%s' && '%s/rhoscan' run --force %s scene.ini", dir, rs_test_bin_dir(), sets);
     int rc = rs_test_run(cmd, &out);
-    if (rc != 0) print_message("%s\n", out);
+    if (rc != 0) {                             /* the end says why (print_message keeps 1 KB) */
+        size_t n = strlen(out);
+        print_message("exit %d: ...%s\n", rc, out + (n > 900 ? n - 900 : 0));
+    }
     assert_int_equal(rc, 0);
     free(out);
 }
