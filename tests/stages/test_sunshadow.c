@@ -100,7 +100,7 @@ static void test_estimator(void **state)
     in.margin = 0.3;
     for (size_t f = 0; f < nf; f += 7) {
         E[3 * f + (f % 3)] = (f % 2) ? NAN : INFINITY;
-        L[3 * f + 1 + 3 * ((f / 7) % 2)] = (f % 3) ? 0 : -1;
+        L[3 * f + (f / 7) % 3] = (f % 3) ? 0 : -1;      /* one channel of the facet */
     }
     for (size_t f = 0; f < nf; f += 2003) vis[f] = NAN;   /* few: unknown ones count as neither kind */
     double *nan_sigma = malloc(nf * sizeof *nan_sigma);
