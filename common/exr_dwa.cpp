@@ -8,6 +8,7 @@
 #include <ImfInputFile.h>
 #include <algorithm>
 #include <cstdio>
+#include <cstdint>
 #include <cstring>
 #include <exception>
 #include <vector>
@@ -54,9 +55,13 @@ extern "C" int rs_exr_cxx_read(const void *data, size_t size, const char *const 
         const size_t xs = sizeof(float) * static_cast<size_t>(nnames), ys = xs * static_cast<size_t>(dw_w);
         for (int k = 0; k < nnames; k++) {
             if (!file.header().channels().findChannel(names[k])) throw std::runtime_error("channel missing");
-            // Slice base so that pixel (dw.min.x, dw.min.y) lands at tmp[k].
-            char *base = reinterpret_cast<char *>(tmp.data() + k) - static_cast<ptrdiff_t>(dw.min.x) * xs -
-                         static_cast<ptrdiff_t>(dw.min.y) * ys;
+            // Slice base so that pixel (dw.min.x, dw.min.y) lands at tmp[k]. It lies outside tmp
+            // whenever the window does not start at 0, so it is computed on integers: pointer
+            // arithmetic out of the object is undefined (UBSan, found by fuzz_image).
+            const ptrdiff_t off = static_cast<ptrdiff_t>(dw.min.x) * static_cast<ptrdiff_t>(xs) +
+                                  static_cast<ptrdiff_t>(dw.min.y) * static_cast<ptrdiff_t>(ys);
+            char *base = reinterpret_cast<char *>(reinterpret_cast<uintptr_t>(tmp.data() + k) -
+                                                  static_cast<uintptr_t>(off));
             fb.insert(names[k], Imf::Slice(Imf::FLOAT, base, xs, ys));
         }
         file.setFrameBuffer(fb);
