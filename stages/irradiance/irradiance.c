@@ -213,7 +213,69 @@ static int search_hidden_sun(rs_report *rep, rs_sunsource *sun, const rs_scene *
 
 static const char *sun_source_name(rs_sun_source s)
 {
-    return s == RS_SUN_CONFIG ? "config" : (s == RS_SUN_PIXELS ? "sun pixels" : "searched");
+    return s == RS_SUN_CONFIG   ? "config"
+           : s == RS_SUN_PIXELS ? "sun pixels"
+           : s == RS_SUN_SEARCH ? "searched"
+                                : "shadows";
+}
+
+/* One gather of the facets over the sky map g->env, and the measure of its noise. */
+typedef struct gather_pass {
+    rs_skysh sh;               /* [irradiance] sh_max_error: harmonics for facets that see only sky */
+    double sh_tol;
+    size_t sh_candidates;
+    rs_gather_stats gs;
+    double seconds;
+    double mc_factor;
+    size_t mc_facets;
+} gather_pass;
+
+/* Fills fg (zeroed, nf facets) and p; g->sky_sh points into p. suffix names its timings. */
+static int gather_pass_run(const rs_config *cfg, rs_report *rep, rs_gather_ctx *g, const rs_image *ids, size_t nf,
+                           rs_facet_gather *fg, gather_pass *p, const char *suffix, rs_err *err)
+{
+    char key[64];
+    memset(p, 0, sizeof *p);
+    g->sky_sh = NULL;
+    p->sh_tol = rs_config_real(cfg, "irradiance", "sh_max_error");
+    p->sh_candidates = g->skip_convex && p->sh_tol > 0 ? rs_skysh_candidates(g->scene) : 0;
+    double t0;
+    if (p->sh_candidates) {      /* the test costs a pass over the map: only when a facet can use it */
+        t0 = rs_now();
+        if (rs_skysh_build(g->env, p->sh_tol, 256, &p->sh, err) != 0) return -1;
+        snprintf(key, sizeof key, "sky_sh%s", suffix);
+        rs_report_time(rep, key, rs_now() - t0);
+        if (p->sh.usable) g->sky_sh = &p->sh;
+    }
+    /* [irradiance] skip_unseen: only what a camera sees and what lights it (rs_gather_run). */
+    int skip_unseen = rs_config_bool(cfg, "irradiance", "skip_unseen");
+    uint8_t *needed = skip_unseen ? calloc(nf, 1) : NULL;
+    if (needed) {
+        for (size_t k = 0; k < (size_t)ids->width * ids->height; k++)
+            if (ids->data[k] >= 0 && ids->data[k] < (float)nf) needed[(size_t)ids->data[k]] = 1;
+        for (size_t f = 0; f < nf; f++) needed[f] |= g->observed[f];
+    }
+    t0 = rs_now();
+    rs_progress *prog = rs_progress_start("irradiance: gather", nf);
+    int failed = (skip_unseen && !needed) || rs_gather_run(g, nf, needed, fg, NULL, prog, &p->gs) != 0;
+    free(needed);
+    rs_progress_end(prog);
+    p->seconds = rs_now() - t0;
+    snprintf(key, sizeof key, "gather%s", suffix);
+    rs_report_time(rep, key, p->seconds);
+    if (failed) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory during the gather");
+    /* Before the explicit sun is added: the second gather has no sun term, and its difference
+     * from the first must be noise alone (with the sun in one of them the factor was 12 to 24). */
+    t0 = rs_now();
+    if (rs_gather_mc_calibration(g, nf, fg, g->radiance, g->observed, 512, &p->mc_factor, &p->mc_facets) != 0)
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory measuring the gather's noise");
+    snprintf(key, sizeof key, "mc_calibration%s", suffix);
+    rs_report_time(rep, key, rs_now() - t0);
+    rs_json_set_num(rep->metrics, "mc_sigma_factor", p->mc_factor);
+    rs_json_set_int(rep->metrics, "mc_calibration_facets", (long long)p->mc_facets);
+    rs_log_info("irradiance: Monte Carlo noise from %zu facets gathered twice: %.3g x the independent-sample formula",
+                p->mc_facets, p->mc_factor);
+    return 0;
 }
 
 int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
@@ -342,98 +404,76 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
                        .sun_samples = sun_samples,
                        .seed = (uint32_t)rs_config_int(cfg, "irradiance", "seed"),
                        .sun_target_error = rs_config_real(cfg, "irradiance", "sun_target_error"),
-                       .skip_convex = rs_config_bool(cfg, "irradiance", "skip_convex")};
-    rs_skysh sh;                 /* [irradiance] sh_max_error: harmonics for facets that see only sky */
-    memset(&sh, 0, sizeof sh);
-    double sh_tol = rs_config_real(cfg, "irradiance", "sh_max_error");
-    size_t sh_candidates = g.skip_convex && sh_tol > 0 ? rs_skysh_candidates(scene) : 0;
-    if (sh_candidates) {         /* the test costs a pass over the map: only when a facet can use it */
-        t0 = rs_now();
-        if (rs_skysh_build(&env, sh_tol, 256, &sh, err) != 0) goto out;
-        rs_report_time(rep, "sky_sh", rs_now() - t0);
-        if (sh.usable) g.sky_sh = &sh;
-    }
+                       .skip_convex = rs_config_bool(cfg, "irradiance", "skip_convex"),
+                       /* [irradiance] target_error: rounds of rays per facet until its E_sky + G is
+                        * known that well (gather.h); rays into K then count with the radiance of
+                        * the facets they hit. */
+                       .target_error = rs_config_real(cfg, "irradiance", "target_error"),
+                       .radiance = radiance,
+                       .observed = observed};
     fg = calloc(nf, sizeof *fg);
     if (!fg) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu facets", nf);
         goto out;
     }
-    /* [irradiance] skip_unseen: only what a camera sees and what lights it (rs_gather_run). */
-    uint8_t *needed = rs_config_bool(cfg, "irradiance", "skip_unseen") ? calloc(nf, 1) : NULL;
-    if (needed) {
-        for (size_t k = 0; k < (size_t)ids->width * ids->height; k++)
-            if (ids->data[k] >= 0 && ids->data[k] < (float)nf) needed[(size_t)ids->data[k]] = 1;
-        for (size_t f = 0; f < nf; f++) needed[f] |= observed[f];
-    }
-    /* [irradiance] target_error: rounds of rays per facet until its E_sky + G is known that well
-     * (gather.h); rays into K then count with the radiance of the facets they hit. */
-    g.target_error = rs_config_real(cfg, "irradiance", "target_error");
-    g.radiance = radiance;
-    g.observed = observed;
-    rs_gather_stats gs;
-    t0 = rs_now();
-    rs_progress *prog = rs_progress_start("irradiance: gather", nf);
-    int failed = (rs_config_bool(cfg, "irradiance", "skip_unseen") && !needed) ||
-                 rs_gather_run(&g, nf, needed, fg, NULL, prog, &gs) != 0;
-    free(needed);
-    rs_progress_end(prog);
-    double gather_s = rs_now() - t0;
-    rs_report_time(rep, "gather", gather_s);
-    if (failed) {
-        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory during the gather");
-        goto out;
-    }
-    /* Before the explicit sun is added: the second gather has no sun term, and its difference
-     * from the first must be noise alone (with the sun in one of them the factor was 12 to 24). */
-    double mc_factor;
-    size_t mc_facets;
-    t0 = rs_now();
-    if (rs_gather_mc_calibration(&g, nf, fg, radiance, observed, 512, &mc_factor, &mc_facets) != 0) {
-        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory measuring the gather's noise");
-        goto out;
-    }
-    rs_report_time(rep, "mc_calibration", rs_now() - t0);
-    rs_json_set_num(rep->metrics, "mc_sigma_factor", mc_factor);
-    rs_json_set_int(rep->metrics, "mc_calibration_facets", (long long)mc_facets);
-    rs_log_info("irradiance: Monte Carlo noise from %zu facets gathered twice: %.3g x the independent-sample formula",
-                mc_facets, mc_factor);
+    gather_pass gp;
+    double first_pass_rays = 0;   /* rays of a gather done again around a searched sun */
+    if (gather_pass_run(cfg, rep, &g, ids, nf, fg, &gp, "", err) != 0) goto out;
     if (sun.search && search_hidden_sun(rep, &sun, scene, &env, &info.fill, so.fill.method, &cap, fg, radiance,
                                         observed, err) != 0)
         goto out;
+    /* The model fill placed its sun where the visible sky's glow put it, degrees from where the
+     * shadows do: fitted again around the searched sun, the circumsolar sky and so the E that the
+     * DNI estimate divides by move with it (street canyon: 12.6 % -> 10.8 % albedo error). */
+    if (sun.searched && so.fill.method == RS_SKYFILL_MODEL && info.fill.fit_samples) {
+        rs_log_info("irradiance: the sky model fitted again around the searched sun (%.1f deg from its first "
+                    "direction), and the facets gathered again", sun.found_off_deg);
+        so.fill.sun_given = 1;
+        so.fill.sun_dir = sun.dir_world;
+        rs_skyenv_release(&env);
+        t0 = rs_now();
+        if (rs_skyenv_build_opts(&cap, ids->data, &so, &env, &info, err) != 0) goto out;
+        rs_report_time(rep, "sky_map_searched_sun", rs_now() - t0);
+        info.fill.sun_source = RS_SUN_SHADOWS;
+        first_pass_rays = gp.gs.rays;
+        for (size_t f = 0; f < nf; f++) free(fg[f].entries);
+        memset(fg, 0, nf * sizeof *fg);
+        if (gather_pass_run(cfg, rep, &g, ids, nf, fg, &gp, "_searched_sun", err) != 0) goto out;
+    }
     if (sun.active && add_explicit_sun(cfg, rep, &sun, scene, &cap, fg, radiance, observed, err) != 0) goto out;
-    if (gs.gathered < nf)
+    if (gp.gs.gathered < nf)
         rs_report_skip(rep, "gather of unseen facets", "%zu facets that no camera sees light no facet it sees "
-                       "(closure of the light paths in %d waves)", nf - gs.gathered, gs.waves);
-    if (gs.sees_nothing)
+                       "(closure of the light paths in %d waves)", nf - gp.gs.gathered, gp.gs.waves);
+    if (gp.gs.sees_nothing)
         rs_report_skip(rep, "tracing of convex facets", "%zu facets have the whole model below their plane: "
-                       "their rays escape without tracing", gs.sees_nothing);
-    rs_json_set_int(rep->metrics, "facets_gathered", (long long)gs.gathered);
-    rs_json_set_int(rep->metrics, "facets_seeing_nothing", (long long)gs.sees_nothing);
+                       "their rays escape without tracing", gp.gs.sees_nothing);
+    rs_json_set_int(rep->metrics, "facets_gathered", (long long)gp.gs.gathered);
+    rs_json_set_int(rep->metrics, "facets_seeing_nothing", (long long)gp.gs.sees_nothing);
     size_t nsh = 0;
     for (size_t f = 0; f < nf; f++) nsh += fg[f].sky_sh;
     rs_json_set_int(rep->metrics, "facets_sky_sh", (long long)nsh);
-    rs_json_set_num(rep->metrics, "sky_sh_max_error", sh.max_error);
-    rs_json_set_num(rep->metrics, "sky_sh_max_error_filled", sh.max_error_filled);
-    rs_json_set_num(rep->metrics, "sky_sh_passed_share", sh.passed_share);
-    if (!g.skip_convex || !(sh_tol > 0))
+    rs_json_set_num(rep->metrics, "sky_sh_max_error", gp.sh.max_error);
+    rs_json_set_num(rep->metrics, "sky_sh_max_error_filled", gp.sh.max_error_filled);
+    rs_json_set_num(rep->metrics, "sky_sh_passed_share", gp.sh.passed_share);
+    if (!g.skip_convex || !(gp.sh_tol > 0))
         rs_report_skip(rep, "sky harmonics", "[irradiance] %s: every facet gathers with rays",
                        g.skip_convex ? "sh_max_error = 0" : "skip_convex = false");
-    else if (!sh_candidates)
+    else if (!gp.sh_candidates)
         rs_report_skip(rep, "sky harmonics", "no facet has the whole model below its plane");
-    else if (!sh.usable)
+    else if (!gp.sh.usable)
         rs_report_skip(rep, "sky harmonics", "the sky map's order-2 irradiance is off by more than [irradiance] "
                        "sh_max_error = %g at every one of %d normals (up to %.2f %%, at %.2f %.2f %.2f): facets that "
-                       "see only sky gather with rays", sh.tol, sh.normals, 100 * sh.max_error, sh.worst_normal.x,
-                       sh.worst_normal.y, sh.worst_normal.z);
+                       "see only sky gather with rays", gp.sh.tol, gp.sh.normals, 100 * gp.sh.max_error,
+                       gp.sh.worst_normal.x, gp.sh.worst_normal.y, gp.sh.worst_normal.z);
     else
         rs_log_info("irradiance: %zu of %zu facets that see only sky took E_sky from the sky's order-2 harmonics, "
                     "no rays (error within %g on %.0f %% of the normals, up to %.2f %% at %.2f %.2f %.2f); the other "
-                    "%zu face a normal above that or cut the sun set's cone, and gathered", nsh, gs.sees_nothing,
-                    sh.tol, 100 * sh.passed_share, 100 * sh.max_error, sh.worst_normal.x, sh.worst_normal.y,
-                    sh.worst_normal.z, gs.sees_nothing - nsh);
-    double rays = gs.rays;
+                    "%zu face a normal above that or cut the sun set's cone, and gathered", nsh,
+                    gp.gs.sees_nothing, gp.sh.tol, 100 * gp.sh.passed_share, 100 * gp.sh.max_error,
+                    gp.sh.worst_normal.x, gp.sh.worst_normal.y, gp.sh.worst_normal.z, gp.gs.sees_nothing - nsh);
+    double rays = gp.gs.rays + first_pass_rays;
     rs_json_set_num(rep->metrics, "rays", rays);
-    rs_json_set_num(rep->metrics, "rays_per_second", gather_s > 0 ? rays / gather_s : 0);
+    rs_json_set_num(rep->metrics, "rays_per_second", gp.seconds > 0 ? gp.gs.rays / gp.seconds : 0);
     if (g.target_error > 0) {
         size_t refined = 0, capped = 0;
         for (size_t f = 0; f < nf; f++) {
@@ -503,7 +543,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_num(rep->metrics, "sky_fill_sigma_used", fl > 0 ? fs / fl : 0);
     rs_json_set_num(rep->metrics, "sky_cv_max_row", info.fill.cv_max_row);
     rs_json_set_num(rep->metrics, "sky_cv_max_model", info.fill.cv_max_model);
-    rc = write_outputs(cfg, mesh, fg, radiance, observed, fill_rate, mc_factor, rep, err);
+    rc = write_outputs(cfg, mesh, fg, radiance, observed, fill_rate, gp.mc_factor, rep, err);
 out:
     if (fg)
         for (size_t f = 0; f < nf; f++) free(fg[f].entries);

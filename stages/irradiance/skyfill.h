@@ -21,7 +21,9 @@ typedef struct rs_skyfill_opts {
     int cross_validate;        /* 1: held-out errors of both methods (fill_sigma needs it) */
 } rs_skyfill_opts;
 
-typedef enum { RS_SUN_CONFIG, RS_SUN_PIXELS, RS_SUN_SEARCH } rs_sun_source;
+/* SEARCH: from the visible sky's glow (rs_skymodel_find_sun); SHADOWS: set by the caller when the
+ * map is built again around the direction the model's shadows gave (irradiance.c). */
+typedef enum { RS_SUN_CONFIG, RS_SUN_PIXELS, RS_SUN_SEARCH, RS_SUN_SHADOWS } rs_sun_source;
 
 typedef struct rs_skyfill_report {
     rs_v3 sun_dir;             /* used by the model (world, unit) */

@@ -293,8 +293,9 @@ static double *read_irradiance(const char *dir, int with_inter, size_t *nf)
  * edges that fix the sun's azimuth); a clear sky around the sun when there is one. A first
  * run with the sun's DNI given (0: no sun, no glow) computes
  * every facet's E_sky + G; the panorama is then rendered from it with the known albedo, and the
- * config left with or without the sun's direction. Returns the mesh, and the first run's E_sky. */
-static rs_mesh *hidden_sun_scene(const char *dir, double dni, int keep_direction, double glow_az,
+ * config left with or without the sun's direction. model_fill: the first run fills the hidden sky
+ * with the model (around the given sun), else by rows. Returns the mesh, and the first run's E_sky. */
+static rs_mesh *hidden_sun_scene(const char *dir, double dni, int keep_direction, double glow_az, int model_fill,
                                  double **esky_given)
 {
     rs_meshgen g = rs_meshgen_new(20000, 20000);
@@ -306,7 +307,7 @@ static rs_mesh *hidden_sun_scene(const char *dir, double dni, int keep_direction
     write_pano(dir, NULL, NULL, dni > 0, glow_az);
     rs_test_write(rs_test_path(dir, "scene.ini"), SCENE_HEAD SUN_GIVEN);
     char sets[256];
-    snprintf(sets, sizeof sets, "--set sky.sun_irradiance=%g", dni);
+    snprintf(sets, sizeof sets, "--set sky.sun_irradiance=%g%s", dni, model_fill ? " --set sky.fill=model" : "");
     run(dir, sets);
     size_t nf;
     double *e = read_irradiance(dir, 1, &nf);
@@ -359,7 +360,7 @@ static void test_hidden_sun(void **state)
     (void)state;
     const char *dir = rs_test_tmpdir("sunshadow");
     double *esky1;
-    rs_mesh *m = hidden_sun_scene(dir, DNI, 1, 0, &esky1);
+    rs_mesh *m = hidden_sun_scene(dir, DNI, 1, 0, 0, &esky1);
     run(dir, "--set sky.sun_from_shadows=auto");
     const char *json = rs_test_path(dir, "work/irradiance.json");
     double dni = rs_test_json_number(json, "direct_normal_irradiance"), sigma = rs_test_json_number(json, "sigma"),
@@ -383,7 +384,7 @@ static void test_searched_sun(void **state)
     (void)state;
     const char *dir = rs_test_tmpdir("sunshadow");
     double *esky1;
-    rs_mesh *m = hidden_sun_scene(dir, DNI, 0, 0, &esky1);
+    rs_mesh *m = hidden_sun_scene(dir, DNI, 0, 0, 0, &esky1);
     run(dir, "");
     const char *json = rs_test_path(dir, "work/irradiance.json");
     double dni = rs_test_json_number(json, "direct_normal_irradiance");
@@ -405,6 +406,37 @@ static void test_searched_sun(void **state)
     rs_test_rmtree(dir);
 }
 
+/* The model fill, the panorama rendered with the model's sky around the sun given: with nothing
+ * placing the sun, the sky's glow (10 degrees of azimuth from the sun that casts the shadows)
+ * puts the first fit's sun elsewhere; the map is fitted again around the searched sun
+ * (sun_direction, the model's, moves onto it), and the DNI is the one the first run had. */
+static void test_searched_sun_refits_model(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("sunshadow");
+    double *esky1;
+    rs_mesh *m = hidden_sun_scene(dir, DNI, 0, 10 * M_PI / 180, 1, &esky1);
+    run(dir, "--set sky.fill=model");
+    const char *json = rs_test_path(dir, "work/irradiance.json");
+    const char *buf = rs_test_read_text(json);
+    double off = rs_test_json_number(json, "search_off_sky_estimate_deg");
+    double dni = rs_test_json_number(json, "direct_normal_irradiance");
+    const char *p = strstr(buf, "\"sun_direction\": [");
+    assert_non_null(p);
+    double d[3];
+    assert_int_equal(sscanf(p, "\"sun_direction\": [%lf, %lf, %lf]", &d[0], &d[1], &d[2]), 3);
+    double el = SUN_EL_DEG * M_PI / 180, ang = acos(fmin(1, d[0] * cos(el) + d[2] * sin(el))) * 180 / M_PI;
+    print_message("model fill: the glow put the sun %.1f deg from the searched one; the refitted model's sun is "
+                  "%.2f deg from the true one; DNI %.4f (true %g)\n", off, ang, dni, DNI);
+    assert_non_null(strstr(buf, "\"sun_source\": \"shadows\""));
+    assert_true(off > 4);          /* the first fit's sun was elsewhere: the refit moved it */
+    assert_true(ang < 2);
+    assert_true(fabs(dni - DNI) < 0.02 * DNI);
+    free(esky1);
+    rs_mesh_free(m);
+    rs_test_rmtree(dir);
+}
+
 /* No sun at all (an overcast sky): the search adds none, with the row fill (its own tests
  * alone) and with the model fill (whose Perez fit finds no circumsolar glow: not searched). */
 static void test_no_sun_to_find(void **state)
@@ -412,7 +444,7 @@ static void test_no_sun_to_find(void **state)
     (void)state;
     const char *dir = rs_test_tmpdir("sunshadow");
     double *esky1;
-    rs_mesh *m = hidden_sun_scene(dir, 0, 0, 0, &esky1);
+    rs_mesh *m = hidden_sun_scene(dir, 0, 0, 0, 0, &esky1);
     for (int model = 0; model < 2; model++) {
         run(dir, model ? "--set sky.fill=model" : "");
         const char *buf = rs_test_read_text(rs_test_path(dir, "work/irradiance.json"));
@@ -435,7 +467,7 @@ static void test_cues_disagree(void **state)
     (void)state;
     const char *dir = rs_test_tmpdir("sunshadow");
     double *esky1;
-    rs_mesh *m = hidden_sun_scene(dir, DNI, 0, M_PI, &esky1);
+    rs_mesh *m = hidden_sun_scene(dir, DNI, 0, M_PI, 0, &esky1);
     run(dir, "");
     const char *buf = rs_test_read_text(rs_test_path(dir, "work/irradiance.json"));
     assert_null(strstr(buf, "\"explicit_sun\""));
@@ -452,6 +484,7 @@ int main(void)
         cmocka_unit_test(test_fallback),
         cmocka_unit_test(test_hidden_sun),
         cmocka_unit_test(test_searched_sun),
+        cmocka_unit_test(test_searched_sun_refits_model),
         cmocka_unit_test(test_no_sun_to_find),
         cmocka_unit_test(test_cues_disagree),
     };
