@@ -203,7 +203,12 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"sky", "sh_ridge", RS_CFG_REAL, "0.001", 0, 1000, NULL, "", "irradiance",
      "model fill: ridge penalty of the residual harmonics, times (l (l + 1))^2"},
     {"sky", "ground_albedo", RS_CFG_REAL, "0.2", 0, 1, NULL, "", "irradiance",
-     "model fill: unseen ground below the horizon, when no camera saw any, is this albedo under the sky"},
+     "model fill: the ground below the horizon that no camera saw near it is this albedo under the completed sky "
+     "(with ground_albedo_from = scan, only when the scan's ground gives none)"},
+    {"sky", "ground_albedo_from", RS_CFG_ENUM, "scan", 0, 0, "scan|config", "", "irradiance",
+     "model fill: scan = that ground's albedo is the median of pi L / E over the scan's lowest level of observed "
+     "upward facets, each gathered first (not with an explicit sun, which comes after the gather); config = "
+     "ground_albedo"},
 
     {"reflectance", "method", RS_CFG_ENUM, "interreflection", 0, 0, "interreflection|direct|paper", "",
      "reflectance", "interreflection: rho = pi L / (E_sky + G); direct: pi L / E_sky; paper: dense K"},

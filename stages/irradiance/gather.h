@@ -113,6 +113,9 @@ typedef struct rs_gather_stats {
  * keep a zeroed fg[f]. gathered (may be NULL): nf flags. prog may be NULL.
  * Returns 0, or -1 when out of memory. The result does not depend on the thread count. */
 struct rs_progress;
+/* Gathers facets list[0 .. n-1] into out[0 .. n-1] in parallel (out[k].entries: caller frees).
+ * Returns 0, or -1 when out of memory. */
+int rs_gather_list(const rs_gather_ctx *g, const uint32_t *list, size_t n, rs_facet_gather *out);
 int rs_gather_run(const rs_gather_ctx *g, size_t nf, const uint8_t *needed, rs_facet_gather *fg, uint8_t *gathered,
                   struct rs_progress *prog, rs_gather_stats *stats);
 

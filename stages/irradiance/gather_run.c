@@ -93,6 +93,12 @@ static int gather_list(const rs_gather_ctx *g, const uint32_t *list, size_t n, r
     return failed ? -1 : 0;
 }
 
+int rs_gather_list(const rs_gather_ctx *g, const uint32_t *list, size_t n, rs_facet_gather *out)
+{
+    memset(out, 0, n * sizeof *out);
+    return gather_list(g, list, n, out, 1, NULL);
+}
+
 int rs_gather_run(const rs_gather_ctx *g, size_t nf, const uint8_t *needed, rs_facet_gather *fg, uint8_t *gathered,
                   struct rs_progress *prog, rs_gather_stats *stats)
 {

@@ -21,6 +21,7 @@
 #include "gather.h"
 #include "kernel_out.h"
 #include "skyenv.h"
+#include "skyground.h"
 #include "skysh.h"
 #include "solar.h"
 #include "sunsource.h"
@@ -173,15 +174,20 @@ static int add_explicit_sun(const rs_config *cfg, rs_report *rep, rs_sunsource *
     return 0;
 }
 
+/* The fitted Perez circumsolar term c, -1 without a model (the row fill fits none). An overcast
+ * sky (c below RS_SUNSEARCH_MIN_GLOW) casts no shadow to read: no sun is searched then. */
+static double sky_glow(const rs_skyfill_report *fill, rs_skyfill_method method)
+{
+    return method == RS_SKYFILL_MODEL && fill->fit_samples ? fill->model.perez[1][2] : -1;
+}
+
 /* [sky] sun_from_shadows = auto with nothing placing the sun and no bright sky pixel: look for
  * it in the shadows (rs_sunsource_search), unless the visible sky is overcast. */
 static int search_hidden_sun(rs_report *rep, rs_sunsource *sun, const rs_scene *scene, const rs_skyenv *env,
                              const rs_skyfill_report *fill, rs_skyfill_method method, const rs_capture *cap,
                              const rs_facet_gather *fg, const double *radiance, const uint8_t *observed, rs_err *err)
 {
-    /* An overcast sky (the fitted Perez distribution has almost no circumsolar term) casts no
-     * shadow to read; the row fill fits no model, and the search's other tests stand alone. */
-    double glow = method == RS_SKYFILL_MODEL && fill->fit_samples ? fill->model.perez[1][2] : -1;
+    double glow = sky_glow(fill, method);
     if (glow >= 0 && glow < RS_SUNSEARCH_MIN_GLOW) {
         rs_report_skip(rep, "sun from the shadows", "no bright sky pixel and no sun placed by the config, and the "
                        "visible sky has no circumsolar glow (Perez c = %.2f < %g): overcast, no sun searched", glow,
@@ -275,6 +281,61 @@ static int gather_pass_run(const rs_config *cfg, rs_report *rep, rs_gather_ctx *
     rs_json_set_int(rep->metrics, "mc_calibration_facets", (long long)p->mc_facets);
     rs_log_info("irradiance: Monte Carlo noise from %zu facets gathered twice: %.3g x the independent-sample formula",
                 p->mc_facets, p->mc_factor);
+    return 0;
+}
+
+/* The sky map's ground model (directions below the horizon that no camera saw as ground near
+ * them: skyfill.h) set to the albedo of the scan's own ground under the completed sky ([sky]
+ * ground_albedo_from = scan), instead of [sky] ground_albedo. */
+static int ground_from_scan(const rs_config *cfg, rs_report *rep, const rs_gather_ctx *g, rs_skyenv *env,
+                            const rs_skyenv_opts *so, const rs_skyfill_report *fill, const rs_sunsource *sun,
+                            const rs_mesh *mesh, rs_err *err)
+{
+    if (so->fill.method != RS_SKYFILL_MODEL || !fill->ground_model_pixels) return 0;
+    rs_json_set_int(rep->metrics, "sky_ground_model_pixels", (long long)fill->ground_model_pixels);
+    rs_json *ga = rs_json_set_arr(rep->metrics, "sky_ground_albedo");
+    const char *from = "config";
+    double albedo[3] = {so->fill.ground_albedo, so->fill.ground_albedo, so->fill.ground_albedo};
+    if (strcmp(rs_config_string(cfg, "sky", "ground_albedo_from"), "scan") != 0) {
+        /* as asked */
+    } else if (sun->active) {
+        rs_report_skip(rep, "ground albedo from the scan", "an explicit sun is added after the gather, so the "
+                       "ground's own E would miss it: the unseen ground keeps [sky] ground_albedo = %g",
+                       so->fill.ground_albedo);
+    } else if (sun->search && !(sky_glow(fill, so->fill.method) < RS_SUNSEARCH_MIN_GLOW)) {
+        rs_report_skip(rep, "ground albedo from the scan", "a sun no camera saw may be found in the shadows after "
+                       "the gather, and the ground's own E would miss it: the unseen ground keeps [sky] "
+                       "ground_albedo = %g", so->fill.ground_albedo);
+    } else {
+        rs_skyground gr;
+        double t0 = rs_now();
+        if (rs_skyground_albedo(g, mesh, g->radiance, g->observed, &gr) != 0)
+            return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory estimating the ground's albedo");
+        rs_report_time(rep, "ground_albedo", rs_now() - t0);
+        if (gr.facets) {
+            double rgb[3];
+            for (int ch = 0; ch < 3; ch++) {
+                albedo[ch] = fmin(1, gr.albedo[ch]);
+                rgb[ch] = albedo[ch] * fill->horizontal_irradiance[ch] / M_PI;
+            }
+            if (rs_skyenv_set_ground(env, rgb, so->explicit_sun) < 0)
+                return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky distribution");
+            from = "scan";
+            rs_json_set_int(rep->metrics, "sky_ground_albedo_facets", (long long)gr.facets);
+            rs_json *sp = rs_json_set_arr(rep->metrics, "sky_ground_albedo_spread");
+            for (int ch = 0; ch < 3; ch++) rs_json_push_num(sp, gr.spread[ch]);
+            rs_log_info("irradiance: unseen ground below the horizon (%zu map pixels): albedo %.3g %.3g %.3g "
+                        "(+- %.2g %.2g %.2g between facets) from %zu of the scan's %zu observed ground facets at "
+                        "z %.2f m", fill->ground_model_pixels, albedo[0], albedo[1], albedo[2], gr.spread[0],
+                        gr.spread[1], gr.spread[2], gr.facets, gr.candidates, gr.level_z);
+        } else {
+            rs_report_skip(rep, "ground albedo from the scan", "%zu observed upward facets at the scan's ground "
+                           "level (%d needed): the unseen ground keeps [sky] ground_albedo = %g", gr.candidates,
+                           RS_SKYGROUND_MIN_FACETS, so->fill.ground_albedo);
+        }
+    }
+    for (int ch = 0; ch < 3; ch++) rs_json_push_num(ga, albedo[ch]);
+    rs_json_set_str(rep->metrics, "sky_ground_albedo_from", from);
     return 0;
 }
 
@@ -416,6 +477,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu facets", nf);
         goto out;
     }
+    if (ground_from_scan(cfg, rep, &g, &env, &so, &info.fill, &sun, mesh, err) != 0) goto out;
     gather_pass gp;
     double first_pass_rays = 0;   /* rays of a gather done again around a searched sun */
     if (gather_pass_run(cfg, rep, &g, ids, nf, fg, &gp, "", err) != 0) goto out;

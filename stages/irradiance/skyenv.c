@@ -404,6 +404,25 @@ out:
     return rc;
 }
 
+long rs_skyenv_set_ground(rs_skyenv *env, const double rgb[3], int explicit_sun)
+{
+    size_t npx = (size_t)env->width * env->height;
+    long n = 0;
+    for (size_t k = 0; k < npx; k++)
+        if (env->filled[k] == RS_SKYFILL_GROUND_MODEL) {
+            for (int ch = 0; ch < 3; ch++) env->radiance[3 * k + ch] = (float)rgb[ch];
+            n++;
+        }
+    if (!n || !explicit_sun) return n;
+    free(env->cdf);
+    free(env->sun_cdf);
+    free(env->cdf_guide);
+    free(env->sun_cdf_guide);
+    env->cdf = env->sun_cdf = NULL;
+    env->cdf_guide = env->sun_cdf_guide = NULL;
+    return build_distributions(env) == 0 ? n : -1;
+}
+
 void rs_skyenv_release(rs_skyenv *env)
 {
     free(env->radiance);

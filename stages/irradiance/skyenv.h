@@ -89,6 +89,11 @@ int rs_skyenv_build_opts(const rs_capture *cap, const float *facet_id, const rs_
 void rs_skyenv_sky_mask(const rs_scene *scene, const rs_capture *sky, uint8_t *mask);
 void rs_skyenv_release(rs_skyenv *env);
 
+/* Sets the map's pixels that the ground model filled (RS_SKYFILL_GROUND_MODEL) to rgb, then
+ * rebuilds the sampling distributions when the map has them (explicit_sun, as built). Returns
+ * the pixels changed, -1 out of memory (the caller then releases the map). */
+long rs_skyenv_set_ground(rs_skyenv *env, const double rgb[3], int explicit_sun);
+
 /* Pixel index of world direction d. */
 static inline size_t rs_skyenv_pixel(const rs_skyenv *env, rs_v3 d_world)
 {

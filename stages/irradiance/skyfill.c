@@ -128,21 +128,30 @@ static void model_fill_sky(int w, int h, const rs_pose *pose, float *rad, const 
     }
 }
 
-/* Fill pixels below the horizon: the mean source radiance of their world elevation band, else
- * the nearest band with sources, else ground_albedo * E_horizontal / pi. */
-static int ground_fill(int w, int h, const rs_pose *pose, float *rad, const uint8_t *src, const uint8_t *fill,
+/* Fill pixels below the horizon: the mean source radiance of their world elevation band, or of
+ * the nearest band with sources when it lies within RS_SKYFILL_GROUND_NEAR_RAD; else the ground
+ * model, albedo * E_horizontal / pi of the completed sky, marked RS_SKYFILL_GROUND_MODEL in fill.
+ * A camera's ground beyond the model is seen at grazing angles only (a courtyard's camera sees
+ * it over a low wall, 1 to 2 degrees down, 60 m away): copied to a wall's view 30 degrees down
+ * onto the ground next to the building, it was 25 % too dark there. */
+static int ground_fill(int w, int h, const rs_pose *pose, float *rad, const uint8_t *src, uint8_t *fill,
                        double albedo, rs_skyfill_report *rep)
 {
     int nb = h / 2 > 0 ? h / 2 : 1;
     double *acc = calloc(4 * (size_t)nb, sizeof *acc);
-    if (!acc) return -1;
+    int *nearest = malloc((size_t)nb * sizeof *nearest);
+    if (!acc || !nearest) {
+        free(acc);
+        free(nearest);
+        return -1;
+    }
     size_t npx = (size_t)w * h;
-    double eh = 0;
+    double eh[3] = {0, 0, 0};
     for (size_t k = 0; k < npx; k++) {
         rs_v3 d = pixel_world(w, h, pose, k);
         double om = rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w));
         if (d.z > 0) {
-            eh += lum(rad + 3 * k) * d.z * om;
+            for (int ch = 0; ch < 3; ch++) eh[ch] += rad[3 * k + ch] * d.z * om;
             continue;
         }
         if (!src[k]) continue;
@@ -152,42 +161,45 @@ static int ground_fill(int w, int h, const rs_pose *pose, float *rad, const uint
         acc[4 * b + 3] += om;
     }
     double ground[3];
-    for (int ch = 0; ch < 3; ch++) ground[ch] = albedo * eh / M_PI;
-    rep->ground_from_albedo = 1;
-    for (int b = 0; b < nb; b++)
-        if (acc[4 * b + 3] > 0) rep->ground_from_albedo = 0;
-    for (int ch = 0; ch < 3; ch++) rep->ground_rgb[ch] = rep->ground_from_albedo ? ground[ch] : 0;
+    for (int ch = 0; ch < 3; ch++) ground[ch] = albedo * eh[ch] / M_PI;
+    for (int ch = 0; ch < 3; ch++) {
+        rep->ground_rgb[ch] = ground[ch];
+        rep->horizontal_irradiance[ch] = eh[ch];
+    }
     /* Each band's nearest band with measured ground (below first, then above), found once per
      * band: searched per pixel it was the stage's largest serial loop (perf: most of
-     * rs_skyfill_run's own time, up to nb steps for each of a million ground pixels). */
-    int *nearest = rep->ground_from_albedo ? NULL : malloc((size_t)nb * sizeof *nearest);
-    if (!rep->ground_from_albedo && !nearest) {
-        free(acc);
-        return -1;
-    }
-    for (int b = 0; nearest && b < nb; b++) {
+     * rs_skyfill_run's own time, up to nb steps for each of a million ground pixels); -1 when
+     * it is farther than RS_SKYFILL_GROUND_NEAR_RAD. */
+    int near = (int)ceil(RS_SKYFILL_GROUND_NEAR_RAD / (M_PI / 2) * nb);
+    for (int b = 0; b < nb; b++) {
         int best = -1;
-        for (int dd = 0; dd < nb && best < 0; dd++) {
+        for (int dd = 0; dd <= near && best < 0; dd++) {
             if (b - dd >= 0 && acc[4 * (b - dd) + 3] > 0) best = b - dd;
             else if (b + dd < nb && acc[4 * (b + dd) + 3] > 0) best = b + dd;
         }
         nearest[b] = best;
     }
+    size_t modelled = 0, below = 0;
     for (size_t k = 0; k < npx; k++) {
         if (!fill[k]) continue;
         rs_v3 d = pixel_world(w, h, pose, k);
         if (d.z > 0) continue;
+        below++;
+        int b = (int)(asin(fmin(1, -d.z)) / (M_PI / 2) * nb);
+        b = b >= nb ? nb - 1 : b;
         const double *L = ground;
         double mean[3];
-        if (!rep->ground_from_albedo) {
-            int b = (int)(asin(fmin(1, -d.z)) / (M_PI / 2) * nb);
-            b = b >= nb ? nb - 1 : b;
-            int best = nearest[b];
-            for (int ch = 0; ch < 3; ch++) mean[ch] = acc[4 * best + ch] / acc[4 * best + 3];
+        if (nearest[b] >= 0) {
+            for (int ch = 0; ch < 3; ch++) mean[ch] = acc[4 * nearest[b] + ch] / acc[4 * nearest[b] + 3];
             L = mean;
+        } else {
+            fill[k] = RS_SKYFILL_GROUND_MODEL;
+            modelled++;
         }
         for (int ch = 0; ch < 3; ch++) rad[3 * k + ch] = (float)L[ch];
     }
+    rep->ground_model_pixels = modelled;
+    rep->ground_from_albedo = below > 0 && modelled == below;
     free(nearest);
     free(acc);
     return 0;
@@ -385,7 +397,7 @@ int rs_skyfill_sigma_map(int w, int h, const uint8_t *src, const uint8_t *fill, 
     return 0;
 }
 
-int rs_skyfill_run(int w, int h, const rs_pose *pose, float *rad, const uint8_t *src, const uint8_t *fill,
+int rs_skyfill_run(int w, int h, const rs_pose *pose, float *rad, const uint8_t *src, uint8_t *fill,
                    const uint8_t *sun, const rs_skyfill_opts *o, rs_skyfill_report *rep)
 {
     memset(rep, 0, sizeof *rep);

@@ -39,8 +39,10 @@ typedef struct rs_skyfill_report {
     int cv_folds;              /* held-out blocks with enough sky */
     double fill_sigma;         /* cv of the method used: relative uncertainty of filled light
                                   (1 when no held-out block could be measured) */
-    double ground_rgb[3];      /* radiance given to unseen ground with no ground row to copy */
-    int ground_from_albedo;    /* 1: no visible ground at all, ground_albedo was used */
+    double ground_rgb[3];      /* the ground model's radiance: ground_albedo * E_horizontal / pi */
+    double horizontal_irradiance[3]; /* E_horizontal of the completed sky (model fill) */
+    size_t ground_model_pixels; /* filled pixels below the horizon that took it */
+    int ground_from_albedo;    /* 1: every filled pixel below the horizon took it */
     size_t fit_samples;
 } rs_skyfill_report;
 
@@ -65,6 +67,12 @@ double rs_skyfill_rate_used(const rs_skyfill_report *rep, rs_skyfill_method meth
 int rs_skyfill_sigma_map(int w, int h, const uint8_t *src, const uint8_t *fill, const rs_skyfill_report *rep,
                          rs_skyfill_method method, float *sigma);
 
+/* A filled pixel below the horizon copies measured ground at most this far (in depression
+ * angle) from its own band; farther, it takes the ground model. */
+#define RS_SKYFILL_GROUND_NEAR_RAD (10 * M_PI / 180)
+/* fill's mark for a pixel the ground model filled (rs_skyenv_set_ground sets them again). */
+#define RS_SKYFILL_GROUND_MODEL 2
+
 /* radiance: 3 * w * h floats of a map in frame pose (rs_pano conventions), read and filled in
  * place. src (w * h): 1 for measured sky usable as a source (not the sun set). fill: 1 for the
  * pixels to fill. sun (w * h, may be NULL): the sun set, whose luminance-weighted centroid is
@@ -72,10 +80,12 @@ int rs_skyfill_sigma_map(int w, int h, const uint8_t *src, const uint8_t *fill, 
  * Row: each pixel to fill takes the linear interpolation along its row (azimuth, wrapping) of
  * the nearest source pixels on either side; rows with none copy the nearest row with some.
  * Model: above the horizon the fitted Perez + harmonics model; below, the mean of the source
- * pixels in the same world elevation band (the nearest band that has some), else
- * ground_albedo * E_horizontal / pi from the completed sky. Returns 0, -1 out of memory. */
+ * pixels in the same world elevation band (or the nearest band that has some, within
+ * RS_SKYFILL_GROUND_NEAR_RAD), else ground_albedo * E_horizontal / pi per channel from the
+ * completed sky, those pixels marked RS_SKYFILL_GROUND_MODEL in fill. Returns 0, -1 out of
+ * memory. */
 int rs_skyfill_run(int w, int h, const rs_pose *pose, float *radiance, const uint8_t *src,
-                   const uint8_t *fill, const uint8_t *sun, const rs_skyfill_opts *o,
+                   uint8_t *fill, const uint8_t *sun, const rs_skyfill_opts *o,
                    rs_skyfill_report *rep);
 
 #endif

@@ -154,6 +154,58 @@ static void test_low_sun_courtyard(void **state)
     rs_capture_release(&cap);
 }
 
+/* Below the horizon a filled pixel copies measured ground only within RS_SKYFILL_GROUND_NEAR_RAD
+ * of a band that has some: a camera that sees ground beyond the model only 0 to 4 degrees down
+ * leaves the steeper directions to the ground model (ground_albedo E_horizontal / pi per
+ * channel, marked), which rs_skyenv_set_ground sets again with the distributions rebuilt. */
+static void test_ground_near_bands_and_model(void **state)
+{
+    (void)state;
+    rs_capture cap = make_capture(sun_dir(30, 40));
+    float *ids = malloc((size_t)W * H * sizeof *ids);
+    for (int r = 0; r < H; r++)
+        for (int c = 0; c < W; c++) {
+            double el = asin(rs_pano_pixel_dir(W, H, c, r).z) * 180 / M_PI;
+            ids[(size_t)r * W + c] = el > 40 || (el < 0 && el > -4) ? -1.0f : 0.0f;
+        }
+    rs_err err;
+    rs_skyenv env;
+    rs_skyenv_info info;
+    rs_skyenv_opts o = opts(RS_SKYFILL_MODEL);
+    assert_int_equal(rs_skyenv_build_opts(&cap, ids, &o, &env, &info, &err), 0);
+    const double *eh = info.fill.horizontal_irradiance;
+    size_t near = 0, model = 0, bad = 0;
+    for (int r = 0; r < H; r++)
+        for (int c = 0; c < W; c++) {
+            size_t k = (size_t)r * W + c;
+            double dep = -asin(rs_pano_pixel_dir(W, H, c, r).z) * 180 / M_PI;
+            if (!env.filled[k] || dep <= 0) continue;
+            const float *px = env.radiance + 3 * k;
+            if (dep < 13) {            /* within 10 degrees of the measured 0 to 4, a band's width aside */
+                near++;
+                bad += env.filled[k] != 1 || fabs(px[1] - 0.4) > 1e-5;
+            } else if (dep > 15) {
+                model++;
+                for (int ch = 0; ch < 3; ch++) bad += fabs(px[ch] - 0.2 * eh[ch] / M_PI) > 1e-5 * eh[ch];
+                bad += env.filled[k] != RS_SKYFILL_GROUND_MODEL;
+            }
+        }
+    print_message("filled below the horizon: %zu copy the measured ground, %zu the ground model (%zu in all, E_h "
+                  "%.4f %.4f %.4f); %zu wrong\n", near, model, info.fill.ground_model_pixels, eh[0], eh[1], eh[2],
+                  bad);
+    assert_true(near > 0 && model > 0);
+    assert_int_equal(bad, 0);
+    assert_true(info.fill.ground_model_pixels >= model && !info.fill.ground_from_albedo);
+    double before = env.total_power, rgb[3] = {0.5, 0.6, 0.7};
+    assert_int_equal(rs_skyenv_set_ground(&env, rgb, 1), (long)info.fill.ground_model_pixels);
+    size_t k0 = (size_t)(H - 1) * W;   /* straight down: the ground model */
+    for (int ch = 0; ch < 3; ch++) assert_true(env.radiance[3 * k0 + ch] == (float)rgb[ch]);
+    assert_true(env.total_power > before && env.cdf[(size_t)W * H] == env.total_power);
+    rs_skyenv_release(&env);
+    free(ids);
+    rs_capture_release(&cap);
+}
+
 /* The fill's uncertainty per direction grows with the angle to the nearest measured sky: the
  * angles are right, sigma grows as their square root, and summed over the hidden sky a wall
  * sees it bounds the wall's actual fill error at 2 sigma in every direction. */
@@ -425,6 +477,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_low_sun_courtyard),
+        cmocka_unit_test(test_ground_near_bands_and_model),
         cmocka_unit_test(test_fill_sigma_grows_with_distance),
         cmocka_unit_test(test_cv_on_coarser_map),
         cmocka_unit_test(test_sky_panorama),

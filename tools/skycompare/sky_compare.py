@@ -138,6 +138,8 @@ METHOD = """## How the sky is completed (stages/irradiance: skyenv.c, skyfill.c,
   D = (L_i E_j / L_j - E_i) / cos_i per channel (E = E_sky + G without the sun); medians over
   partners and over lit facets; facets within a margin of the shadow edge (4 pixel footprints plus
   twice the facet size) are left out. Its standard error (from blocks) joins the fill uncertainty.
+  With nothing placing the sun, its direction is searched in the shadows (sunsearch.c) and the
+  sky model is then fitted again around it, and the facets gathered again.
 - Uncertainty of the fill: the measured sky above the horizon is split into 8 azimuth sectors and
   the lowest 20 % (by solid angle); each block is held out in turn and predicted by both methods
   from the rest (the model's harmonic order is the one with the smallest RMS error). A fill

@@ -1,0 +1,179 @@
+/* [sky] ground_albedo_from: the ground beyond the model, below the horizon where no camera saw
+ * ground near, takes the albedo of the scan's own ground under the completed sky.
+ * A 20 x 20 m ground with a wall on its east edge that faces out, over ground the scan does not
+ * hold, under a uniform sky. A first run (ground_albedo_from = config) gives every ground facet's
+ * E; the panorama is rendered from it with a known albedo. Then:
+ * - the estimate (scan) gives that albedo back within 0.5 % per channel;
+ * - the outward wall's E_sky is then that of a run given the albedo, and not that of the
+ *   default 0.2 (so the wall does see the ground model);
+ * - with an explicit sun the estimate is skipped, and says why. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "faceprop.h"
+#include "image.h"
+#include "meshgen.h"
+#include "pano.h"
+#include "ply.h"
+#include "testutil.h"
+
+#define W 512
+#define L_SKY 1.0
+#define L_FAR 0.3                /* measured ground beyond the model, seen at grazing angles */
+#define L_WALL 0.25
+#define EDGE 10.0                /* the ground spans [-EDGE, EDGE]^2; the wall stands at x = EDGE */
+#define WALL_H 8.0
+
+static const double albedo[3] = {0.45, 0.4, 0.3};
+
+/* The camera at (0, 0, 1.6) along d: 0 sky or far ground, 1 the model's ground, 2 the wall. */
+static int camera_sees(rs_v3 d)
+{
+    const rs_v3 o = rs_v3_make(0, 0, 1.6);
+    double tw = d.x > 0 ? (EDGE - o.x) / d.x : INFINITY, tg = d.z < 0 ? -o.z / d.z : INFINITY;
+    if (tw < tg) {
+        rs_v3 p = rs_v3_add(o, rs_v3_scale(d, tw));
+        if (fabs(p.y) <= 5 && p.z >= 0 && p.z <= WALL_H) return 2;
+    }
+    if (isfinite(tg)) {
+        rs_v3 p = rs_v3_add(o, rs_v3_scale(d, tg));
+        if (fabs(p.x) <= EDGE && fabs(p.y) <= EDGE) return 1;
+    }
+    return 0;
+}
+
+/* Sky, far ground, the wall, and ground pixels at ground[3 f..] of their facet (NULL: 0.2). */
+static void write_pano(const char *dir, const rs_image *facet_id, const double *ground)
+{
+    rs_image *img = rs_image_new(W, W / 2, 3);
+    for (int r = 0; r < W / 2; r++)
+        for (int c = 0; c < W; c++) {
+            rs_v3 d = rs_pano_pixel_dir(W, W / 2, c, r);
+            int what = camera_sees(d);
+            float *px = rs_image_px(img, c, r);
+            for (int ch = 0; ch < 3; ch++) {
+                double v = d.z > 0 ? L_SKY : L_FAR;
+                if (what == 2) v = L_WALL;
+                if (what == 1) {
+                    float id = facet_id ? facet_id->data[(size_t)r * W + c] : -1;
+                    v = ground && id >= 0 ? ground[3 * (size_t)id + ch] : 0.2;
+                }
+                px[ch] = (float)v;
+            }
+        }
+    static const char *const rgb[] = {"R", "G", "B"};
+    rs_err err;
+    assert_int_equal(rs_image_write_exr(img, rs_test_path(dir, "pano.exr"), rgb, 0, NULL, &err), 0);
+    rs_image_free(img);
+}
+
+static void run(const char *dir, const char *sets)
+{
+    char cmd[8192], *out = NULL;
+    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/rhoscan' run --force %s scene.ini", dir,
+             rs_test_bin_dir(), sets);
+    int rc = rs_test_run(cmd, &out);
+    if (rc != 0) {
+        size_t n = strlen(out);
+        print_message("exit %d: ...%s\n", rc, out + (n > 900 ? n - 900 : 0));
+    }
+    assert_int_equal(rc, 0);
+    free(out);
+}
+
+/* irradiance_sky (+ irradiance_inter when with_inter) of every facet, 3 per facet. */
+static double *read_irradiance(const char *dir, int with_inter, size_t nf)
+{
+    rs_err err;
+    const char *path = rs_test_path(dir, "work/irradiance.ply");
+    rs_ply *ply = rs_ply_read(path, &err);
+    assert_non_null(ply);
+    double *e = malloc(3 * nf * sizeof *e), *g = malloc(3 * nf * sizeof *g);
+    assert_int_equal(rs_faceprop_get_rgb(ply, path, "irradiance_sky", nf, e, &err), 0);
+    assert_int_equal(rs_faceprop_get_rgb(ply, path, "irradiance_inter", nf, g, &err), 0);
+    for (size_t i = 0; with_inter && i < 3 * nf; i++) e[i] += g[i];
+    free(g);
+    rs_ply_free(ply);
+    return e;
+}
+
+/* Green E_sky summed over the outward wall's facets (from wall0 on). */
+static double wall_esky(const char *dir, size_t nf, size_t wall0)
+{
+    double *e = read_irradiance(dir, 0, nf), sum = 0;
+    for (size_t f = wall0; f < nf; f++) sum += e[3 * f + 1];
+    free(e);
+    return sum;
+}
+
+#define SCENE "[pipeline]\nworkdir = work\n[mesh]\ninput_mesh = mesh.ply\n[capture]\npanorama = pano.exr\n" \
+    "position = 0 0 1.6\n[irradiance]\nsamples = 128\nsky_samples = 128\nsun_samples = 16\nskip_unseen = false\n" \
+    "[sky]\nfill = model\n"
+
+static void test_ground_albedo_from_scan(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("skyground");
+    rs_meshgen g = rs_meshgen_new(10000, 10000);
+    rs_meshgen_rect(&g, rs_v3_make(-EDGE, -EDGE, 0), rs_v3_make(2 * EDGE, 0, 0), rs_v3_make(0, 2 * EDGE, 0), 40, 40);
+    /* e1 x e2 = +x: the wall faces out, over the ground the model does not hold. */
+    size_t wall0 = rs_meshgen_rect(&g, rs_v3_make(EDGE, -5, 0), rs_v3_make(0, 10, 0), rs_v3_make(0, 0, WALL_H), 10, 8);
+    rs_mesh *m = rs_meshgen_done(&g);
+    size_t nf = m->nfaces;
+    rs_meshgen_write(m, rs_test_path(dir, "mesh.ply"));
+    write_pano(dir, NULL, NULL);
+    rs_test_write(rs_test_path(dir, "scene.ini"), SCENE);
+    run(dir, "--set sky.ground_albedo_from=config");
+    double *e = read_irradiance(dir, 1, nf), *ground = calloc(3 * nf, sizeof *ground);
+    for (size_t f = 0; f < wall0; f++)
+        for (int ch = 0; ch < 3; ch++) ground[3 * f + ch] = albedo[ch] / M_PI * e[3 * f + ch];
+    rs_err err;
+    rs_image *ids = rs_image_read(rs_test_path(dir, "work/facet_id.exr"), &err);
+    assert_non_null(ids);
+    write_pano(dir, ids, ground);
+    rs_image_free(ids);
+
+    run(dir, "");
+    const char *json = rs_test_path(dir, "work/irradiance.json");
+    const char *buf = rs_test_read_text(json);
+    assert_non_null(strstr(buf, "\"sky_ground_albedo_from\": \"scan\""));
+    const char *p = strstr(buf, "\"sky_ground_albedo\": [");
+    assert_non_null(p);
+    double a[3];
+    assert_int_equal(sscanf(p, "\"sky_ground_albedo\": [%lf, %lf, %lf]", &a[0], &a[1], &a[2]), 3);
+    double pixels = rs_test_json_number(json, "sky_ground_model_pixels");
+    print_message("ground albedo from the scan %.4f %.4f %.4f (true %g %g %g), %g map pixels of ground model\n",
+                  a[0], a[1], a[2], albedo[0], albedo[1], albedo[2], pixels);
+    for (int ch = 0; ch < 3; ch++) assert_true(fabs(a[ch] - albedo[ch]) < 0.005 * albedo[ch]);
+    assert_true(pixels > 0);
+    double scan = wall_esky(dir, nf, wall0);
+
+    /* The same albedo given (grey, so the green channel's), and the default. */
+    run(dir, "--set sky.ground_albedo_from=config --set sky.ground_albedo=0.4");
+    double given = wall_esky(dir, nf, wall0);
+    run(dir, "--set sky.ground_albedo_from=config");
+    double dflt = wall_esky(dir, nf, wall0);
+    print_message("outward wall's green E_sky: from the scan %.4f, albedo 0.4 given %.4f, default 0.2 %.4f\n", scan,
+                  given, dflt);
+    assert_true(fabs(scan - given) < 0.003 * given);
+    assert_true(scan > 1.05 * dflt);
+
+    /* An explicit sun comes after the gather: no estimate, and the summary says why. */
+    run(dir, "--set sky.sun_irradiance=5 --set sky.sun_azimuth_deg=0 --set sky.sun_elevation_deg=40");
+    buf = rs_test_read_text(json);
+    assert_non_null(strstr(buf, "\"sky_ground_albedo_from\": \"config\""));
+    assert_non_null(strstr(buf, "an explicit sun is added after the gather"));
+    free(e);
+    free(ground);
+    rs_mesh_free(m);
+    rs_test_rmtree(dir);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_ground_albedo_from_scan),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
