@@ -1,6 +1,7 @@
 /* meshgen: procedural test meshes (see meshgen.h). */
 #include "meshgen.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include "ply.h"
 #include "testutil.h"
@@ -66,4 +67,18 @@ void rs_meshgen_write(const rs_mesh *m, const char *path)
     rs_err err;
     assert_int_equal(rs_ply_write(ply, path, 1, &err), 0);
     rs_ply_free(ply);
+}
+
+int rs_meshgen_wall_ground_sees(const rs_meshgen_wall_ground *s, rs_v3 o, rs_v3 d)
+{
+    double tw = d.x > 0 ? (s->wall_x - o.x) / d.x : INFINITY, tg = d.z < 0 ? -o.z / d.z : INFINITY;
+    if (tw < tg) {
+        rs_v3 p = rs_v3_add(o, rs_v3_scale(d, tw));
+        if (p.y >= s->wy0 && p.y <= s->wy1 && p.z >= 0 && p.z <= s->wall_h) return 2;
+    }
+    if (isfinite(tg)) {
+        rs_v3 p = rs_v3_add(o, rs_v3_scale(d, tg));
+        if (p.x >= s->gx0 && p.x <= s->gx1 && p.y >= s->gy0 && p.y <= s->gy1) return 1;
+    }
+    return 0;
 }

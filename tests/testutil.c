@@ -7,6 +7,8 @@
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include "faceprop.h"
+#include "ply.h"
 
 const char *rs_test_tmpdir(const char *tag)
 {
@@ -120,4 +122,35 @@ double rs_test_json_number(const char *path, const char *key)
     const char *p = strstr(text, pat);
     assert_non_null(p);
     return strtod(p + strlen(pat), NULL);
+}
+
+void rs_test_rhoscan(const char *dir, const char *sets)
+{
+    char cmd[8192], *out = NULL;
+    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/rhoscan' run --force %s scene.ini", dir, rs_test_bin_dir(), sets);
+    int rc = rs_test_run(cmd, &out);
+    if (rc != 0) {                             /* the end says why (print_message keeps 1 KB) */
+        size_t n = out ? strlen(out) : 0;
+        print_message("exit %d: ...%s\n", rc, out ? out + (n > 900 ? n - 900 : 0) : "");
+    }
+    assert_int_equal(rc, 0);
+    free(out);
+}
+
+double *rs_test_read_irradiance(const char *dir, int with_inter, size_t *nf)
+{
+    rs_err err;
+    const char *path = rs_test_path(dir, "work/irradiance.ply");
+    rs_ply *ply = rs_ply_read(path, &err);
+    assert_non_null(ply);
+    const rs_ply_element *faces = rs_ply_find_element(ply, "face");
+    assert_non_null(faces);
+    *nf = faces->count;
+    double *e = malloc(3 * *nf * sizeof *e), *g = malloc(3 * *nf * sizeof *g);
+    assert_int_equal(rs_faceprop_get_rgb(ply, path, "irradiance_sky", *nf, e, &err), 0);
+    assert_int_equal(rs_faceprop_get_rgb(ply, path, "irradiance_inter", *nf, g, &err), 0);
+    for (size_t i = 0; with_inter && i < 3 * *nf; i++) e[i] += g[i];
+    free(g);
+    rs_ply_free(ply);
+    return e;
 }

@@ -37,4 +37,11 @@ const char *rs_test_bin_dir(void);
  * status (or -1). */
 int rs_test_run(const char *cmd, char **output);
 
+/* Runs the build's `rhoscan run --force SETS scene.ini` in dir; fails the test, printing the end
+ * of the output (which says why), when it exits non-zero. */
+void rs_test_rhoscan(const char *dir, const char *sets);
+/* irradiance_sky (+ irradiance_inter when with_inter) of every facet in dir/work/irradiance.ply,
+ * 3 per facet (caller frees); *nf: the facet count. */
+double *rs_test_read_irradiance(const char *dir, int with_inter, size_t *nf);
+
 #endif

@@ -30,17 +30,8 @@ static const double albedo[3] = {0.45, 0.4, 0.3};
 /* The camera at (0, 0, 1.6) along d: 0 sky or far ground, 1 the model's ground, 2 the wall. */
 static int camera_sees(rs_v3 d)
 {
-    const rs_v3 o = rs_v3_make(0, 0, 1.6);
-    double tw = d.x > 0 ? (EDGE - o.x) / d.x : INFINITY, tg = d.z < 0 ? -o.z / d.z : INFINITY;
-    if (tw < tg) {
-        rs_v3 p = rs_v3_add(o, rs_v3_scale(d, tw));
-        if (fabs(p.y) <= 5 && p.z >= 0 && p.z <= WALL_H) return 2;
-    }
-    if (isfinite(tg)) {
-        rs_v3 p = rs_v3_add(o, rs_v3_scale(d, tg));
-        if (fabs(p.x) <= EDGE && fabs(p.y) <= EDGE) return 1;
-    }
-    return 0;
+    static const rs_meshgen_wall_ground scene = {-EDGE, EDGE, -EDGE, EDGE, EDGE, -5, 5, WALL_H};
+    return rs_meshgen_wall_ground_sees(&scene, rs_v3_make(0, 0, 1.6), d);
 }
 
 /* Sky, far ground, the wall, and ground pixels at ground[3 f..] of their facet (NULL: 0.2). */
@@ -68,40 +59,12 @@ static void write_pano(const char *dir, const rs_image *facet_id, const double *
     rs_image_free(img);
 }
 
-static void run(const char *dir, const char *sets)
-{
-    char cmd[8192], *out = NULL;
-    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/rhoscan' run --force %s scene.ini", dir,
-             rs_test_bin_dir(), sets);
-    int rc = rs_test_run(cmd, &out);
-    if (rc != 0) {
-        size_t n = strlen(out);
-        print_message("exit %d: ...%s\n", rc, out + (n > 900 ? n - 900 : 0));
-    }
-    assert_int_equal(rc, 0);
-    free(out);
-}
-
-/* irradiance_sky (+ irradiance_inter when with_inter) of every facet, 3 per facet. */
-static double *read_irradiance(const char *dir, int with_inter, size_t nf)
-{
-    rs_err err;
-    const char *path = rs_test_path(dir, "work/irradiance.ply");
-    rs_ply *ply = rs_ply_read(path, &err);
-    assert_non_null(ply);
-    double *e = malloc(3 * nf * sizeof *e), *g = malloc(3 * nf * sizeof *g);
-    assert_int_equal(rs_faceprop_get_rgb(ply, path, "irradiance_sky", nf, e, &err), 0);
-    assert_int_equal(rs_faceprop_get_rgb(ply, path, "irradiance_inter", nf, g, &err), 0);
-    for (size_t i = 0; with_inter && i < 3 * nf; i++) e[i] += g[i];
-    free(g);
-    rs_ply_free(ply);
-    return e;
-}
-
 /* Green E_sky summed over the outward wall's facets (from wall0 on). */
 static double wall_esky(const char *dir, size_t nf, size_t wall0)
 {
-    double *e = read_irradiance(dir, 0, nf), sum = 0;
+    size_t n;
+    double *e = rs_test_read_irradiance(dir, 0, &n), sum = 0;
+    assert_int_equal(n, nf);
     for (size_t f = wall0; f < nf; f++) sum += e[3 * f + 1];
     free(e);
     return sum;
@@ -124,8 +87,10 @@ static void test_ground_albedo_from_scan(void **state)
     rs_meshgen_write(m, rs_test_path(dir, "mesh.ply"));
     write_pano(dir, NULL, NULL);
     rs_test_write(rs_test_path(dir, "scene.ini"), SCENE);
-    run(dir, "--set sky.ground_albedo_from=config");
-    double *e = read_irradiance(dir, 1, nf), *ground = calloc(3 * nf, sizeof *ground);
+    rs_test_rhoscan(dir, "--set sky.ground_albedo_from=config");
+    size_t n;
+    double *e = rs_test_read_irradiance(dir, 1, &n), *ground = calloc(3 * nf, sizeof *ground);
+    assert_int_equal(n, nf);
     for (size_t f = 0; f < wall0; f++)
         for (int ch = 0; ch < 3; ch++) ground[3 * f + ch] = albedo[ch] / M_PI * e[3 * f + ch];
     rs_err err;
@@ -134,7 +99,7 @@ static void test_ground_albedo_from_scan(void **state)
     write_pano(dir, ids, ground);
     rs_image_free(ids);
 
-    run(dir, "");
+    rs_test_rhoscan(dir, "");
     const char *json = rs_test_path(dir, "work/irradiance.json");
     const char *buf = rs_test_read_text(json);
     assert_non_null(strstr(buf, "\"sky_ground_albedo_from\": \"scan\""));
@@ -150,9 +115,9 @@ static void test_ground_albedo_from_scan(void **state)
     double scan = wall_esky(dir, nf, wall0);
 
     /* The same albedo given (grey, so the green channel's), and the default. */
-    run(dir, "--set sky.ground_albedo_from=config --set sky.ground_albedo=0.4");
+    rs_test_rhoscan(dir, "--set sky.ground_albedo_from=config --set sky.ground_albedo=0.4");
     double given = wall_esky(dir, nf, wall0);
-    run(dir, "--set sky.ground_albedo_from=config");
+    rs_test_rhoscan(dir, "--set sky.ground_albedo_from=config");
     double dflt = wall_esky(dir, nf, wall0);
     print_message("outward wall's green E_sky: from the scan %.4f, albedo 0.4 given %.4f, default 0.2 %.4f\n", scan,
                   given, dflt);
@@ -160,7 +125,7 @@ static void test_ground_albedo_from_scan(void **state)
     assert_true(scan > 1.05 * dflt);
 
     /* An explicit sun comes after the gather: no estimate, and the summary says why. */
-    run(dir, "--set sky.sun_irradiance=5 --set sky.sun_azimuth_deg=0 --set sky.sun_elevation_deg=40");
+    rs_test_rhoscan(dir, "--set sky.sun_irradiance=5 --set sky.sun_azimuth_deg=0 --set sky.sun_elevation_deg=40");
     buf = rs_test_read_text(json);
     assert_non_null(strstr(buf, "\"sky_ground_albedo_from\": \"config\""));
     assert_non_null(strstr(buf, "an explicit sun is added after the gather"));

@@ -198,17 +198,8 @@ static const double albedo[3] = {0.5, 0.4, 0.3};
  * (x in [-14, 3], y in [-10, 10]), 2 the wall (x = 3, y in [-10, 10], z in [0, 6]). */
 static int camera_sees(rs_v3 d)
 {
-    const rs_v3 o = rs_v3_make(0, 0, 1.6);
-    double tw = d.x > 0 ? (WALL_X - o.x) / d.x : INFINITY, tg = d.z < 0 ? -o.z / d.z : INFINITY;
-    if (tw < tg) {
-        rs_v3 p = rs_v3_add(o, rs_v3_scale(d, tw));
-        if (fabs(p.y) <= 10 && p.z >= 0 && p.z <= WALL_H) return 2;
-    }
-    if (isfinite(tg)) {
-        rs_v3 p = rs_v3_add(o, rs_v3_scale(d, tg));
-        if (p.x >= -14 && p.x <= WALL_X && fabs(p.y) <= 10) return 1;
-    }
-    return 0;
+    static const rs_meshgen_wall_ground scene = {-14, WALL_X, -10, 10, WALL_X, -10, 10, WALL_H};
+    return rs_meshgen_wall_ground_sees(&scene, rs_v3_make(0, 0, 1.6), d);
 }
 
 /* The sky: 1, or with glow the CIE clear sky (standard type 12: Perez a..e = -1, -0.32, 10,
@@ -252,38 +243,6 @@ static void write_pano(const char *dir, const rs_image *facet_id, const double *
     rs_image_free(img);
 }
 
-static void run(const char *dir, const char *sets)
-{
-    char cmd[8192], *out = NULL;
-    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/rhoscan' run --force %s scene.ini", dir, rs_test_bin_dir(), sets);
-    int rc = rs_test_run(cmd, &out);
-    if (rc != 0) {                             /* the end says why (print_message keeps 1 KB) */
-        size_t n = strlen(out);
-        print_message("exit %d: ...%s\n", rc, out + (n > 900 ? n - 900 : 0));
-    }
-    assert_int_equal(rc, 0);
-    free(out);
-}
-
-/* irradiance_sky (+ irradiance_inter when with_inter) of every facet, 3 per facet. */
-static double *read_irradiance(const char *dir, int with_inter, size_t *nf)
-{
-    rs_err err;
-    const char *path = rs_test_path(dir, "work/irradiance.ply");
-    rs_ply *ply = rs_ply_read(path, &err);
-    assert_non_null(ply);
-    const rs_ply_element *faces = rs_ply_find_element(ply, "face");
-    assert_non_null(faces);
-    *nf = faces->count;
-    double *e = malloc(3 * *nf * sizeof *e), *g = malloc(3 * *nf * sizeof *g);
-    assert_int_equal(rs_faceprop_get_rgb(ply, path, "irradiance_sky", *nf, e, &err), 0);
-    assert_int_equal(rs_faceprop_get_rgb(ply, path, "irradiance_inter", *nf, g, &err), 0);
-    for (size_t i = 0; with_inter && i < 3 * *nf; i++) e[i] += g[i];
-    free(g);
-    rs_ply_free(ply);
-    return e;
-}
-
 #define SCENE_HEAD "[pipeline]\nworkdir = work\n[mesh]\ninput_mesh = mesh.ply\n[capture]\npanorama = pano.exr\n" \
     "position = 0 0 1.6\n[irradiance]\nsamples = 128\nsky_samples = 128\nsun_samples = 16\nskip_unseen = false\n" \
     "[sky]\nfill = row\n"
@@ -308,10 +267,10 @@ static rs_mesh *hidden_sun_scene(const char *dir, double dni, int keep_direction
     rs_test_write(rs_test_path(dir, "scene.ini"), SCENE_HEAD SUN_GIVEN);
     char sets[256];
     snprintf(sets, sizeof sets, "--set sky.sun_irradiance=%g%s", dni, model_fill ? " --set sky.fill=model" : "");
-    run(dir, sets);
+    rs_test_rhoscan(dir, sets);
     size_t nf;
-    double *e = read_irradiance(dir, 1, &nf);
-    *esky_given = read_irradiance(dir, 0, &nf);
+    double *e = rs_test_read_irradiance(dir, 1, &nf);
+    *esky_given = rs_test_read_irradiance(dir, 0, &nf);
     assert_int_equal(nf, m->nfaces);
     double *ground = malloc(3 * nf * sizeof *ground);
     for (size_t f = 0; f < nf; f++)
@@ -331,7 +290,7 @@ static rs_mesh *hidden_sun_scene(const char *dir, double dni, int keep_direction
 static double sunlit_ground(const char *dir, const rs_mesh *m)
 {
     size_t nf;
-    double *e = read_irradiance(dir, 0, &nf), sum = 0;
+    double *e = rs_test_read_irradiance(dir, 0, &nf), sum = 0;
     for (size_t f = 0; f < nf; f++) {
         rs_v3 c, n;
         double a;
@@ -361,7 +320,7 @@ static void test_hidden_sun(void **state)
     const char *dir = rs_test_tmpdir("sunshadow");
     double *esky1;
     rs_mesh *m = hidden_sun_scene(dir, DNI, 1, 0, 0, &esky1);
-    run(dir, "--set sky.sun_from_shadows=auto");
+    rs_test_rhoscan(dir, "--set sky.sun_from_shadows=auto");
     const char *json = rs_test_path(dir, "work/irradiance.json");
     double dni = rs_test_json_number(json, "direct_normal_irradiance"), sigma = rs_test_json_number(json, "sigma"),
            stat = rs_test_json_number(json, "sigma_statistical");
@@ -371,7 +330,7 @@ static void test_hidden_sun(void **state)
     double s1 = given_sunlit_ground(m, esky1), s2 = sunlit_ground(dir, m);
     print_message("sunlit ground E_sky: DNI given %.4f, from the shadows %.4f\n", s1, s2);
     assert_true(fabs(s2 - s1) < 0.02 * s1);
-    run(dir, "--set sky.sun_from_shadows=off");
+    rs_test_rhoscan(dir, "--set sky.sun_from_shadows=off");
     assert_true(sunlit_ground(dir, m) < 0.5 * s1);
     free(esky1);
     rs_mesh_free(m);
@@ -385,7 +344,7 @@ static void test_searched_sun(void **state)
     const char *dir = rs_test_tmpdir("sunshadow");
     double *esky1;
     rs_mesh *m = hidden_sun_scene(dir, DNI, 0, 0, 0, &esky1);
-    run(dir, "");
+    rs_test_rhoscan(dir, "");
     const char *json = rs_test_path(dir, "work/irradiance.json");
     double dni = rs_test_json_number(json, "direct_normal_irradiance");
     const char *buf = rs_test_read_text(json);
@@ -416,7 +375,7 @@ static void test_searched_sun_refits_model(void **state)
     const char *dir = rs_test_tmpdir("sunshadow");
     double *esky1;
     rs_mesh *m = hidden_sun_scene(dir, DNI, 0, 10 * M_PI / 180, 1, &esky1);
-    run(dir, "--set sky.fill=model");
+    rs_test_rhoscan(dir, "--set sky.fill=model");
     const char *json = rs_test_path(dir, "work/irradiance.json");
     const char *buf = rs_test_read_text(json);
     double off = rs_test_json_number(json, "search_off_sky_estimate_deg");
@@ -446,7 +405,7 @@ static void test_no_sun_to_find(void **state)
     double *esky1;
     rs_mesh *m = hidden_sun_scene(dir, 0, 0, 0, 0, &esky1);
     for (int model = 0; model < 2; model++) {
-        run(dir, model ? "--set sky.fill=model" : "");
+        rs_test_rhoscan(dir, model ? "--set sky.fill=model" : "");
         const char *buf = rs_test_read_text(rs_test_path(dir, "work/irradiance.json"));
         assert_null(strstr(buf, "\"explicit_sun\""));
         assert_true(!model || strstr(buf, "no circumsolar glow"));
@@ -468,7 +427,7 @@ static void test_cues_disagree(void **state)
     const char *dir = rs_test_tmpdir("sunshadow");
     double *esky1;
     rs_mesh *m = hidden_sun_scene(dir, DNI, 0, M_PI, 0, &esky1);
-    run(dir, "");
+    rs_test_rhoscan(dir, "");
     const char *buf = rs_test_read_text(rs_test_path(dir, "work/irradiance.json"));
     assert_null(strstr(buf, "\"explicit_sun\""));
     assert_non_null(strstr(buf, "from where the visible sky puts the sun"));

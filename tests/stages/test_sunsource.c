@@ -72,12 +72,7 @@ static void write_scene(const char *dir, double *dni, double *clipped_dni)
  * facet and the facet centroids. */
 static void run_channel(const char *dir, const char *sets, int ch, double **esky, rs_v3 **centroid, size_t *nf)
 {
-    char cmd[8192], *out = NULL;
-    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/rhoscan' run --force %s scene.ini", dir, rs_test_bin_dir(), sets);
-    int rc = rs_test_run(cmd, &out);
-    if (rc != 0) print_message("%s\n", out);
-    assert_int_equal(rc, 0);
-    free(out);
+    rs_test_rhoscan(dir, sets);
     rs_err err;
     const char *path = rs_test_path(dir, "work/irradiance.ply");
     rs_mesh *m = rs_mesh_read(path, NULL, &err);
