@@ -286,55 +286,60 @@ static int gather_pass_run(const rs_config *cfg, rs_report *rep, rs_gather_ctx *
 
 /* The sky map's ground model (directions below the horizon that no camera saw as ground near
  * them: skyfill.h) set to the albedo of the scan's own ground under the completed sky ([sky]
- * ground_albedo_from = scan), instead of [sky] ground_albedo. */
+ * ground_albedo_from = scan). When that albedo cannot be had, the model's pixels copy the
+ * nearest measured ground band at any distance instead, as before the model (and keep [sky]
+ * ground_albedo when no camera saw ground at all). */
 static int ground_from_scan(const rs_config *cfg, rs_report *rep, const rs_gather_ctx *g, rs_skyenv *env,
                             const rs_skyenv_opts *so, const rs_skyfill_report *fill, const rs_sunsource *sun,
                             const rs_mesh *mesh, rs_err *err)
 {
     if (so->fill.method != RS_SKYFILL_MODEL || !fill->ground_model_pixels) return 0;
     rs_json_set_int(rep->metrics, "sky_ground_model_pixels", (long long)fill->ground_model_pixels);
-    rs_json *ga = rs_json_set_arr(rep->metrics, "sky_ground_albedo");
-    const char *from = "config";
+    const char *from = "config", *why = NULL;
     double albedo[3] = {so->fill.ground_albedo, so->fill.ground_albedo, so->fill.ground_albedo};
+    rs_skyground gr = {0};
     if (strcmp(rs_config_string(cfg, "sky", "ground_albedo_from"), "scan") != 0) {
         /* as asked */
     } else if (sun->active) {
-        rs_report_skip(rep, "ground albedo from the scan", "an explicit sun is added after the gather, so the "
-                       "ground's own E would miss it: the unseen ground keeps [sky] ground_albedo = %g",
-                       so->fill.ground_albedo);
+        why = "an explicit sun is added after the gather, so the ground's own E would miss it";
     } else if (sun->search && !(sky_glow(fill, so->fill.method) < RS_SUNSEARCH_MIN_GLOW)) {
-        rs_report_skip(rep, "ground albedo from the scan", "a sun no camera saw may be found in the shadows after "
-                       "the gather, and the ground's own E would miss it: the unseen ground keeps [sky] "
-                       "ground_albedo = %g", so->fill.ground_albedo);
+        why = "a sun no camera saw may be found in the shadows after the gather, and the ground's own E would miss it";
     } else {
-        rs_skyground gr;
         double t0 = rs_now();
         if (rs_skyground_albedo(g, mesh, g->radiance, g->observed, &gr) != 0)
             return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory estimating the ground's albedo");
         rs_report_time(rep, "ground_albedo", rs_now() - t0);
-        if (gr.facets) {
-            double rgb[3];
-            for (int ch = 0; ch < 3; ch++) {
-                albedo[ch] = fmin(1, gr.albedo[ch]);
-                rgb[ch] = albedo[ch] * fill->horizontal_irradiance[ch] / M_PI;
-            }
-            if (rs_skyenv_set_ground(env, rgb, so->explicit_sun) < 0)
-                return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky distribution");
-            from = "scan";
-            rs_json_set_int(rep->metrics, "sky_ground_albedo_facets", (long long)gr.facets);
-            rs_json *sp = rs_json_set_arr(rep->metrics, "sky_ground_albedo_spread");
-            for (int ch = 0; ch < 3; ch++) rs_json_push_num(sp, gr.spread[ch]);
-            rs_log_info("irradiance: unseen ground below the horizon (%zu map pixels): albedo %.3g %.3g %.3g "
-                        "(+- %.2g %.2g %.2g between facets) from %zu of the scan's %zu observed ground facets at "
-                        "z %.2f m", fill->ground_model_pixels, albedo[0], albedo[1], albedo[2], gr.spread[0],
-                        gr.spread[1], gr.spread[2], gr.facets, gr.candidates, gr.level_z);
-        } else {
-            rs_report_skip(rep, "ground albedo from the scan", "%zu observed upward facets at the scan's ground "
-                           "level (%d needed): the unseen ground keeps [sky] ground_albedo = %g", gr.candidates,
-                           RS_SKYGROUND_MIN_FACETS, so->fill.ground_albedo);
-        }
+        if (!gr.facets) why = "too few observed upward facets at the scan's ground level";
     }
-    for (int ch = 0; ch < 3; ch++) rs_json_push_num(ga, albedo[ch]);
+    if (gr.facets) {
+        double rgb[3];
+        for (int ch = 0; ch < 3; ch++) {
+            albedo[ch] = fmin(1, gr.albedo[ch]);
+            rgb[ch] = albedo[ch] * fill->horizontal_irradiance[ch] / M_PI;
+        }
+        if (rs_skyenv_set_ground(env, rgb, so->explicit_sun) < 0)
+            return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky distribution");
+        from = "scan";
+        rs_json_set_int(rep->metrics, "sky_ground_albedo_facets", (long long)gr.facets);
+        rs_json *sp = rs_json_set_arr(rep->metrics, "sky_ground_albedo_spread");
+        for (int ch = 0; ch < 3; ch++) rs_json_push_num(sp, gr.spread[ch]);
+        rs_log_info("irradiance: unseen ground below the horizon (%zu map pixels): albedo %.3g %.3g %.3g (+- %.2g "
+                    "%.2g %.2g between facets) from %zu of the scan's %zu observed ground facets at z %.2f m",
+                    fill->ground_model_pixels, albedo[0], albedo[1], albedo[2], gr.spread[0], gr.spread[1],
+                    gr.spread[2], gr.facets, gr.candidates, gr.level_z);
+    } else if (why) {
+        long n = rs_skyenv_ground_from_bands(env, so->explicit_sun);
+        if (n < 0) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky distribution");
+        if (n > 0) from = "measured ground";
+        rs_report_skip(rep, "ground albedo from the scan", "%s (%zu upward facets at its level, %d needed): the "
+                       "unseen ground %s", why, gr.candidates, RS_SKYGROUND_MIN_FACETS,
+                       n > 0 ? "copies the nearest band of measured ground"
+                             : "keeps [sky] ground_albedo (no camera saw ground beyond the model)");
+    }
+    if (strcmp(from, "measured ground") != 0) {
+        rs_json *ga = rs_json_set_arr(rep->metrics, "sky_ground_albedo");
+        for (int ch = 0; ch < 3; ch++) rs_json_push_num(ga, albedo[ch]);
+    }
     rs_json_set_str(rep->metrics, "sky_ground_albedo_from", from);
     return 0;
 }
@@ -497,6 +502,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         if (rs_skyenv_build_opts(&cap, ids->data, &so, &env, &info, err) != 0) goto out;
         rs_report_time(rep, "sky_map_searched_sun", rs_now() - t0);
         info.fill.sun_source = RS_SUN_SHADOWS;
+        if (ground_from_scan(cfg, rep, &g, &env, &so, &info.fill, &sun, mesh, err) != 0) goto out;
         first_pass_rays = gp.gs.rays;
         for (size_t f = 0; f < nf; f++) free(fg[f].entries);
         memset(fg, 0, nf * sizeof *fg);

@@ -404,6 +404,18 @@ out:
     return rc;
 }
 
+/* After the map's values changed: the sampling distributions again. */
+static int rebuild_distributions(rs_skyenv *env)
+{
+    free(env->cdf);
+    free(env->sun_cdf);
+    free(env->cdf_guide);
+    free(env->sun_cdf_guide);
+    env->cdf = env->sun_cdf = NULL;
+    env->cdf_guide = env->sun_cdf_guide = NULL;
+    return build_distributions(env);
+}
+
 long rs_skyenv_set_ground(rs_skyenv *env, const double rgb[3], int explicit_sun)
 {
     size_t npx = (size_t)env->width * env->height;
@@ -414,13 +426,20 @@ long rs_skyenv_set_ground(rs_skyenv *env, const double rgb[3], int explicit_sun)
             n++;
         }
     if (!n || !explicit_sun) return n;
-    free(env->cdf);
-    free(env->sun_cdf);
-    free(env->cdf_guide);
-    free(env->sun_cdf_guide);
-    env->cdf = env->sun_cdf = NULL;
-    env->cdf_guide = env->sun_cdf_guide = NULL;
-    return build_distributions(env) == 0 ? n : -1;
+    return rebuild_distributions(env) == 0 ? n : -1;
+}
+
+long rs_skyenv_ground_from_bands(rs_skyenv *env, int explicit_sun)
+{
+    size_t npx = (size_t)env->width * env->height;
+    uint8_t *src = malloc(npx ? npx : 1);
+    if (!src) return -1;
+    for (size_t k = 0; k < npx; k++) src[k] = !env->filled[k] && !env->sun[k];
+    long n = rs_skyfill_ground_from_bands(env->width, env->height, &env->pose, env->radiance, src, env->filled,
+                                          RS_SKYFILL_GROUND_MODEL, M_PI);
+    free(src);
+    if (n <= 0 || !explicit_sun) return n;
+    return rebuild_distributions(env) == 0 ? n : -1;
 }
 
 void rs_skyenv_release(rs_skyenv *env)

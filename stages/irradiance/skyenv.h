@@ -93,6 +93,10 @@ void rs_skyenv_release(rs_skyenv *env);
  * rebuilds the sampling distributions when the map has them (explicit_sun, as built). Returns
  * the pixels changed, -1 out of memory (the caller then releases the map). */
 long rs_skyenv_set_ground(rs_skyenv *env, const double rgb[3], int explicit_sun);
+/* Sets them instead to the mean measured ground of the nearest elevation band that has any, at
+ * any distance (when the ground model's albedo cannot be had), marked filled (1), and rebuilds
+ * the distributions as above. Returns the pixels set (0: no measured ground), -1 out of memory. */
+long rs_skyenv_ground_from_bands(rs_skyenv *env, int explicit_sun);
 
 /* Pixel index of world direction d. */
 static inline size_t rs_skyenv_pixel(const rs_skyenv *env, rs_v3 d_world)

@@ -128,14 +128,15 @@ static void model_fill_sky(int w, int h, const rs_pose *pose, float *rad, const 
     }
 }
 
-/* Fill pixels below the horizon: the mean source radiance of their world elevation band, or of
- * the nearest band with sources when it lies within RS_SKYFILL_GROUND_NEAR_RAD; else the ground
- * model, albedo * E_horizontal / pi of the completed sky, marked RS_SKYFILL_GROUND_MODEL in fill.
- * A camera's ground beyond the model is seen at grazing angles only (a courtyard's camera sees
- * it over a low wall, 1 to 2 degrees down, 60 m away): copied to a wall's view 30 degrees down
- * onto the ground next to the building, it was 25 % too dark there. */
-static int ground_fill(int w, int h, const rs_pose *pose, float *rad, const uint8_t *src, uint8_t *fill,
-                       double albedo, rs_skyfill_report *rep)
+/* The world elevation band (nb of them, 0 at the horizon) of a direction below the horizon. */
+static int ground_band(rs_v3 d, int nb)
+{
+    int b = (int)(asin(fmin(1, -d.z)) / (M_PI / 2) * nb);
+    return b >= nb ? nb - 1 : b;
+}
+
+long rs_skyfill_ground_from_bands(int w, int h, const rs_pose *pose, float *rad, const uint8_t *src, uint8_t *fill,
+                                  uint8_t which, double max_rad)
 {
     int nb = h / 2 > 0 ? h / 2 : 1;
     double *acc = calloc(4 * (size_t)nb, sizeof *acc);
@@ -146,62 +147,76 @@ static int ground_fill(int w, int h, const rs_pose *pose, float *rad, const uint
         return -1;
     }
     size_t npx = (size_t)w * h;
-    double eh[3] = {0, 0, 0};
     for (size_t k = 0; k < npx; k++) {
-        rs_v3 d = pixel_world(w, h, pose, k);
-        double om = rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w));
-        if (d.z > 0) {
-            for (int ch = 0; ch < 3; ch++) eh[ch] += rad[3 * k + ch] * d.z * om;
-            continue;
-        }
         if (!src[k]) continue;
-        int b = (int)(asin(fmin(1, -d.z)) / (M_PI / 2) * nb);
-        b = b >= nb ? nb - 1 : b;
+        rs_v3 d = pixel_world(w, h, pose, k);
+        if (d.z > 0) continue;
+        int b = ground_band(d, nb);
+        double om = rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w));
         for (int ch = 0; ch < 3; ch++) acc[4 * b + ch] += om * rad[3 * k + ch];
         acc[4 * b + 3] += om;
-    }
-    double ground[3];
-    for (int ch = 0; ch < 3; ch++) ground[ch] = albedo * eh[ch] / M_PI;
-    for (int ch = 0; ch < 3; ch++) {
-        rep->ground_rgb[ch] = ground[ch];
-        rep->horizontal_irradiance[ch] = eh[ch];
     }
     /* Each band's nearest band with measured ground (below first, then above), found once per
      * band: searched per pixel it was the stage's largest serial loop (perf: most of
      * rs_skyfill_run's own time, up to nb steps for each of a million ground pixels); -1 when
-     * it is farther than RS_SKYFILL_GROUND_NEAR_RAD. */
-    int near = (int)ceil(RS_SKYFILL_GROUND_NEAR_RAD / (M_PI / 2) * nb);
+     * it is farther than max_rad. */
+    int reach = max_rad >= M_PI / 2 ? nb : (int)ceil(max_rad / (M_PI / 2) * nb);
     for (int b = 0; b < nb; b++) {
         int best = -1;
-        for (int dd = 0; dd <= near && best < 0; dd++) {
+        for (int dd = 0; dd <= reach && best < 0; dd++) {
             if (b - dd >= 0 && acc[4 * (b - dd) + 3] > 0) best = b - dd;
             else if (b + dd < nb && acc[4 * (b + dd) + 3] > 0) best = b + dd;
         }
         nearest[b] = best;
     }
-    size_t modelled = 0, below = 0;
+    long set = 0;
     for (size_t k = 0; k < npx; k++) {
-        if (!fill[k]) continue;
+        if (fill[k] != which) continue;
         rs_v3 d = pixel_world(w, h, pose, k);
         if (d.z > 0) continue;
-        below++;
-        int b = (int)(asin(fmin(1, -d.z)) / (M_PI / 2) * nb);
-        b = b >= nb ? nb - 1 : b;
-        const double *L = ground;
-        double mean[3];
-        if (nearest[b] >= 0) {
-            for (int ch = 0; ch < 3; ch++) mean[ch] = acc[4 * nearest[b] + ch] / acc[4 * nearest[b] + 3];
-            L = mean;
-        } else {
-            fill[k] = RS_SKYFILL_GROUND_MODEL;
-            modelled++;
-        }
-        for (int ch = 0; ch < 3; ch++) rad[3 * k + ch] = (float)L[ch];
+        int best = nearest[ground_band(d, nb)];
+        if (best < 0) continue;
+        for (int ch = 0; ch < 3; ch++) rad[3 * k + ch] = (float)(acc[4 * best + ch] / acc[4 * best + 3]);
+        fill[k] = 1;
+        set++;
     }
-    rep->ground_model_pixels = modelled;
-    rep->ground_from_albedo = below > 0 && modelled == below;
     free(nearest);
     free(acc);
+    return set;
+}
+
+/* Fill pixels below the horizon: the ground model, albedo * E_horizontal / pi of the completed
+ * sky, marked RS_SKYFILL_GROUND_MODEL in fill; then those within RS_SKYFILL_GROUND_NEAR_RAD of a
+ * band with measured ground take that band's mean instead. A camera's ground beyond the model
+ * is often seen at grazing angles only (a courtyard's camera sees it over a low wall, 1 to 2
+ * degrees down, 60 m away): copied to a wall's view 30 degrees down onto the ground next to the
+ * building, it was 25 % too dark there. */
+static int ground_fill(int w, int h, const rs_pose *pose, float *rad, const uint8_t *src, uint8_t *fill,
+                       double albedo, rs_skyfill_report *rep)
+{
+    size_t npx = (size_t)w * h, below = 0;
+    double eh[3] = {0, 0, 0};
+    for (size_t k = 0; k < npx; k++) {
+        rs_v3 d = pixel_world(w, h, pose, k);
+        if (d.z <= 0) continue;
+        double om = rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w));
+        for (int ch = 0; ch < 3; ch++) eh[ch] += rad[3 * k + ch] * d.z * om;
+    }
+    for (int ch = 0; ch < 3; ch++) {
+        rep->horizontal_irradiance[ch] = eh[ch];
+        rep->ground_rgb[ch] = albedo * eh[ch] / M_PI;
+    }
+    for (size_t k = 0; k < npx; k++) {
+        if (!fill[k] || pixel_world(w, h, pose, k).z > 0) continue;
+        for (int ch = 0; ch < 3; ch++) rad[3 * k + ch] = (float)rep->ground_rgb[ch];
+        fill[k] = RS_SKYFILL_GROUND_MODEL;
+        below++;
+    }
+    long copied = rs_skyfill_ground_from_bands(w, h, pose, rad, src, fill, RS_SKYFILL_GROUND_MODEL,
+                                               RS_SKYFILL_GROUND_NEAR_RAD);
+    if (copied < 0) return -1;
+    rep->ground_model_pixels = below - (size_t)copied;
+    rep->ground_from_albedo = below > 0 && copied == 0;
     return 0;
 }
 

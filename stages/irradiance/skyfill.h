@@ -73,6 +73,12 @@ int rs_skyfill_sigma_map(int w, int h, const uint8_t *src, const uint8_t *fill, 
 /* fill's mark for a pixel the ground model filled (rs_skyenv_set_ground sets them again). */
 #define RS_SKYFILL_GROUND_MODEL 2
 
+/* Each pixel below the horizon with fill[k] == which takes the mean of the source (src) pixels
+ * below the horizon in the nearest world elevation band that has some, within max_rad of its
+ * own (M_PI / 2 or more: any), and is marked 1. Returns the pixels set, -1 out of memory. */
+long rs_skyfill_ground_from_bands(int w, int h, const rs_pose *pose, float *radiance, const uint8_t *src,
+                                  uint8_t *fill, uint8_t which, double max_rad);
+
 /* radiance: 3 * w * h floats of a map in frame pose (rs_pano conventions), read and filled in
  * place. src (w * h): 1 for measured sky usable as a source (not the sun set). fill: 1 for the
  * pixels to fill. sun (w * h, may be NULL): the sun set, whose luminance-weighted centroid is

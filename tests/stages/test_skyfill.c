@@ -201,6 +201,12 @@ static void test_ground_near_bands_and_model(void **state)
     size_t k0 = (size_t)(H - 1) * W;   /* straight down: the ground model */
     for (int ch = 0; ch < 3; ch++) assert_true(env.radiance[3 * k0 + ch] == (float)rgb[ch]);
     assert_true(env.total_power > before && env.cdf[(size_t)W * H] == env.total_power);
+    /* Without an albedo for the model: the measured band (0.4) at any distance, as before it. */
+    double set_power = env.total_power;
+    assert_int_equal(rs_skyenv_ground_from_bands(&env, 1), (long)info.fill.ground_model_pixels);
+    for (int ch = 0; ch < 3; ch++) assert_true(fabs(env.radiance[3 * k0 + ch] - 0.4) < 1e-5);
+    assert_int_equal(env.filled[k0], 1);
+    assert_true(env.total_power < set_power && env.cdf[(size_t)W * H] == env.total_power);
     rs_skyenv_release(&env);
     free(ids);
     rs_capture_release(&cap);

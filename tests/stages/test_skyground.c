@@ -6,7 +6,8 @@
  * - the estimate (scan) gives that albedo back within 0.5 % per channel;
  * - the outward wall's E_sky is then that of a run given the albedo, and not that of the
  *   default 0.2 (so the wall does see the ground model);
- * - with an explicit sun the estimate is skipped, and says why. */
+ * - with an explicit sun the estimate is skipped, says why, and the ground copies the camera's
+ *   far ground as before the ground model. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -124,11 +125,18 @@ static void test_ground_albedo_from_scan(void **state)
     assert_true(fabs(scan - given) < 0.003 * given);
     assert_true(scan > 1.05 * dflt);
 
-    /* An explicit sun comes after the gather: no estimate, and the summary says why. */
-    rs_test_rhoscan(dir, "--set sky.sun_irradiance=5 --set sky.sun_azimuth_deg=0 --set sky.sun_elevation_deg=40");
+    /* An explicit sun comes after the gather: no estimate, the summary says why, and the unseen
+     * ground copies the camera's far ground (L_FAR = 0.3, seen 0 to 9 degrees down) as before the
+     * model. The sun stands behind the wall (azimuth 180), which so keeps its E_sky from the sky
+     * and the ground: between the default's model ground (0.2 E_h / pi = 0.2) and the scan's
+     * (0.4). */
+    rs_test_rhoscan(dir, "--set sky.sun_irradiance=5 --set sky.sun_azimuth_deg=180 --set sky.sun_elevation_deg=40");
     buf = rs_test_read_text(json);
-    assert_non_null(strstr(buf, "\"sky_ground_albedo_from\": \"config\""));
+    assert_non_null(strstr(buf, "\"sky_ground_albedo_from\": \"measured ground\""));
     assert_non_null(strstr(buf, "an explicit sun is added after the gather"));
+    double copied = wall_esky(dir, nf, wall0);
+    print_message("with an explicit sun, the wall's green E_sky from the copied far ground %.4f\n", copied);
+    assert_true(copied > 1.02 * dflt && copied < scan / 1.02);
     free(e);
     free(ground);
     rs_mesh_free(m);

@@ -130,8 +130,11 @@ METHOD = """## How the sky is completed (stages/irradiance: skyenv.c, skyfill.c,
   sky), then real spherical harmonics of the log
   residual up to `sh_order` with a ridge penalty `sh_ridge (l(l+1))^2`. Hidden directions above the
   horizon take the model. Hidden directions below the horizon take the mean visible ground of the
-  same world elevation band (nearest band with any), and when no ground is visible at all
-  `ground_albedo` x E_horizontal / pi of the completed sky.
+  same world elevation band, or of the nearest band with any within 10 degrees; farther, the
+  ground model: albedo x E_horizontal / pi per channel of the completed sky, the albedo that of
+  the scan's lowest level of observed upward facets (median pi L / (E_sky + G), each gathered
+  first; `[sky] ground_albedo_from = scan`), or `ground_albedo` when an explicit sun or a shadow
+  search comes after the gather.
 - A sun no camera saw (`[sky] sun_from_shadows`, stages/irradiance/sunshadow.c): with its direction
   known, its DNI and colour come from the model's shadows. An observed facet in full sun and one in
   full shadow near it on the same plane are taken to share an albedo, so
