@@ -309,7 +309,7 @@ static int ground_from_scan(const rs_config *cfg, rs_report *rep, const rs_gathe
         if (rs_skyground_albedo(g, mesh, g->radiance, g->observed, &gr) != 0)
             return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory estimating the ground's albedo");
         rs_report_time(rep, "ground_albedo", rs_now() - t0);
-        if (!gr.facets) why = "too few observed upward facets at the scan's ground level";
+        if (!gr.facets) why = "too few observed upward facets at the scan's ground level that see only observed ones";
     }
     if (gr.facets) {
         double rgb[3];
@@ -321,12 +321,14 @@ static int ground_from_scan(const rs_config *cfg, rs_report *rep, const rs_gathe
             return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky distribution");
         from = "scan";
         rs_json_set_int(rep->metrics, "sky_ground_albedo_facets", (long long)gr.facets);
+        rs_json_set_int(rep->metrics, "sky_ground_albedo_left_out", (long long)gr.sees_unobserved);
         rs_json *sp = rs_json_set_arr(rep->metrics, "sky_ground_albedo_spread");
         for (int ch = 0; ch < 3; ch++) rs_json_push_num(sp, gr.spread[ch]);
         rs_log_info("irradiance: unseen ground below the horizon (%zu map pixels): albedo %.3g %.3g %.3g (+- %.2g "
-                    "%.2g %.2g between facets) from %zu of the scan's %zu observed ground facets at z %.2f m",
-                    fill->ground_model_pixels, albedo[0], albedo[1], albedo[2], gr.spread[0], gr.spread[1],
-                    gr.spread[2], gr.facets, gr.candidates, gr.level_z);
+                    "%.2g %.2g between facets) from %zu of the scan's %zu observed ground facets at z %.2f m (%zu "
+                    "left out: they see facets no camera saw)", fill->ground_model_pixels, albedo[0], albedo[1],
+                    albedo[2], gr.spread[0], gr.spread[1], gr.spread[2], gr.facets, gr.candidates, gr.level_z,
+                    gr.sees_unobserved);
     } else if (why) {
         long n = rs_skyenv_ground_from_bands(env, so->explicit_sun);
         if (n < 0) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky distribution");

@@ -56,6 +56,16 @@ int rs_skyground_albedo(const rs_gather_ctx *g, const rs_mesh *mesh, const doubl
     }
     size_t used = 0;
     for (size_t k = 0; k < m; k++) {
+        /* Light from facets no camera saw is the reflectance stage's to estimate: a facet that
+         * sees much of them would have its E short and its albedo high (by 7 % on the bench's
+         * city, where the camera sees a tenth of the buildings). */
+        double unseen = 0;
+        for (uint32_t q = 0; q < fg[k].nentries; q++)
+            if (!observed[fg[k].entries[q].col]) unseen += fg[k].entries[q].k;
+        if (unseen > RS_SKYGROUND_MAX_UNSEEN * M_PI) {
+            out->sees_unobserved++;
+            continue;
+        }
         double e[3];
         rs_gather_inter_observed(&fg[k], radiance, observed, e);
         int ok = 1;

@@ -17,14 +17,17 @@
 #define RS_SKYGROUND_MIN_FACETS 30
 /* The ground level: upward facets (normal z above this) ... */
 #define RS_SKYGROUND_UP_Z 0.95
-/* ... whose centroid lies within this height (m) of the lowest of them (its 2nd percentile). */
+/* ... whose centroid lies within this height (m) of the lowest of them (its 2nd percentile), and
+ * whose cosine-weighted hemisphere meets facets no camera saw on at most this share. */
 #define RS_SKYGROUND_LEVEL_M 0.25
+#define RS_SKYGROUND_MAX_UNSEEN 0.02
 
 typedef struct rs_skyground {
     double albedo[3];          /* median over the facets of pi L / (E_sky + G), per channel */
     double spread[3];          /* half the distance between their 16th and 84th percentiles */
     size_t facets;             /* facets it came from (0: no estimate, albedo untouched) */
     size_t candidates;         /* observed upward facets at the ground level */
+    size_t sees_unobserved;    /* of those gathered, left out for seeing unobserved facets */
     double level_z;            /* the ground level's lowest centroid height (m) */
 } rs_skyground;
 

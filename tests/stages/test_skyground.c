@@ -109,6 +109,10 @@ static void test_ground_albedo_from_scan(void **state)
     double a[3];
     assert_int_equal(sscanf(p, "\"sky_ground_albedo\": [%lf, %lf, %lf]", &a[0], &a[1], &a[2]), 3);
     double pixels = rs_test_json_number(json, "sky_ground_model_pixels");
+    double used = rs_test_json_number(json, "sky_ground_albedo_facets");
+    double left_out = rs_test_json_number(json, "sky_ground_albedo_left_out");
+    print_message("from %g ground facets; %g left out for seeing facets no camera saw\n", used, left_out);
+    assert_true(left_out > 0 && used >= 30);     /* the wall's back, which the camera sees, is not observed */
     print_message("ground albedo from the scan %.4f %.4f %.4f (true %g %g %g), %g map pixels of ground model\n",
                   a[0], a[1], a[2], albedo[0], albedo[1], albedo[2], pixels);
     for (int ch = 0; ch < 3; ch++) assert_true(fabs(a[ch] - albedo[ch]) < 0.005 * albedo[ch]);
