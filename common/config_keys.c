@@ -207,8 +207,8 @@ const rs_cfg_key rs_cfg_keys[] = {
      "(with ground_albedo_from = scan, only when the scan's ground gives none)"},
     {"sky", "ground_albedo_from", RS_CFG_ENUM, "scan", 0, 0, "scan|config", "", "irradiance",
      "model fill: scan = that ground's albedo is the median of pi L / E over the scan's lowest level of observed "
-     "upward facets, each gathered first (not with an explicit sun, which comes after the gather); config = "
-     "ground_albedo"},
+     "upward facets that see only observed ones, each gathered first (not with an explicit sun, which comes after "
+     "the gather: the measured ground is copied then); config = ground_albedo"},
 
     {"reflectance", "method", RS_CFG_ENUM, "interreflection", 0, 0, "interreflection|direct|paper", "",
      "reflectance", "interreflection: rho = pi L / (E_sky + G); direct: pi L / E_sky; paper: dense K"},
