@@ -296,6 +296,7 @@ static int ground_from_scan(const rs_config *cfg, rs_report *rep, const rs_gathe
     if (so->fill.method != RS_SKYFILL_MODEL || !fill->ground_model_pixels) return 0;
     rs_json_set_int(rep->metrics, "sky_ground_model_pixels", (long long)fill->ground_model_pixels);
     const char *from = "config", *why = NULL;
+    char few[160];
     double albedo[3] = {so->fill.ground_albedo, so->fill.ground_albedo, so->fill.ground_albedo};
     rs_skyground gr = {0};
     if (strcmp(rs_config_string(cfg, "sky", "ground_albedo_from"), "scan") != 0) {
@@ -309,7 +310,11 @@ static int ground_from_scan(const rs_config *cfg, rs_report *rep, const rs_gathe
         if (rs_skyground_albedo(g, mesh, g->radiance, g->observed, &gr) != 0)
             return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory estimating the ground's albedo");
         rs_report_time(rep, "ground_albedo", rs_now() - t0);
-        if (!gr.facets) why = "too few observed upward facets at the scan's ground level that see only observed ones";
+        if (!gr.facets) {
+            snprintf(few, sizeof few, "fewer than %d of the %zu observed upward facets at the scan's ground "
+                     "level see only observed ones", RS_SKYGROUND_MIN_FACETS, gr.candidates);
+            why = few;
+        }
     }
     if (gr.facets) {
         double rgb[3];
@@ -333,8 +338,7 @@ static int ground_from_scan(const rs_config *cfg, rs_report *rep, const rs_gathe
         long n = rs_skyenv_ground_from_bands(env, so->explicit_sun);
         if (n < 0) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky distribution");
         if (n > 0) from = "measured ground";
-        rs_report_skip(rep, "ground albedo from the scan", "%s (%zu upward facets at its level, %d needed): the "
-                       "unseen ground %s", why, gr.candidates, RS_SKYGROUND_MIN_FACETS,
+        rs_report_skip(rep, "ground albedo from the scan", "%s: the unseen ground %s", why,
                        n > 0 ? "copies the nearest band of measured ground"
                              : "keeps [sky] ground_albedo (no camera saw ground beyond the model)");
     }
@@ -504,7 +508,13 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         if (rs_skyenv_build_opts(&cap, ids->data, &so, &env, &info, err) != 0) goto out;
         rs_report_time(rep, "sky_map_searched_sun", rs_now() - t0);
         info.fill.sun_source = RS_SUN_SHADOWS;
-        if (ground_from_scan(cfg, rep, &g, &env, &so, &info.fill, &sun, mesh, err) != 0) goto out;
+        /* The sun is explicit now: the unseen ground copies the measured ground, as the first map's
+         * did (ground_from_scan said why), unless the config asked for its albedo. */
+        if (strcmp(rs_config_string(cfg, "sky", "ground_albedo_from"), "scan") == 0 &&
+            rs_skyenv_ground_from_bands(&env, so.explicit_sun) < 0) {
+            rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky distribution");
+            goto out;
+        }
         first_pass_rays = gp.gs.rays;
         for (size_t f = 0; f < nf; f++) free(fg[f].entries);
         memset(fg, 0, nf * sizeof *fg);
