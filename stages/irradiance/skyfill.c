@@ -196,9 +196,15 @@ static int ground_fill(int w, int h, const rs_pose *pose, float *rad, const uint
 {
     size_t npx = (size_t)w * h, below = 0;
     double eh[3] = {0, 0, 0};
-    for (size_t k = 0; k < npx; k++) {
+    for (size_t k = 0; k < npx; k++) {         /* one direction per pixel: E_h, and the marks */
         rs_v3 d = pixel_world(w, h, pose, k);
-        if (d.z <= 0) continue;
+        if (d.z <= 0) {
+            if (fill[k]) {
+                fill[k] = RS_SKYFILL_GROUND_MODEL;
+                below++;
+            }
+            continue;
+        }
         double om = rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w));
         for (int ch = 0; ch < 3; ch++) eh[ch] += rad[3 * k + ch] * d.z * om;
     }
@@ -206,12 +212,9 @@ static int ground_fill(int w, int h, const rs_pose *pose, float *rad, const uint
         rep->horizontal_irradiance[ch] = eh[ch];
         rep->ground_rgb[ch] = albedo * eh[ch] / M_PI;
     }
-    for (size_t k = 0; k < npx; k++) {
-        if (!fill[k] || pixel_world(w, h, pose, k).z > 0) continue;
-        for (int ch = 0; ch < 3; ch++) rad[3 * k + ch] = (float)rep->ground_rgb[ch];
-        fill[k] = RS_SKYFILL_GROUND_MODEL;
-        below++;
-    }
+    for (size_t k = 0; k < npx; k++)
+        if (fill[k] == RS_SKYFILL_GROUND_MODEL)
+            for (int ch = 0; ch < 3; ch++) rad[3 * k + ch] = (float)rep->ground_rgb[ch];
     long copied = rs_skyfill_ground_from_bands(w, h, pose, rad, src, fill, RS_SKYFILL_GROUND_MODEL,
                                                RS_SKYFILL_GROUND_NEAR_RAD);
     if (copied < 0) return -1;
