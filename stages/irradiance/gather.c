@@ -230,6 +230,7 @@ typedef struct {
     rs_v3 n, a, b, c;
     uint32_t seed;
     int nrefs;
+    double inv_dist_sum;       /* cosine rays: sum of 1 / hit distance */
     double y_sum[2], y_sq[2];  /* map rays (pass 0 sky, 1 sun): each ray's estimate of the whole */
     int done[2];               /* map rays so far, per pass */
 } facet_state;
@@ -322,6 +323,7 @@ static int gather_round(const rs_gather_ctx *g, rs_gather_scratch *s, facet_stat
                 out->cos_sum_sq += y * y;
                 continue;
             }
+            st->inv_dist_sum += 1.0 / fmax(hits[i].t, 1e-6);
             double L[3];
             /* A back face is lit from the side nobody measured: it takes the facet's mean radiance. */
             int seen = !hits[i].backface && read_seen(g, hits[i].face, pixel[i], L);
@@ -383,6 +385,8 @@ static int gather_round(const rs_gather_ctx *g, rs_gather_scratch *s, facet_stat
                 else                                         /* balance heuristic, already / Ne */
                     wgt = cosn / (Nc * cosn / M_PI + Ne * rs_skyenv_pdf(env, pix));
                 add_sky(env, pix, wgt, dst);
+                if (pass)
+                    for (int ch = 0; ch < 3; ch++) dst->esun[ch] += wgt * env->radiance[3 * pix + ch];
                 double y = (pass ? div : Ne) * wgt * lum;   /* this ray alone: its estimate of the whole */
                 st->y_sum[pass] += y;
                 st->y_sq[pass] += y * y;
@@ -396,7 +400,10 @@ static int gather_round(const rs_gather_ctx *g, rs_gather_scratch *s, facet_stat
             }
         }
         if (adaptive) {
-            for (int ch = 0; ch < 3; ch++) out->esky[ch] += acc.esky[ch] / done;
+            for (int ch = 0; ch < 3; ch++) {
+                out->esky[ch] += acc.esky[ch] / done;
+                out->esun[ch] += acc.esun[ch] / done;
+            }
             out->esky_lum += acc.esky_lum / done;
             out->filled_lum += acc.filled_lum / done;
             out->fill_sigma_lum += acc.fill_sigma_lum / done;
@@ -463,13 +470,17 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
     }
     if (rounds) {                             /* every sum was weighted for the base counts */
         double inv = 1.0 / (1 << rounds);
-        for (int ch = 0; ch < 3; ch++) out->esky[ch] *= inv;
+        for (int ch = 0; ch < 3; ch++) {
+            out->esky[ch] *= inv;
+            out->esun[ch] *= inv;
+        }
         out->esky_lum *= inv;
         out->filled_lum *= inv;
         out->fill_sigma_lum *= inv;
     }
     double w = M_PI / ((double)N * (1 << rounds));  /* cosine-weighted: E = pi * mean radiance */
     for (int ch = 0; ch < 3; ch++) out->gseen[ch] *= w;
+    out->inv_dist = st.inv_dist_sum / ((double)N * (1 << rounds));
     for (int pass = 0; pass < 2; pass++)      /* rays that brought nothing count as 0 */
         if (st.done[pass]) {
             double mean = st.y_sum[pass] / st.done[pass];

@@ -15,6 +15,10 @@ typedef struct rs_kentry {
 
 typedef struct rs_facet_gather {
     double esky[3];            /* E_sky (same unit as the panorama's radiance times sr) */
+    double esun[3];            /* the part of esky from the sun set's own rays (and an explicit
+                                  sun): sharp-edged, so never pooled between facets */
+    double inv_dist;           /* mean over the cosine rays of 1 / hit distance (escapes: 0), 1/m:
+                                  Ward's harmonic mean distance is its reciprocal */
     double gseen[3];           /* G read from the panorama at hit points the camera sees */
     double esky_lum, filled_lum; /* luminance of E_sky, and of its filled-in part */
     double fill_sigma_lum;     /* standard uncertainty of filled_lum: its light times each filled

@@ -34,19 +34,24 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
     size_t nf = mesh->nfaces, ne = 0;
     double *esky = malloc(3 * nf * sizeof *esky), *g = malloc(3 * nf * sizeof *g),
            *gseen = malloc(3 * nf * sizeof *gseen), *filled = malloc(nf * sizeof *filled),
-           *sigma = malloc(nf * sizeof *sigma), *mc = malloc(nf * sizeof *mc);
+           *sigma = malloc(nf * sizeof *sigma), *mc = malloc(nf * sizeof *mc),
+           *esun = malloc(3 * nf * sizeof *esun), *inv_dist = malloc(nf * sizeof *inv_dist),
+           *gathered = malloc(nf * sizeof *gathered);
     rs_ply *ply = rs_ply_new();
     int rc = -1;
     char path[4096];
-    if (!esky || !g || !gseen || !filled || !sigma || !mc || !ply) {
+    if (!esky || !g || !gseen || !filled || !sigma || !mc || !esun || !inv_dist || !gathered || !ply) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory writing the irradiance outputs");
         goto out;
     }
     for (size_t f = 0; f < nf; f++) {
         for (int ch = 0; ch < 3; ch++) {
             esky[3 * f + ch] = fg[f].esky[ch];
+            esun[3 * f + ch] = fg[f].esun[ch];
             gseen[3 * f + ch] = fg[f].gseen[ch];
         }
+        inv_dist[f] = fg[f].inv_dist;
+        gathered[f] = fg[f].rays > 0 || fg[f].sky_sh;
         rs_gather_inter_observed(&fg[f], radiance, observed, g + 3 * f);
         filled[f] = fg[f].esky_lum > 0 ? fg[f].filled_lum / fg[f].esky_lum : 0;
         sigma[f] = fg[f].fill_sigma_lum;       /* rs_facet_gather: summed, not in quadrature */
@@ -62,7 +67,10 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
         rs_faceprop_add_rgb(faces, "irradiance_inter_seen", gseen) != 0 ||
         !rs_ply_add_scalar(faces, "sky_filled", RS_PLY_FLOAT32, filled) ||
         !rs_ply_add_scalar(faces, "irradiance_sky_sigma", RS_PLY_FLOAT32, sigma) ||
-        !rs_ply_add_scalar(faces, "irradiance_mc_sigma", RS_PLY_FLOAT32, mc)) {
+        !rs_ply_add_scalar(faces, "irradiance_mc_sigma", RS_PLY_FLOAT32, mc) ||
+        rs_faceprop_add_rgb(faces, "irradiance_sun", esun) != 0 ||
+        !rs_ply_add_scalar(faces, "hit_distance_inv", RS_PLY_FLOAT32, inv_dist) ||
+        !rs_ply_add_scalar(faces, "gathered", RS_PLY_UINT8, gathered)) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory building irradiance.ply");
         goto out;
     }
@@ -75,6 +83,9 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
     rs_ply_add_comment(ply, "irradiance_mc_sigma: standard error of the luminance of E_sky + G from the gather's "
                             "own sample spread times %.4g, the ratio of the actual spread between two seeds to it on "
                             "sampled facets (Monte Carlo noise; rays toward unobserved facets count 0)", mc_factor);
+    rs_ply_add_comment(ply, "irradiance_sun: the part of irradiance_sky from the sun set's own rays and an explicit "
+                            "sun; hit_distance_inv: mean of 1 / distance (1/m) over the cosine rays, escapes 0 (Ward's "
+                            "harmonic mean distance is its reciprocal); gathered: 0 for facets left out of the gather");
     if (rs_ply_write(ply, rs_work_path(cfg, "irradiance.ply", path, sizeof path), 1, err) != 0) goto out;
 
     rs_ply_free(ply);          /* before the kernel's file, streamed from the rows (kernel_out.c) */
@@ -90,6 +101,9 @@ out:
     free(filled);
     free(sigma);
     free(mc);
+    free(esun);
+    free(inv_dist);
+    free(gathered);
     return rc;
 }
 

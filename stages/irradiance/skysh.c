@@ -278,7 +278,10 @@ int rs_skysh_facet(const rs_skysh *sh, rs_v3 n, rs_facet_gather *out)
      * the sun set's part is exact. A projection that dips below 0 at this normal is clamped. */
     for (int ch = 0; ch < RS_SKYSH_CHANNELS; ch++) e[ch] = fmax(0, e[ch]);
     memset(out, 0, sizeof *out);
-    for (int ch = 0; ch < 3; ch++) out->esky[ch] = e[ch] + es[ch];
+    for (int ch = 0; ch < 3; ch++) {
+        out->esky[ch] = e[ch] + es[ch];
+        out->esun[ch] = es[ch];
+    }
     out->esky_lum = lum3(out->esky);
     out->filled_lum = e[3] + es[3];
     out->fill_sigma_lum = fmax(0, e[4]) + es[4];

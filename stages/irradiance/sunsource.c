@@ -332,7 +332,10 @@ void rs_sunsource_apply(const rs_sunsource *sun, const rs_scene *scene, size_t n
         if (!(vis[f] >= 0)) continue;
         double u = fmax(0, rs_v3_dot(rs_scene_normal(scene, (uint32_t)f), sun->dir_world)) * vis[f];
         double e = sun->dni * u;
-        for (int ch = 0; ch < 3; ch++) fg[f].esky[ch] += e * sun->rgb[ch];
+        for (int ch = 0; ch < 3; ch++) {
+            fg[f].esky[ch] += e * sun->rgb[ch];
+            fg[f].esun[ch] += e * sun->rgb[ch];
+        }
         fg[f].esky_lum += e;                  /* rgb has luminance 1 */
         if (sun->from_shadows && !sun->fell_back) {   /* inferred, not measured: filled light */
             fg[f].filled_lum += e;

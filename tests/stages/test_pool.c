@@ -1,0 +1,163 @@
+/* pool: irradiance shared within a plane (stages/reflectance/pool.h). The noise of independent
+ * per-facet values falls, their mean does not move, and nothing is shared across planes, across
+ * a parallel step, beyond Ward's radius, or with a facet that was not gathered. */
+#include "testutil.h"
+
+#include <math.h>
+#include <omp.h>
+#include <stdlib.h>
+#include <string.h>
+#include "meshgen.h"
+#include "pool.h"
+#include "sampling.h"
+
+/* A 10 m floor of 40 x 40 cells (3200 facets) and, at x = 10, a wall 5 m high of 40 x 20. */
+static rs_mesh *floor_and_wall(size_t *nfloor)
+{
+    rs_meshgen g = rs_meshgen_new(4000, 5000);
+    *nfloor = 2 * 40 * 40;
+    rs_meshgen_rect(&g, rs_v3_make(0, 0, 0), rs_v3_make(10, 0, 0), rs_v3_make(0, 10, 0), 40, 40);
+    rs_meshgen_rect(&g, rs_v3_make(10, 0, 0), rs_v3_make(0, 10, 0), rs_v3_make(0, 0, 5), 40, 20);
+    return rs_meshgen_done(&g);
+}
+
+/* Independent noisy values around 1 (sigma 0.1) on every facet: the pooled ones keep the mean
+ * and have less than half the spread; every weight list sums to 1 and starts with the facet. */
+static void test_noise_falls_mean_stays(void **state)
+{
+    (void)state;
+    size_t nfloor;
+    rs_mesh *m = floor_and_wall(&nfloor);
+    size_t nf = m->nfaces;
+    double *inv = calloc(nf, sizeof *inv), *v = malloc(3 * nf * sizeof *v), *p = malloc(3 * nf * sizeof *p);
+    assert_non_null(inv);
+    rs_pool pool;
+    assert_int_equal(rs_pool_build(m, inv, NULL, 0.1, &pool), 0);
+    for (size_t f = 0; f < nf; f++) {
+        double u = rs_hash_combine(7, (uint32_t)f) / 4294967296.0;
+        double noise = 0.1 * sqrt(12) * (u - 0.5);
+        for (int ch = 0; ch < 3; ch++) v[3 * f + ch] = 1 + noise;
+        double s = 0;
+        assert_int_equal(pool.nbr[pool.start[f]], f);
+        for (size_t q = pool.start[f]; q < pool.start[f + 1]; q++) s += pool.w[q];
+        assert_true(fabs(s - 1) < 1e-5);
+    }
+    rs_pool_apply3(&pool, v, p);
+    double m0 = 0, m1 = 0, s0 = 0, s1 = 0;
+    for (size_t f = 0; f < nfloor; f++) m0 += v[3 * f], m1 += p[3 * f];
+    m0 /= nfloor, m1 /= nfloor;
+    for (size_t f = 0; f < nfloor; f++) s0 += (v[3 * f] - m0) * (v[3 * f] - m0), s1 += (p[3 * f] - m1) * (p[3 * f] - m1);
+    s0 = sqrt(s0 / nfloor), s1 = sqrt(s1 / nfloor);
+    print_message("floor: spread %.4f -> %.4f, mean %.4f -> %.4f\n", s0, s1, m0, m1);
+    assert_true(s1 < 0.5 * s0);
+    assert_true(fabs(m1 - m0) < 0.005);
+    /* The reported noise of the mean follows the same fall. */
+    double *sig = malloc(nf * sizeof *sig), *sp = malloc(nf * sizeof *sp);
+    for (size_t f = 0; f < nf; f++) sig[f] = 0.1;
+    rs_pool_sigma(&pool, sig, sp);
+    double ms = 0;
+    for (size_t f = 0; f < nfloor; f++) ms += sp[f] * sp[f];
+    ms = sqrt(ms / nfloor);
+    print_message("reported sigma 0.1 -> %.4f (actual spread %.4f)\n", ms, s1);
+    assert_true(ms < 0.5 * 0.1 && ms > 0.5 * s1 && ms < 2 * s1);
+    rs_pool_free(&pool);
+    free(inv), free(v), free(p), free(sig), free(sp);
+    rs_mesh_free(m);
+}
+
+/* Near the wall the floor sees it close by: the radius shrinks with Ward's R, no floor facet
+ * takes a wall facet (or the reverse), and a facet that was not gathered is nobody's neighbour. */
+static void test_planes_radius_and_unusable(void **state)
+{
+    (void)state;
+    size_t nfloor;
+    rs_mesh *m = floor_and_wall(&nfloor);
+    size_t nf = m->nfaces;
+    double *inv = calloc(nf, sizeof *inv);
+    uint8_t *usable = malloc(nf);
+    memset(usable, 1, nf);
+    usable[100] = 0;
+    for (size_t f = 0; f < nf; f++) {
+        rs_v3 c, n;
+        double a;
+        rs_mesh_face(m, f, &c, &n, &a);
+        inv[f] = f < nfloor ? 1 / fmax(0.05, 10 - c.x) : 1 / fmax(0.05, c.z);   /* the other plane's distance */
+    }
+    rs_pool pool;
+    assert_int_equal(rs_pool_build(m, inv, usable, 0.2, &pool), 0);
+    assert_int_equal(pool.start[101] - pool.start[100], 1);
+    size_t with_others = 0;
+    for (size_t f = 0; f < nf; f++) {
+        rs_v3 ci, n;
+        double a;
+        rs_mesh_face(m, f, &ci, &n, &a);
+        with_others += pool.start[f + 1] - pool.start[f] > 1;
+        for (size_t q = pool.start[f] + 1; q < pool.start[f + 1]; q++) {
+            uint32_t j = pool.nbr[q];
+            assert_int_not_equal(j, 100);
+            assert_int_equal(j < nfloor, f < nfloor);
+            rs_v3 cj;
+            rs_mesh_face(m, j, &cj, &n, &a);
+            double R = fmin(1 / inv[f], 1 / inv[j]);
+            assert_true(rs_v3_len(rs_v3_sub(cj, ci)) < 0.2 * R + 1e-9);
+        }
+    }
+    print_message("%zu of %zu facets pooled, %.1f facets per mean\n", with_others, nf,
+                  (double)pool.start[nf] / nf);
+    assert_true(with_others > nf / 2);
+    rs_pool_free(&pool);
+    free(inv);
+    free(usable);
+    rs_mesh_free(m);
+}
+
+/* Two parallel floors 5 cm apart (a step seen from far away): neither takes the other's facets. */
+static void test_parallel_step(void **state)
+{
+    (void)state;
+    rs_meshgen g = rs_meshgen_new(400, 400);
+    rs_meshgen_rect(&g, rs_v3_make(0, 0, 0), rs_v3_make(1, 0, 0), rs_v3_make(0, 2, 0), 5, 10);
+    rs_meshgen_rect(&g, rs_v3_make(1, 0, 0.05), rs_v3_make(1, 0, 0), rs_v3_make(0, 2, 0), 5, 10);
+    rs_mesh *m = rs_meshgen_done(&g);
+    double *inv = calloc(m->nfaces, sizeof *inv);
+    rs_pool pool;
+    assert_int_equal(rs_pool_build(m, inv, NULL, 0.1, &pool), 0);
+    for (size_t f = 0; f < m->nfaces; f++)
+        for (size_t q = pool.start[f]; q < pool.start[f + 1]; q++) assert_int_equal(pool.nbr[q] < 100, f < 100);
+    rs_pool_free(&pool);
+    free(inv);
+    rs_mesh_free(m);
+}
+
+/* The lists do not depend on the thread count. */
+static void test_threads(void **state)
+{
+    (void)state;
+    size_t nfloor;
+    rs_mesh *m = floor_and_wall(&nfloor);
+    double *inv = calloc(m->nfaces, sizeof *inv);
+    for (size_t f = 0; f < m->nfaces; f++) inv[f] = 0.1 + 0.01 * (double)(f % 7);
+    rs_pool a, b;
+    omp_set_num_threads(1);
+    assert_int_equal(rs_pool_build(m, inv, NULL, 0.1, &a), 0);
+    omp_set_num_threads(2);
+    assert_int_equal(rs_pool_build(m, inv, NULL, 0.1, &b), 0);
+    assert_memory_equal(a.start, b.start, (m->nfaces + 1) * sizeof *a.start);
+    assert_memory_equal(a.nbr, b.nbr, a.start[m->nfaces] * sizeof *a.nbr);
+    assert_memory_equal(a.w, b.w, a.start[m->nfaces] * sizeof *a.w);
+    rs_pool_free(&a);
+    rs_pool_free(&b);
+    free(inv);
+    rs_mesh_free(m);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_noise_falls_mean_stays),
+        cmocka_unit_test(test_planes_radius_and_unusable),
+        cmocka_unit_test(test_parallel_step),
+        cmocka_unit_test(test_threads),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
