@@ -218,6 +218,10 @@ const rs_cfg_key rs_cfg_keys[] = {
      "relative albedo uncertainty of what is not modelled (calibration, mesh); added in quadrature. Real captures: the grey card's relative deviation"},
     {"reflectance", "paper_max_facets", RS_CFG_INT, "4000", 1, 100000, NULL, "facets", "reflectance",
      "refuse method = paper above this facet count (O(m^3) visibility)"},
+    {"reflectance", "pool_accuracy", RS_CFG_REAL, "0.1", 0, 0.5, NULL, "", "reflectance",
+     "Ward's ambient accuracy: facets of one plane within this share of their harmonic mean distance to what they see "
+     "(and within about 32 facets' area) share the sky and interreflection part of their irradiance, not the sun's: "
+     "less sampling noise at a bias of that order; 0 = each facet its own gather; not with method = paper"},
     {"reflectance", "unobserved_albedo", RS_CFG_REAL, NULL, 0, 1, NULL, "", "reflectance",
      "albedo assumed for facets the camera does not see; default: the observed area-weighted mean"},
 

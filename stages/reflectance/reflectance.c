@@ -23,6 +23,7 @@
 #include "image.h"
 #include "log.h"
 #include "paper.h"
+#include "pool.h"
 #include "stages.h"
 #include "transport.h"
 
@@ -39,10 +40,13 @@ typedef struct {
     double min_irradiance;
     int fill_given;
     double fill_given_value;
+    const double *esun;        /* the sun's part of esky, never pooled (irradiance.ply) */
+    const rs_pool *pool;       /* NULL: each facet's own gather (pool.h) */
 } refl_in;
 
 typedef struct {
     double *rho, *G, *Lfill;
+    double *E, *scratch;       /* E_sky + G as divided by (pooled), and room for 3 per facet */
     uint8_t *estimable;
     double fill[3];
     int iterations;
@@ -85,15 +89,27 @@ static void compute_G(const refl_in *in, const double *Lfill, double *G)
     }
 }
 
-/* One pass: albedo and estimable flags from G, then the fill albedo. */
+/* out->E = E_sky + G; with a pool, the sun's part plus the neighbours' mean of the rest. */
+static void total_irradiance(const refl_in *in, refl_out *out)
+{
+    size_t n3 = 3 * in->nf;
+    if (!in->pool) {
+        for (size_t k = 0; k < n3; k++) out->E[k] = in->esky[k] + out->G[k];
+        return;
+    }
+    for (size_t k = 0; k < n3; k++) out->scratch[k] = in->esky[k] - in->esun[k] + out->G[k];
+    rs_pool_apply3(in->pool, out->scratch, out->E);
+    for (size_t k = 0; k < n3; k++) out->E[k] += in->esun[k];
+}
+
+/* One pass: albedo and estimable flags from out->E, then the fill albedo. */
 static void estimate(const refl_in *in, refl_out *out, double Emin)
 {
     double sum[3] = {0, 0, 0}, wsum = 0;
     for (size_t i = 0; i < in->nf; i++) {
-        double E[3];
+        const double *E = out->E + 3 * i;
         int ok = in->observed[i];
         for (int ch = 0; ch < 3; ch++) {
-            E[ch] = in->esky[3 * i + ch] + out->G[3 * i + ch];
             if (!(isfinite(E[ch]) && E[ch] > Emin && isfinite(in->L[3 * i + ch]))) ok = 0;
         }
         if (in->method == 2 && in->dense) {
@@ -130,13 +146,14 @@ static int solve(const refl_in *in, refl_out *out)
     double prev[3] = {-1, -1, -1};
     for (out->iterations = 1; out->iterations <= 200; out->iterations++) {
         compute_G(in, out->Lfill, out->G);
+        total_irradiance(in, out);
         estimate(in, out, Emin);
         if (in->method == 1) break;              /* direct: no G, nothing to iterate */
         double change = 0;
         for (size_t i = 0; i < nf; i++) {
             if (in->observed[i]) continue;
             for (int ch = 0; ch < 3; ch++) {
-                double Lnew = out->fill[ch] * (in->esky[3 * i + ch] + out->G[3 * i + ch]) / M_PI;
+                double Lnew = out->fill[ch] * out->E[3 * i + ch] / M_PI;
                 double d = fabs(Lnew - out->Lfill[3 * i + ch]) / fmax(fabs(Lnew), 1e-30);
                 if (d > change) change = d;
                 out->Lfill[3 * i + ch] = Lnew;
@@ -234,6 +251,26 @@ static int optional_prop(const rs_ply *ply, const char *file, const char *name, 
     return 0;
 }
 
+/* What pooling needs from irradiance.ply: 1 read, 0 absent (a file from before pooling: the
+ * summary says so), -1 error. */
+static int pool_inputs(const rs_ply *irr, const char *ip, size_t nf, double *esun, double *inv_dist,
+                       uint8_t *gathered, double *tmp, rs_report *rep, rs_err *err)
+{
+    const rs_ply_element *faces = rs_ply_find_element(irr, "face");
+    if (!faces || !rs_ply_find_prop(faces, "hit_distance_inv") || !rs_ply_find_prop(faces, "gathered") ||
+        !rs_ply_find_prop(faces, "irradiance_sun_r")) {
+        rs_report_skip(rep, "pooling", "%s has no hit_distance_inv, gathered or irradiance_sun (written before "
+                       "pooling): each facet keeps its own gather", ip);
+        return 0;
+    }
+    if (rs_faceprop_get_rgb(irr, ip, "irradiance_sun", nf, esun, err) != 0 ||
+        rs_faceprop_get(irr, ip, "hit_distance_inv", nf, inv_dist, err) != 0 ||
+        rs_faceprop_get(irr, ip, "gathered", nf, tmp, err) != 0)
+        return -1;
+    for (size_t f = 0; f < nf; f++) gathered[f] = tmp[f] > 0;
+    return 1;
+}
+
 int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
 {
     char path[4096];
@@ -245,13 +282,17 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     if (!mesh) return -1;
     size_t nf = mesh->nfaces;
     double *buf = calloc(24 * nf + 1, sizeof *buf);
-    uint8_t *flags = calloc(2 * nf + 1, 1);
-    if (!buf || !flags) {
+    uint8_t *flags = calloc(3 * nf + 1, 1);
+    double *pbuf = calloc(17 * nf + 1, sizeof *pbuf);   /* E, scratch, esun, inv_dist, pooled outputs */
+    rs_pool pool = {0};
+    if (!buf || !flags || !pbuf) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu facets", nf);
         goto out;
     }
     double *area = buf, *L = buf + nf, *esky = buf + 4 * nf, *gseen = buf + 7 * nf, *obsd = buf + 10 * nf;
-    refl_out ro = {buf + 11 * nf, buf + 14 * nf, buf + 17 * nf, flags + nf, {0, 0, 0}, 0, 0};
+    double *esun = pbuf + 6 * nf, *inv_dist = pbuf + 9 * nf;
+    uint8_t *gathered = flags + 2 * nf;
+    refl_out ro = {buf + 11 * nf, buf + 14 * nf, buf + 17 * nf, pbuf, pbuf + 3 * nf, flags + nf, {0, 0, 0}, 0, 0};
     for (size_t f = 0; f < nf; f++) {
         rs_v3 c, n;
         rs_mesh_face(mesh, f, &c, &n, &area[f]);
@@ -271,7 +312,24 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         rs_faceprop_get(irr, ip, "irradiance_sky_sigma", nf, buf + 21 * nf, err) != 0 ||
         optional_prop(irr, ip, "irradiance_mc_sigma", nf, buf + 23 * nf, err) != 0)
         goto out;
-    double t0 = rs_now();
+    double t0 = rs_now(), accuracy = rs_config_real(cfg, "reflectance", "pool_accuracy");
+    int can_pool = accuracy > 0 && m != 2 ? pool_inputs(irr, ip, nf, esun, inv_dist, gathered, ro.scratch, rep, err) : 0;
+    if (can_pool < 0) goto out;
+    if (can_pool) {
+        if (rs_pool_build(mesh, inv_dist, gathered, accuracy, &pool) != 0) {
+            rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory pooling the irradiance of %zu facets", nf);
+            goto out;
+        }
+        double mean;
+        size_t pooled;
+        rs_pool_stats(&pool, &mean, &pooled);
+        rs_json_set_num(rep->metrics, "pool_mean_facets", mean);
+        rs_json_set_int(rep->metrics, "pool_facets_pooled", (long long)pooled);
+        rs_report_time(rep, "pool", rs_now() - t0);
+        rs_log_info("reflectance: irradiance pooled within the plane (accuracy %g): %zu of %zu facets, %.1f facets "
+                    "per mean", accuracy, pooled, nf, mean);
+    }
+    t0 = rs_now();
     if (m == 0) {
         if (!(K = rs_transport_read(rs_work_path(cfg, "transport.ply", path, sizeof path), nf, err))) goto out;
     } else if (m == 2) {
@@ -293,7 +351,9 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     refl_in in = {nf, area, L, esky, gseen, buf + 20 * nf, buf + 21 * nf, buf + 23 * nf, buf + 22 * nf,
                   rs_config_real(cfg, "reflectance", "albedo_sigma_floor"), flags, K, dense, m,
                   rs_config_real(cfg, "reflectance", "min_irradiance"),
-                  rs_config_has(cfg, "reflectance", "unobserved_albedo"), 0};
+                  rs_config_has(cfg, "reflectance", "unobserved_albedo"), 0, NULL, NULL};
+    in.esun = esun;
+    in.pool = pool.start ? &pool : NULL;
     if (in.fill_given) in.fill_given_value = rs_config_real(cfg, "reflectance", "unobserved_albedo");
     t0 = rs_now();
     if (solve(&in, &ro) != 0) {
@@ -301,7 +361,20 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         goto out;
     }
     rs_report_time(rep, "solve", rs_now() - t0);
-    if (rs_greycard_report(cfg, nf, esky, ro.G, ro.rho, ro.estimable, rep->metrics, err) != 0) goto out;
+    /* Pooled, the files carry what the albedo divided by: E_sky = sun + pooled rest, G pooled,
+     * and the Monte Carlo noise of that mean. */
+    if (in.pool) {
+        double *esky_p = pbuf + 10 * nf, *G_p = pbuf + 13 * nf, *mc_p = pbuf + 16 * nf;
+        for (size_t k = 0; k < 3 * nf; k++) ro.scratch[k] = esky[k] - esun[k];
+        rs_pool_apply3(&pool, ro.scratch, esky_p);
+        for (size_t k = 0; k < 3 * nf; k++) esky_p[k] += esun[k];
+        rs_pool_apply3(&pool, ro.G, G_p);
+        rs_pool_sigma(&pool, in.mc_sigma, mc_p);
+        in.esky = esky_p;
+        in.mc_sigma = mc_p;
+        ro.G = G_p;
+    }
+    if (rs_greycard_report(cfg, nf, in.esky, ro.G, ro.rho, ro.estimable, rep->metrics, err) != 0) goto out;
     size_t nobs = 0, nest = 0, blow = 0;
     for (size_t f = 0; f < nf; f++) {
         nobs += flags[f];
@@ -332,6 +405,8 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
 out:
     free(buf);
     free(flags);
+    free(pbuf);
+    rs_pool_free(&pool);
     free(dense);
     rs_transport_free(K);
     rs_ply_free(obs);
