@@ -10,7 +10,7 @@
 
 typedef struct {
     const rs_mesh *mesh;
-    const uint8_t *usable;
+    const uint8_t *wanted;     /* facets that search (NULL: all) */
     double a, h;               /* accuracy, cell size */
     rs_v3 lo;
     rs_v3 *c, *n;
@@ -67,7 +67,7 @@ static size_t neighbours(const grid *g, uint32_t i, cand **buf, size_t *cap, can
 {
     out[0].j = i, out[0].eps = 0, out[0].w = g->area[i];
     double r = g->radius[i];
-    if (!(r > 0) || !g->h) return 1;
+    if (!(r > 0) || !g->h || (g->wanted && !g->wanted[i])) return 1;
     size_t nc = 0;
     int32_t k0[3], k1[3];
     const double ci[3] = {g->c[i].x, g->c[i].y, g->c[i].z}, lo[3] = {g->lo.x, g->lo.y, g->lo.z};
@@ -144,12 +144,13 @@ static int grid_build(grid *g, size_t nf)
     return 0;
 }
 
-int rs_pool_build(const rs_mesh *mesh, const double *inv_dist, const uint8_t *usable, double accuracy, rs_pool *p)
+int rs_pool_build(const rs_mesh *mesh, const double *inv_dist, const uint8_t *usable, const uint8_t *wanted,
+                  double accuracy, rs_pool *p)
 {
     size_t nf = mesh->nfaces;
     memset(p, 0, sizeof *p);
     p->nf = nf;
-    grid g = {.mesh = mesh, .usable = usable, .a = accuracy};
+    grid g = {.mesh = mesh, .wanted = wanted, .a = accuracy};
     g.c = malloc((nf + 1) * sizeof *g.c);
     g.n = malloc((nf + 1) * sizeof *g.n);
     g.area = malloc((nf + 1) * sizeof *g.area);

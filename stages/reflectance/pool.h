@@ -31,9 +31,12 @@ typedef struct rs_pool {
 } rs_pool;
 
 /* Builds the neighbour lists. inv_dist: per facet, mean 1 / hit distance (1/m, 0: R infinite);
- * usable: facets whose gather may be pooled (NULL: all). A facet that is not usable, or
- * degenerate, keeps itself alone. Returns 0, or -1 when out of memory. */
-int rs_pool_build(const rs_mesh *mesh, const double *inv_dist, const uint8_t *usable, double accuracy, rs_pool *p);
+ * usable: facets whose gather may be pooled (NULL: all); wanted: facets that get a list (NULL:
+ * all; the reflectance stage asks for the observed ones, whose albedo divides by E). A facet
+ * that is not wanted, not usable, or degenerate keeps itself alone. Returns 0, or -1 when out of
+ * memory. */
+int rs_pool_build(const rs_mesh *mesh, const double *inv_dist, const uint8_t *usable, const uint8_t *wanted,
+                  double accuracy, rs_pool *p);
 void rs_pool_free(rs_pool *p);
 
 /* out[3 i + ch] = sum_j w_ij v[3 j + ch] (v and out must differ). */

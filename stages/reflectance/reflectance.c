@@ -316,7 +316,7 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     int can_pool = accuracy > 0 && m != 2 ? pool_inputs(irr, ip, nf, esun, inv_dist, gathered, ro.scratch, rep, err) : 0;
     if (can_pool < 0) goto out;
     if (can_pool) {
-        if (rs_pool_build(mesh, inv_dist, gathered, accuracy, &pool) != 0) {
+        if (rs_pool_build(mesh, inv_dist, gathered, flags, accuracy, &pool) != 0) {
             rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory pooling the irradiance of %zu facets", nf);
             goto out;
         }

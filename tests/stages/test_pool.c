@@ -35,7 +35,7 @@ static void test_noise_falls_mean_stays(void **state)
     double *inv = calloc(nf, sizeof *inv), *v = malloc(3 * nf * sizeof *v), *p = malloc(3 * nf * sizeof *p);
     assert_non_null(inv);
     rs_pool pool;
-    assert_int_equal(rs_pool_build(m, inv, NULL, 0.1, &pool), 0);
+    assert_int_equal(rs_pool_build(m, inv, NULL, NULL, 0.1, &pool), 0);
     for (size_t f = 0; f < nf; f++) {
         double u = rs_hash_combine(7, (uint32_t)f) / 4294967296.0;
         double noise = 0.1 * sqrt(12) * (u - 0.5);
@@ -87,7 +87,7 @@ static void test_planes_radius_and_unusable(void **state)
         inv[f] = f < nfloor ? 1 / fmax(0.05, 10 - c.x) : 1 / fmax(0.05, c.z);   /* the other plane's distance */
     }
     rs_pool pool;
-    assert_int_equal(rs_pool_build(m, inv, usable, 0.2, &pool), 0);
+    assert_int_equal(rs_pool_build(m, inv, usable, NULL, 0.2, &pool), 0);
     assert_int_equal(pool.start[101] - pool.start[100], 1);
     size_t with_others = 0;
     for (size_t f = 0; f < nf; f++) {
@@ -124,7 +124,7 @@ static void test_parallel_step(void **state)
     rs_mesh *m = rs_meshgen_done(&g);
     double *inv = calloc(m->nfaces, sizeof *inv);
     rs_pool pool;
-    assert_int_equal(rs_pool_build(m, inv, NULL, 0.1, &pool), 0);
+    assert_int_equal(rs_pool_build(m, inv, NULL, NULL, 0.1, &pool), 0);
     for (size_t f = 0; f < m->nfaces; f++)
         for (size_t q = pool.start[f]; q < pool.start[f + 1]; q++) assert_int_equal(pool.nbr[q] < 100, f < 100);
     rs_pool_free(&pool);
@@ -229,7 +229,7 @@ static void test_reflectance_keeps_the_shadow_edge(void **state)
     rs_test_rmtree(dir);
 }
 
-/* The lists do not depend on the thread count. */
+/* The lists do not depend on the thread count, nor a facet's on which others asked for one. */
 static void test_threads(void **state)
 {
     (void)state;
@@ -239,12 +239,23 @@ static void test_threads(void **state)
     for (size_t f = 0; f < m->nfaces; f++) inv[f] = 0.1 + 0.01 * (double)(f % 7);
     rs_pool a, b;
     omp_set_num_threads(1);
-    assert_int_equal(rs_pool_build(m, inv, NULL, 0.1, &a), 0);
+    assert_int_equal(rs_pool_build(m, inv, NULL, NULL, 0.1, &a), 0);
     omp_set_num_threads(2);
-    assert_int_equal(rs_pool_build(m, inv, NULL, 0.1, &b), 0);
+    assert_int_equal(rs_pool_build(m, inv, NULL, NULL, 0.1, &b), 0);
     assert_memory_equal(a.start, b.start, (m->nfaces + 1) * sizeof *a.start);
     assert_memory_equal(a.nbr, b.nbr, a.start[m->nfaces] * sizeof *a.nbr);
     assert_memory_equal(a.w, b.w, a.start[m->nfaces] * sizeof *a.w);
+    /* Lists for every other facet only: those are the full ones, the rest are alone. */
+    uint8_t *wanted = malloc(m->nfaces);
+    for (size_t f = 0; f < m->nfaces; f++) wanted[f] = f % 2 == 0;
+    rs_pool_free(&b);
+    assert_int_equal(rs_pool_build(m, inv, NULL, wanted, 0.1, &b), 0);
+    for (size_t f = 0; f < m->nfaces; f++) {
+        size_t na = a.start[f + 1] - a.start[f], nb = b.start[f + 1] - b.start[f];
+        assert_int_equal(nb, wanted[f] ? na : 1);
+        if (wanted[f]) assert_memory_equal(a.nbr + a.start[f], b.nbr + b.start[f], na * sizeof *a.nbr);
+    }
+    free(wanted);
     rs_pool_free(&a);
     rs_pool_free(&b);
     free(inv);
