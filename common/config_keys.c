@@ -214,7 +214,7 @@ const rs_cfg_key rs_cfg_keys[] = {
      "reflectance", "interreflection: rho = pi L / (E_sky + G); direct: pi L / E_sky; paper: dense K"},
     {"reflectance", "min_irradiance", RS_CFG_REAL, "0.001", 0, 1, NULL, "", "reflectance",
      "facets whose irradiance is below this share of the median are not estimable"},
-    {"reflectance", "albedo_sigma_floor", RS_CFG_REAL, "0.001", 0, 1, NULL, "", "reflectance",
+    {"reflectance", "albedo_sigma_floor", RS_CFG_REAL, "0.0025", 0, 1, NULL, "", "reflectance",
      "relative albedo uncertainty of what is not modelled (calibration, mesh); added in quadrature. Real captures: the grey card's relative deviation"},
     {"reflectance", "paper_max_facets", RS_CFG_INT, "4000", 1, 100000, NULL, "facets", "reflectance",
      "refuse method = paper above this facet count (O(m^3) visibility)"},

@@ -166,8 +166,9 @@ METHOD = """## How the sky is completed (stages/irradiance: skyenv.c, skyfill.c,
   facet's observed L from its pixels' noise (observe: each pixel's relative noise from same-surface
   neighbours two pixels away, combined over the pixels the facet's mean reads), and
   `irradiance_mc_sigma` the gather's Monte Carlo noise (the rays' own spread, scaled by the ratio of
-  the actual spread between two seeds to it on up to 512 facets gathered twice). `albedo_bound80_rel
-  = 1.2816 albedo_sigma_rel`.
+  the actual spread between two seeds to it on up to 512 facets gathered twice; for observed
+  facets, whose irradiance is pooled within their plane (`[reflectance] pool_accuracy`), the noise
+  of the neighbours' weighted mean). `albedo_bound80_rel = 1.2816 albedo_sigma_rel`.
 """
 
 
