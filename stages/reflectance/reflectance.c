@@ -283,7 +283,7 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     size_t nf = mesh->nfaces;
     double *buf = calloc(24 * nf + 1, sizeof *buf);
     uint8_t *flags = calloc(3 * nf + 1, 1);
-    double *pbuf = calloc(17 * nf + 1, sizeof *pbuf);   /* E, scratch, esun, inv_dist, pooled outputs */
+    double *pbuf = calloc(10 * nf + 1, sizeof *pbuf);   /* E, scratch, esun, inv_dist */
     rs_pool pool = {0};
     if (!buf || !flags || !pbuf) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu facets", nf);
@@ -363,10 +363,10 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_report_time(rep, "solve", rs_now() - t0);
     /* Pooled, the files carry what the albedo divided by: E_sky = sun + pooled rest, G pooled,
      * and the Monte Carlo noise of that mean. */
-    if (in.pool) {
-        double *esky_p = pbuf + 10 * nf, *G_p = pbuf + 13 * nf, *mc_p = pbuf + 16 * nf;
-        for (size_t k = 0; k < 3 * nf; k++) ro.scratch[k] = esky[k] - esun[k];
-        rs_pool_apply3(&pool, ro.scratch, esky_p);
+    if (in.pool) {            /* into buffers the solve is done with: E, scratch, inv_dist */
+        double *esky_p = ro.E, *G_p = ro.scratch, *mc_p = inv_dist;
+        for (size_t k = 0; k < 3 * nf; k++) G_p[k] = esky[k] - esun[k];
+        rs_pool_apply3(&pool, G_p, esky_p);
         for (size_t k = 0; k < 3 * nf; k++) esky_p[k] += esun[k];
         rs_pool_apply3(&pool, ro.G, G_p);
         rs_pool_sigma(&pool, in.mc_sigma, mc_p);
