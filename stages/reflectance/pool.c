@@ -9,7 +9,6 @@
 #include "select.h"
 
 typedef struct {
-    const rs_mesh *mesh;
     const uint8_t *wanted;     /* facets that search (NULL: all) */
     double a, h;               /* accuracy, cell size */
     rs_v3 lo;
@@ -150,7 +149,7 @@ int rs_pool_build(const rs_mesh *mesh, const double *inv_dist, const uint8_t *us
     size_t nf = mesh->nfaces;
     memset(p, 0, sizeof *p);
     p->nf = nf;
-    grid g = {.mesh = mesh, .wanted = wanted, .a = accuracy};
+    grid g = {.wanted = wanted, .a = accuracy};
     g.c = malloc((nf + 1) * sizeof *g.c);
     g.n = malloc((nf + 1) * sizeof *g.n);
     g.area = malloc((nf + 1) * sizeof *g.area);

@@ -3,6 +3,9 @@
  *   interreflection: E_i = E_sky,i + G_i, G from the gather (panorama readings where the camera
  *                    sees the hit point, else K_ij times facet j's radiance)
  *   paper:           E_i = E_sky,i + sum_j K_ij L_j with the paper's dense point-to-point K.
+ * With [reflectance] pool_accuracy > 0 (not paper), an observed facet's E is its sun's part plus
+ * the weighted mean of the rest over its neighbours of the same plane (pool.h): less Monte Carlo
+ * noise, and albedo.ply carries that E.
  * Facets the camera does not see still light their neighbours: their radiance is modelled as
  * rho_fill (E_sky + G) / pi, rho_fill being [reflectance] unobserved_albedo or the
  * area-weighted mean albedo of the estimable facets, solved together by fixed-point iteration.
@@ -351,9 +354,7 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     refl_in in = {nf, area, L, esky, gseen, buf + 20 * nf, buf + 21 * nf, buf + 23 * nf, buf + 22 * nf,
                   rs_config_real(cfg, "reflectance", "albedo_sigma_floor"), flags, K, dense, m,
                   rs_config_real(cfg, "reflectance", "min_irradiance"),
-                  rs_config_has(cfg, "reflectance", "unobserved_albedo"), 0, NULL, NULL};
-    in.esun = esun;
-    in.pool = pool.start ? &pool : NULL;
+                  rs_config_has(cfg, "reflectance", "unobserved_albedo"), 0, esun, pool.start ? &pool : NULL};
     if (in.fill_given) in.fill_given_value = rs_config_real(cfg, "reflectance", "unobserved_albedo");
     t0 = rs_now();
     if (solve(&in, &ro) != 0) {
