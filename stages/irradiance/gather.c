@@ -211,11 +211,14 @@ static int read_seen(const rs_gather_ctx *g, uint32_t j, size_t k, double out[3]
     return 1;
 }
 
-/* Adds weight * (sky radiance of pixel pix) to E_sky. */
+/* Adds weight * (sky radiance of pixel pix) to E_sky, and to its sun part when pix is in the
+ * sun set, whichever kind of ray brought it (cosine rays do when there are no sun rays). */
 static void add_sky(const rs_skyenv *env, size_t pix, double weight, rs_facet_gather *out)
 {
     const float *L = env->radiance + 3 * pix;
     for (int ch = 0; ch < 3; ch++) out->esky[ch] += weight * L[ch];
+    if (env->sun[pix])
+        for (int ch = 0; ch < 3; ch++) out->esun[ch] += weight * L[ch];
     double lum = weight * rs_skyenv_luminance(L);
     out->esky_lum += lum;
     if (env->filled[pix]) {
@@ -385,8 +388,6 @@ static int gather_round(const rs_gather_ctx *g, rs_gather_scratch *s, facet_stat
                 else                                         /* balance heuristic, already / Ne */
                     wgt = cosn / (Nc * cosn / M_PI + Ne * rs_skyenv_pdf(env, pix));
                 add_sky(env, pix, wgt, dst);
-                if (pass)
-                    for (int ch = 0; ch < 3; ch++) dst->esun[ch] += wgt * env->radiance[3 * pix + ch];
                 double y = (pass ? div : Ne) * wgt * lum;   /* this ray alone: its estimate of the whole */
                 st->y_sum[pass] += y;
                 st->y_sq[pass] += y * y;

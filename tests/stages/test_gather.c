@@ -91,6 +91,10 @@ static void test_sun_pixel(void **state)
     rs_facet_gather out = gather_one(scene, &env, 0, 256, 64);
     print_message("sun pixel: E = %.5g, expected %.5g\n", out.esky[0], expect);
     assert_true(fabs(out.esky[0] - expect) / expect < 0.005);
+    /* Its sun part (never pooled between facets) is that pixel's light alone. */
+    double sun = 1e5 * rs_pano_pixel_solid_angle(w, h, sr) * rs_pano_pixel_dir(w, h, sc, sr).z;
+    print_message("sun part: %.5g, expected %.5g\n", out.esun[0], sun);
+    assert_true(fabs(out.esun[0] - sun) / sun < 0.005);
     free(out.entries);
     free(ids);
     rs_skyenv_release(&env);
