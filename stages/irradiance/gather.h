@@ -15,7 +15,7 @@ typedef struct rs_kentry {
 
 typedef struct rs_facet_gather {
     double esky[3];            /* E_sky (same unit as the panorama's radiance times sr) */
-    double esun[3];            /* the part of esky from the sun set's own rays (and an explicit
+    double esun[3];            /* the part of esky from the sun set's pixels (and an explicit
                                   sun): sharp-edged, so never pooled between facets */
     double inv_dist;           /* mean over the cosine rays of 1 / hit distance (escapes: 0), 1/m:
                                   Ward's harmonic mean distance is its reciprocal */

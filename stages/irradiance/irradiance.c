@@ -83,7 +83,7 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
     rs_ply_add_comment(ply, "irradiance_mc_sigma: standard error of the luminance of E_sky + G from the gather's "
                             "own sample spread times %.4g, the ratio of the actual spread between two seeds to it on "
                             "sampled facets (Monte Carlo noise; rays toward unobserved facets count 0)", mc_factor);
-    rs_ply_add_comment(ply, "irradiance_sun: the part of irradiance_sky from the sun set's own rays and an explicit "
+    rs_ply_add_comment(ply, "irradiance_sun: the part of irradiance_sky from the sun set's pixels and an explicit "
                             "sun; hit_distance_inv: mean of 1 / distance (1/m) over the cosine rays, escapes 0 (Ward's "
                             "harmonic mean distance is its reciprocal); gathered: 0 for facets left out of the gather");
     if (rs_ply_write(ply, rs_work_path(cfg, "irradiance.ply", path, sizeof path), 1, err) != 0) goto out;
