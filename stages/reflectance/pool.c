@@ -252,10 +252,17 @@ void rs_pool_sigma(const rs_pool *p, const double *sigma, double *out)
     }
 }
 
-void rs_pool_stats(const rs_pool *p, double *mean_count, size_t *pooled)
+void rs_pool_stats(const rs_pool *p, const uint8_t *wanted, double *mean_count, size_t *pooled, size_t *asked_out)
 {
-    size_t n = 0;
-    for (size_t i = 0; i < p->nf; i++) n += p->start[i + 1] - p->start[i] > 1;
+    size_t n = 0, asked = 0, entries = 0;
+    for (size_t i = 0; i < p->nf; i++) {
+        if (wanted && !wanted[i]) continue;
+        size_t k = p->start[i + 1] - p->start[i];
+        asked++;
+        entries += k;
+        n += k > 1;
+    }
     *pooled = n;
-    *mean_count = p->nf ? (double)p->start[p->nf] / p->nf : 0;
+    *asked_out = asked;
+    *mean_count = asked ? (double)entries / asked : 0;
 }

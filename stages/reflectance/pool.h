@@ -44,7 +44,8 @@ void rs_pool_apply3(const rs_pool *p, const double *v, double *out);
 /* Standard error of the pooled mean of independent values with standard errors sigma[]:
  * out[i] = sqrt(sum_j w_ij^2 sigma_j^2). */
 void rs_pool_sigma(const rs_pool *p, const double *sigma, double *out);
-/* Mean neighbour count (itself included) and the facets that have at least one other. */
-void rs_pool_stats(const rs_pool *p, double *mean_count, size_t *pooled);
+/* Over the facets that asked for a list (wanted as in rs_pool_build; NULL: all): the mean
+ * neighbour count (itself included), how many have at least one other, and how many asked. */
+void rs_pool_stats(const rs_pool *p, const uint8_t *wanted, double *mean_count, size_t *pooled, size_t *asked);
 
 #endif

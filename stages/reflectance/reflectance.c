@@ -324,13 +324,13 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
             goto out;
         }
         double mean;
-        size_t pooled;
-        rs_pool_stats(&pool, &mean, &pooled);
+        size_t pooled, asked;
+        rs_pool_stats(&pool, flags, &mean, &pooled, &asked);
         rs_json_set_num(rep->metrics, "pool_mean_facets", mean);
         rs_json_set_int(rep->metrics, "pool_facets_pooled", (long long)pooled);
         rs_report_time(rep, "pool", rs_now() - t0);
-        rs_log_info("reflectance: irradiance pooled within the plane (accuracy %g): %zu of %zu facets, %.1f facets "
-                    "per mean", accuracy, pooled, nf, mean);
+        rs_log_info("reflectance: irradiance pooled within the plane (accuracy %g): %zu of the %zu observed facets, "
+                    "%.1f facets per mean", accuracy, pooled, asked, mean);
     }
     t0 = rs_now();
     if (m == 0) {

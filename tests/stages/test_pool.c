@@ -250,11 +250,18 @@ static void test_threads(void **state)
     for (size_t f = 0; f < m->nfaces; f++) wanted[f] = f % 2 == 0;
     rs_pool_free(&b);
     assert_int_equal(rs_pool_build(m, inv, NULL, wanted, 0.1, &b), 0);
+    size_t entries = 0, nwanted = 0, pooled, asked;
     for (size_t f = 0; f < m->nfaces; f++) {
         size_t na = a.start[f + 1] - a.start[f], nb = b.start[f + 1] - b.start[f];
         assert_int_equal(nb, wanted[f] ? na : 1);
         if (wanted[f]) assert_memory_equal(a.nbr + a.start[f], b.nbr + b.start[f], na * sizeof *a.nbr);
+        if (wanted[f]) entries += na, nwanted++;
     }
+    /* The summary counts the facets that asked, not those left alone. */
+    double mean;
+    rs_pool_stats(&b, wanted, &mean, &pooled, &asked);
+    assert_int_equal(asked, nwanted);
+    assert_true(fabs(mean - (double)entries / nwanted) < 1e-12);
     free(wanted);
     rs_pool_free(&a);
     rs_pool_free(&b);
