@@ -94,6 +94,7 @@ static size_t neighbours(const grid *g, uint32_t i, cand **buf, size_t *cap, can
                 if (all) goto searched;
             }
 searched:
+    if (!nc) return 1;         /* none: buf may not exist yet (qsort and memcpy take no NULL) */
     /* The order of the buckets must not decide which neighbours are kept, nor the sums. */
     qsort(*buf, nc, sizeof **buf, by_eps);
     if (nc > RS_POOL_MAX_NEIGHBOURS - 1) nc = RS_POOL_MAX_NEIGHBOURS - 1;
