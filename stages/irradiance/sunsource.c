@@ -7,13 +7,8 @@
 #include <string.h>
 #include "log.h"
 #include "sampling.h"
+#include "select.h"
 #include "skyenv.h"
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
 
 static int is_sky(const rs_capture *c, const float *facet_id, size_t k)
 {
@@ -146,8 +141,7 @@ size_t rs_sunsource_remove(rs_sunsource *sun, rs_capture *c, const float *facet_
     if (!lum) return 0;
     for (size_t k = 0; k < npx; k++)
         if (is_sky(c, facet_id, k)) lum[nsky++] = rs_skyenv_luminance(c->pano->data + 3 * k);
-    qsort(lum, nsky, sizeof *lum, cmp_double);
-    double median = nsky ? lum[nsky / 2] : 0;
+    double median = nsky ? rs_select_kth_double(lum, nsky, nsky / 2) : 0;
     free(lum);
     double level = sun->halo_factor * median;
     if (sun->clip_level > 0 && sun->clip_level < level) level = sun->clip_level;

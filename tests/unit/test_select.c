@@ -1,4 +1,4 @@
-/* Tests of rs_select_kth: for every k, the value a full sort puts at index k, on random arrays,
+/* Tests of rs_select_kth and rs_select_kth_double: for every k, the value a full sort puts at index k, on random arrays,
  * arrays with many equal values, sorted and reversed ones, and a single element. */
 #include <stdlib.h>
 #include <string.h>
@@ -11,8 +11,35 @@ static int cmp_float(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* The double version on the same values, spread a little so that no two differ only past a
+ * float's precision by accident. */
+static void check_all_k_double(const float *src, size_t n)
+{
+    double *sorted = malloc(n * sizeof *sorted), *work = malloc(n * sizeof *work), *vals = malloc(n * sizeof *vals);
+    assert_non_null(sorted);
+    assert_non_null(work);
+    assert_non_null(vals);
+    for (size_t k = 0; k < n; k++) vals[k] = src[k] + 1e-12 * (double)(k % 3);
+    memcpy(sorted, vals, n * sizeof *sorted);
+    qsort(sorted, n, sizeof *sorted, cmp_double);
+    for (size_t k = 0; k < n; k++) {
+        memcpy(work, vals, n * sizeof *work);
+        assert_true(rs_select_kth_double(work, n, k) == sorted[k]);
+    }
+    free(sorted);
+    free(work);
+    free(vals);
+}
+
 static void check_all_k(const float *src, size_t n)
 {
+    check_all_k_double(src, n);
     float *sorted = malloc(n * sizeof *sorted), *work = malloc(n * sizeof *work);
     assert_non_null(sorted);
     assert_non_null(work);
