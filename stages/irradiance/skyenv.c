@@ -83,9 +83,8 @@ void rs_skyenv_guide_build(const double *cdf, size_t npx, uint32_t *guide)
     }
 }
 
-/* Median of x[0..n) (reordered). */
-/* The element a sort puts at n / 2, by selection: two sorts of a million values were a seventh
- * of the sky map's time (perf). */
+/* Median of x[0..n) (reordered): the element a sort puts at n / 2, by selection (two sorts of
+ * a million values were a seventh of the sky map's time, perf). */
 static double median(double *x, size_t n)
 {
     return n ? rs_select_kth_double(x, n, n / 2) : 0;

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <dirent.h>
+#include <omp.h>
 #include <openexr.h>
 #include <stb_image.h>       /* both implemented in common/image.c */
 #include <stb_image_write.h>
@@ -674,6 +675,44 @@ static void mangle(const unsigned char *good, size_t n, const char *kind)
     free(bad);
 }
 
+/* A panorama-sized file decodes its chunks on every thread (image_exr.c): the same pixels with
+ * one thread and with two, and a damaged chunk still fails cleanly, naming the file. */
+static void test_exr_many_chunks(void **state)
+{
+    (void)state;
+    static const char *rgb[] = {"R", "G", "B"};
+    enum { W = 96, H = 640 };                      /* 40 chunks of 16 ZIP lines */
+    rs_image *img = rs_image_new(W, H, 3);
+    for (size_t i = 0; i < (size_t)W * H * 3; i++) img->data[i] = (float)((i * 7919) % 1013) * 0.01f;
+    const char *p = rs_test_path(tmp, "many.exr");
+    rs_err err = {0};
+    assert_int_equal(rs_image_write_exr(img, p, rgb, 0, NULL, &err), 0);
+    for (int threads = 1; threads <= 2; threads++) {
+        omp_set_num_threads(threads);
+        rs_image *back = rs_image_read(p, &err);
+        assert_non_null(back);
+        assert_memory_equal(back->data, img->data, (size_t)W * H * 3 * sizeof(float));
+        rs_image_free(back);
+    }
+    size_t n;
+    unsigned char *good = slurp(p, &n), *bad = malloc(n);
+    int failed = 0;
+    for (int trial = 0; trial < 200; trial++) {    /* bytes of chunks in the file's second half */
+        memcpy(bad, good, n);
+        size_t at = n / 2 + (size_t)trial * (n / 2 - 1) / 200;
+        bad[at] ^= 0x5a;
+        err = (rs_err){0};
+        rs_image *back = rs_image_read_mem(bad, n, "damaged.exr", &err);
+        if (!back) assert_err_mentions(&err, "damaged.exr", "OpenEXR");
+        failed += !back;
+        rs_image_free(back);
+    }
+    assert_true(failed > 20);                     /* damaged deflate streams do not decode */
+    free(bad);
+    free(good);
+    rs_image_free(img);
+}
+
 static void test_bad_inputs(void **state)
 {
     static const char *rgb[] = {"R", "G", "B"};
@@ -796,6 +835,7 @@ int main(void)
         cmocka_unit_test(test_png_codes_exact),
         cmocka_unit_test(test_new_rejects_bad_sizes),
         cmocka_unit_test(test_exr_round_trip),
+        cmocka_unit_test(test_exr_many_chunks),
         cmocka_unit_test(test_exr_note_and_determinism),
         cmocka_unit_test(test_exr_windows_tiles_types),
         cmocka_unit_test(test_exr_channel_errors),
