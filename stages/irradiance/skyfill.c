@@ -139,22 +139,33 @@ long rs_skyfill_ground_from_bands(int w, int h, const rs_pose *pose, float *rad,
                                   uint8_t which, double max_rad)
 {
     int nb = h / 2 > 0 ? h / 2 : 1;
+    size_t npx = (size_t)w * h;
     double *acc = calloc(4 * (size_t)nb, sizeof *acc);
-    int *nearest = malloc((size_t)nb * sizeof *nearest);
-    if (!acc || !nearest) {
+    int *nearest = malloc((size_t)nb * sizeof *nearest), *band = malloc(npx * sizeof *band);
+    if (!acc || !nearest || !band) {
         free(acc);
         free(nearest);
+        free(band);
         return -1;
     }
-    size_t npx = (size_t)w * h;
-    for (size_t k = 0; k < npx; k++) {
-        if (!src[k]) continue;
-        rs_v3 d = pixel_world(w, h, pose, k);
-        if (d.z > 0) continue;
-        int b = ground_band(d, nb);
-        double om = rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w));
-        for (int ch = 0; ch < 3; ch++) acc[4 * b + ch] += om * rad[3 * k + ch];
-        acc[4 * b + 3] += om;
+    /* Each pixel's band (-1 above the horizon) on every thread; the sums below stay serial, in
+     * pixel order, so they do not depend on the thread count. */
+#pragma omp parallel for schedule(static)
+    for (int r = 0; r < h; r++)
+        for (size_t k = (size_t)r * w; k < (size_t)(r + 1) * w; k++) {
+            band[k] = -1;
+            if (!src[k] && fill[k] != which) continue;
+            rs_v3 d = pixel_world(w, h, pose, k);
+            if (d.z <= 0) band[k] = ground_band(d, nb);
+        }
+    for (int r = 0; r < h; r++) {
+        double om = rs_pano_pixel_solid_angle(w, h, r);
+        for (size_t k = (size_t)r * w; k < (size_t)(r + 1) * w; k++) {
+            if (!src[k] || band[k] < 0) continue;
+            int b = band[k];
+            for (int ch = 0; ch < 3; ch++) acc[4 * b + ch] += om * rad[3 * k + ch];
+            acc[4 * b + 3] += om;
+        }
     }
     /* Each band's nearest band with measured ground (below first, then above), found once per
      * band: searched per pixel it was the stage's largest serial loop (perf: most of
@@ -171,15 +182,14 @@ long rs_skyfill_ground_from_bands(int w, int h, const rs_pose *pose, float *rad,
     }
     long set = 0;
     for (size_t k = 0; k < npx; k++) {
-        if (fill[k] != which) continue;
-        rs_v3 d = pixel_world(w, h, pose, k);
-        if (d.z > 0) continue;
-        int best = nearest[ground_band(d, nb)];
+        if (fill[k] != which || band[k] < 0) continue;
+        int best = nearest[band[k]];
         if (best < 0) continue;
         for (int ch = 0; ch < 3; ch++) rad[3 * k + ch] = (float)(acc[4 * best + ch] / acc[4 * best + 3]);
         fill[k] = 1;
         set++;
     }
+    free(band);
     free(nearest);
     free(acc);
     return set;
@@ -195,19 +205,26 @@ static int ground_fill(int w, int h, const rs_pose *pose, float *rad, const uint
                        double albedo, rs_skyfill_report *rep)
 {
     size_t npx = (size_t)w * h, below = 0;
-    double eh[3] = {0, 0, 0};
-    for (size_t k = 0; k < npx; k++) {         /* one direction per pixel: E_h, and the marks */
-        rs_v3 d = pixel_world(w, h, pose, k);
-        if (d.z <= 0) {
-            if (fill[k]) {
-                fill[k] = RS_SKYFILL_GROUND_MODEL;
-                below++;
+    double eh[3] = {0, 0, 0}, *up = malloc(npx * sizeof *up);
+    if (!up) return -1;
+    /* The directions on every thread, the sum serial in pixel order (thread-count independent). */
+#pragma omp parallel for schedule(static)
+    for (int r = 0; r < h; r++)
+        for (size_t k = (size_t)r * w; k < (size_t)(r + 1) * w; k++) up[k] = pixel_world(w, h, pose, k).z;
+    for (int r = 0; r < h; r++) {             /* E_h, and the marks */
+        double om = rs_pano_pixel_solid_angle(w, h, r);
+        for (size_t k = (size_t)r * w; k < (size_t)(r + 1) * w; k++) {
+            if (up[k] <= 0) {
+                if (fill[k]) {
+                    fill[k] = RS_SKYFILL_GROUND_MODEL;
+                    below++;
+                }
+                continue;
             }
-            continue;
+            for (int ch = 0; ch < 3; ch++) eh[ch] += rad[3 * k + ch] * up[k] * om;
         }
-        double om = rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w));
-        for (int ch = 0; ch < 3; ch++) eh[ch] += rad[3 * k + ch] * d.z * om;
     }
+    free(up);
     for (int ch = 0; ch < 3; ch++) {
         rep->horizontal_irradiance[ch] = eh[ch];
         rep->ground_rgb[ch] = albedo * eh[ch] / M_PI;
