@@ -150,7 +150,7 @@ static int cloud_reserve(rs_cloud *c, size_t n, int want_rgb, const char *name, 
 /* Parses one scan starting at its column-count line (already known to exist). */
 static int read_scan(ptx_text *t, rs_cloud *c, int scan, rs_err *err)
 {
-    int cols, rows;
+    int cols = 0, rows = 0;
     double pos[3], axes[9], T[16];
     if (header_count(t, scan, "number of columns", &cols, err) != 0) return -1;
     if (header_count(t, scan, "number of rows", &rows, err) != 0) return -1;

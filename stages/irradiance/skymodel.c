@@ -124,8 +124,8 @@ static double lm_fit(const fitpt *pt, size_t n, double *q, double *res, double *
     if (c == DBL_MAX) return c;
     for (int it = 0; it < 100; it++) {
         for (size_t i = 0; i < n; i++) {
-            double g[5];
-            log_perez_pt(q, &pt[i], g);                 /* finite: q passed cost() */
+            double g[5] = {0, 0, 0, 0, 0};             /* set: q passed cost(), so finite here */
+            log_perez_pt(q, &pt[i], g);
             for (int k = 0; k < 5; k++) jac[i * NPAR + k] = -g[k];
             jac[i * NPAR + 5] = -1;
         }
