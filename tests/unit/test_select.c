@@ -17,40 +17,36 @@ static int cmp_double(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* The double version on the same values, spread a little so that no two differ only past a
- * float's precision by accident. */
-static void check_all_k_double(const float *src, size_t n)
-{
-    double *sorted = malloc(n * sizeof *sorted), *work = malloc(n * sizeof *work), *vals = malloc(n * sizeof *vals);
-    assert_non_null(sorted);
-    assert_non_null(work);
-    assert_non_null(vals);
-    for (size_t k = 0; k < n; k++) vals[k] = src[k] + 1e-12 * (double)(k % 3);
-    memcpy(sorted, vals, n * sizeof *sorted);
-    qsort(sorted, n, sizeof *sorted, cmp_double);
-    for (size_t k = 0; k < n; k++) {
-        memcpy(work, vals, n * sizeof *work);
-        assert_true(rs_select_kth_double(work, n, k) == sorted[k]);
+/* For every k of vals[0..n): select returns what qsort puts at k. One per element type. */
+#define DEFINE_CHECK_ALL_K(name, T, cmp, select)                          \
+    static void name(const T *vals, size_t n)                             \
+    {                                                                     \
+        T *sorted = malloc(n * sizeof *sorted), *work = malloc(n * sizeof *work); \
+        assert_non_null(sorted);                                          \
+        assert_non_null(work);                                            \
+        memcpy(sorted, vals, n * sizeof *sorted);                         \
+        qsort(sorted, n, sizeof *sorted, cmp);                            \
+        for (size_t k = 0; k < n; k++) {                                  \
+            memcpy(work, vals, n * sizeof *work);                         \
+            assert_true(select(work, n, k) == sorted[k]);                 \
+        }                                                                 \
+        free(sorted);                                                     \
+        free(work);                                                       \
     }
-    free(sorted);
-    free(work);
-    free(vals);
-}
 
+DEFINE_CHECK_ALL_K(check_all_k_float, float, cmp_float, rs_select_kth)
+DEFINE_CHECK_ALL_K(check_all_k_double, double, cmp_double, rs_select_kth_double)
+
+/* Both types on the same values; the doubles spread a little, so that some differ only past a
+ * float's precision. */
 static void check_all_k(const float *src, size_t n)
 {
-    check_all_k_double(src, n);
-    float *sorted = malloc(n * sizeof *sorted), *work = malloc(n * sizeof *work);
-    assert_non_null(sorted);
-    assert_non_null(work);
-    memcpy(sorted, src, n * sizeof *sorted);
-    qsort(sorted, n, sizeof *sorted, cmp_float);
-    for (size_t k = 0; k < n; k++) {
-        memcpy(work, src, n * sizeof *work);
-        assert_true(rs_select_kth(work, n, k) == sorted[k]);
-    }
-    free(sorted);
-    free(work);
+    double *vals = malloc(n * sizeof *vals);
+    assert_non_null(vals);
+    for (size_t k = 0; k < n; k++) vals[k] = src[k] + 1e-12 * (double)(k % 3);
+    check_all_k_float(src, n);
+    check_all_k_double(vals, n);
+    free(vals);
 }
 
 static void test_select_matches_sort(void **state)
