@@ -30,15 +30,18 @@ static void sort_by_key_desc(uint32_t *idx, size_t n, const double *key)
  * proportional to luminance times solid angle. Returns the total, 0 when nothing has power. */
 static double build_cdf(const rs_skyenv *env, double *cdf, int sun)
 {
-    size_t npx = (size_t)env->width * env->height;
+    size_t npx = (size_t)env->width * env->height, w = (size_t)env->width;
     cdf[0] = 0;
-    for (size_t k = 0; k < npx; k++) {
-        double p = 0;
-        if ((env->sun[k] != 0) == sun) {
-            double y = luminance(env->radiance + 3 * k);
-            if (y > 0) p = y * rs_pano_pixel_solid_angle(env->width, env->height, (int)(k / env->width));
+    for (int r = 0; r < env->height; r++) {
+        double om = rs_pano_pixel_solid_angle(env->width, env->height, r);   /* a sin: once per row */
+        for (size_t k = (size_t)r * w; k < (size_t)(r + 1) * w; k++) {
+            double p = 0;
+            if ((env->sun[k] != 0) == sun) {
+                double y = luminance(env->radiance + 3 * k);
+                if (y > 0) p = y * om;
+            }
+            cdf[k + 1] = cdf[k] + p;
         }
-        cdf[k + 1] = cdf[k] + p;
     }
     return cdf[npx];
 }

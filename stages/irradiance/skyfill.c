@@ -427,8 +427,10 @@ int rs_skyfill_sigma_map(int w, int h, const uint8_t *src, const uint8_t *fill, 
         return 0;
     }
     if (rs_skydist_to_source(w, h, src, fill, sigma) != 0) return -1;
-    for (size_t k = 0; k < npx; k++)
-        sigma[k] = fill[k] ? (float)fmin(1, rate * sqrt(fmax(sigma[k], 2 * M_PI / RS_SKYDIST_CELLS_W))) : 0.0f;
+#pragma omp parallel for schedule(static)
+    for (int r = 0; r < h; r++)
+        for (size_t k = (size_t)r * w; k < (size_t)(r + 1) * w; k++)
+            sigma[k] = fill[k] ? (float)fmin(1, rate * sqrt(fmax(sigma[k], 2 * M_PI / RS_SKYDIST_CELLS_W))) : 0.0f;
     return 0;
 }
 
