@@ -42,8 +42,9 @@ WHY = """## Why the second capture does not help on the scanned mesh
   - two captures: the outside camera's own view;
   - true sky: env.exr's own ground.
   rhoscan counts that light in E_sky; Cycles counts it in DiffInd.
-- Measured against Cycles' passes, wall_east on the scan has E_sky 5 to 15 % high and G 3 % low
-  in all three runs. On the exact geometry with the true sky, its E_sky is within 0.3 %.
+- Measured against Cycles' passes (tools/skycompare/irradiance_by_part.py), wall_east on the scan
+  has E_sky 5 to 15 % high and G 3 % low in all three runs. On the exact geometry with the true
+  sky, its E_sky is within 0.3 %.
 - On the exact geometry the order is the expected one: true sky below two captures below one
   capture.
 - A prototype read the ground beyond the model at the scan's ground plane, from the nearest
