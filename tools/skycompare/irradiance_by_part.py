@@ -9,7 +9,8 @@ rhoscan-eval, the truth per facet is the mean over the facet's pixels of pi Diff
 pi DiffInd (G), channel means; facets seen on at least 4 pixels and estimable count, weighted by
 their pixels. Printed per part: the mean relative error and the bias (ratio of the weighted sums
 minus 1) of each, and the truth's interreflected share. Parts come from the nearest point of
-truth.ply within 0.15 m of each facet's centroid (the shared evaluator's matching).
+truth.ply within 0.15 m of each facet's centroid (sky_compare.match_truth, the shared
+evaluator's matching).
 
 Cycles counts light from surfaces in DiffInd, rhoscan counts light from the sky map (including
 the ground beyond the model, held there) in E_sky: a model that lacks geometry the scene has
@@ -37,12 +38,8 @@ def main():
     a = ap.parse_args()
     sys.path.insert(0, os.path.join(a.shared, 'tools'))
     from plyio import read_ply, faces_of
-    from eval_albedo import tri_samples
-    from scipy.spatial import cKDTree
+    from sky_compare import MATCH_M, match_truth   # the facet-to-truth matching sky_compare uses
     truth = read_ply(os.path.join(a.scene, 'truth.ply'))
-    tv = np.stack([truth['vertex'][c] for c in 'xyz'], 1)
-    samples, sample_face = tri_samples(tv, np.array(faces_of(truth)), 0.05)
-    tree = cKDTree(samples)
     dd = np.pi * image(os.path.join(a.scene, 'pano_diffdir.exr'))[:, :3].mean(1)
     di = np.pi * image(os.path.join(a.scene, 'pano_diffind.exr'))[:, :3].mean(1)
     for work in a.work:
@@ -50,8 +47,8 @@ def main():
         fp = res['face']
         rv = np.stack([res['vertex'][c] for c in 'xyz'], 1)
         cen = rv[np.array(faces_of(res))].mean(1)
-        dist, k = tree.query(cen)
-        part = np.where(dist < 0.15, truth['face']['part'][sample_face[k]], -1)
+        dist, tf = match_truth(a.shared, truth, cen)
+        part = np.where(dist < MATCH_M, truth['face']['part'][tf], -1)
         ids = image(os.path.join(work, 'facet_id.exr'))[:, 0]
         if ids.size != dd.size:
             sys.exit('FAIL: %s/facet_id.exr is not the size of the scene\'s passes' % work)

@@ -32,26 +32,36 @@ def run(cmd, log):
         sys.exit('FAIL: %s exited %d (see %s)' % (cmd[0], r.returncode, log))
 
 
+MATCH_M = 0.15   # a facet belongs to the truth surface within this distance (the shared evaluator's)
+
+
+def match_truth(shared, truth, centroids):
+    """For each centroid, the distance to the nearest point of truth.ply's surface (sampled every
+    0.05 m, as the shared evaluator does) and the truth face there."""
+    sys.path.insert(0, os.path.join(shared, 'tools'))
+    from plyio import faces_of
+    from eval_albedo import tri_samples
+    from scipy.spatial import cKDTree
+    tv = np.stack([truth['vertex'][c] for c in 'xyz'], 1)
+    samples, sample_face = tri_samples(tv, np.array(faces_of(truth)), 0.05)
+    d, k = cKDTree(samples).query(centroids)
+    return d, sample_face[k]
+
+
 def per_facet_error(shared, truth_ply, albedo_ply):
     """Relative error (mean over channels) per observed, estimable facet, its sigma, its part."""
     sys.path.insert(0, os.path.join(shared, 'tools'))
     from plyio import read_ply, faces_of
-    from eval_albedo import tri_samples
-    from scipy.spatial import cKDTree
     truth, res = read_ply(truth_ply), read_ply(albedo_ply)
-    TV = np.stack([truth['vertex'][c] for c in 'xyz'], 1)
-    TF = np.array(faces_of(truth))
     talb = np.stack([truth['face'][c] for c in ('red', 'green', 'blue')], 1)
-    S, Sf = tri_samples(TV, TF, 0.05)
     RV = np.stack([res['vertex'][c] for c in 'xyz'], 1)
     RF = np.array(faces_of(res))
     fp = res['face']
     alb = np.stack([fp['albedo_' + c] for c in 'rgb'], 1)
     P = RV[RF]
-    cen = P.mean(1)
-    d, k = cKDTree(S).query(cen)
-    sel = (d < 0.15) & (fp['observed'] > 0) & (fp['estimable'] > 0)
-    t = talb[Sf[k]]
+    d, tf = match_truth(shared, truth, P.mean(1))
+    sel = (d < MATCH_M) & (fp['observed'] > 0) & (fp['estimable'] > 0)
+    t = talb[tf]
     rel = (np.abs(alb - t) / np.maximum(t, 1e-6)).mean(1)
     area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
     return rel[sel], fp['albedo_sigma_rel'][sel], fp['albedo_bound80_rel'][sel], fp['sky_filled'][sel], area[sel]
