@@ -151,6 +151,9 @@ const rs_cfg_key rs_cfg_keys[] = {
      "seed of the sample sequences"},
     {"irradiance", "skip_unseen", RS_CFG_BOOL, "true", 0, 0, NULL, "", "irradiance",
      "gather only the facets a camera sees and, transitively, those their rays hit (the rest light nothing seen)"},
+    {"irradiance", "relay_share", RS_CFG_REAL, "0.125", 0.001, 1, NULL, "", "irradiance",
+     "facets no camera sees, gathered because they light seen ones, trace this share of every ray count "
+     "(rounded down to a power of two, at least one ray of each kind in use) and no adaptive rounds; 1: as seen ones"},
     {"irradiance", "sun_target_error", RS_CFG_REAL, "0", 0, 1, NULL, "", "irradiance",
      "> 0: double a facet's sun rays (up to 16 x sun_samples) until their standard error is below this share of E_sky"},
     {"irradiance", "target_error", RS_CFG_REAL, "0", 0, 1, NULL, "", "irradiance",

@@ -488,6 +488,7 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
             out->map_var += fmax(0, st.y_sq[pass] / st.done[pass] - mean * mean) / st.done[pass];
         }
     out->rounds = (uint8_t)rounds;
+    out->samples = (uint32_t)N;
     out->rays = (uint32_t)(N << rounds) + (uint32_t)st.done[0] + (uint32_t)st.done[1];
 
     /* K row: merge hits per facet j (sorted, so the file does not depend on thread timing).
@@ -512,11 +513,11 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
 }
 
 
-double rs_gather_mc_sigma(const rs_facet_gather *fg, int samples, const double *radiance, const uint8_t *observed)
+double rs_gather_mc_sigma(const rs_facet_gather *fg, const double *radiance, const uint8_t *observed)
 {
-    if (!fg->rays || samples < 1) return 0;
+    if (!fg->rays || !fg->samples) return 0;
     /* A hit count k_unseen N / pi for each K entry: its rays' values are pi L_j each. */
-    double n = (double)samples * (1 << fg->rounds), s1 = fg->cos_sum, s2 = fg->cos_sum_sq;  /* its own count */
+    double n = (double)fg->samples * (1 << fg->rounds), s1 = fg->cos_sum, s2 = fg->cos_sum_sq;
     for (uint32_t q = 0; radiance && q < fg->nentries; q++) {
         const rs_kentry *en = &fg->entries[q];
         if (observed && !observed[en->col]) continue;

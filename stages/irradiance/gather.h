@@ -32,6 +32,7 @@ typedef struct rs_facet_gather {
     rs_kentry *entries;        /* K row, sorted by col; caller frees */
     uint32_t nentries;
     uint32_t rays;             /* rays of this facet */
+    uint32_t samples;          /* its base cosine-ray count (rs_gather_ctx samples; fewer for relays) */
     uint8_t sees_nothing;      /* the model lies below its plane: its rays were not traced */
     uint8_t rounds;            /* target_error: times its counts were doubled (0: the base counts) */
     uint8_t sky_sh;            /* E_sky from the sky's harmonic projection (skysh.h): no ray at all */
@@ -56,6 +57,10 @@ typedef struct rs_gather_ctx {
                                   2^RS_GATHER_MAX_ROUNDS x), until the standard error of E_sky + G
                                   is below this share of it; 0: the base counts (sun_target_error
                                   then applies to the sun rays alone) */
+    double relay_share;        /* rs_gather_run: facets gathered only because their light reaches
+                                  the needed ones (relays) trace this share of every ray count,
+                                  rounded down to a power of two, without adaptive rounds; 0 or
+                                  1: exactly as the needed facets */
     const double *radiance;    /* with target_error: facets' mean radiance (3 per facet), so that */
     const uint8_t *observed;   /* rays into K count pi L_j for observed j (NULL: they count 0) */
 } rs_gather_ctx;
@@ -80,9 +85,9 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
 
 /* Standard error of the luminance of E_sky + G of a gathered facet from its rays' own spread
  * (Monte Carlo noise; independent-sample formula, which the stratified sequences only beat).
- * samples: the context's cosine-ray count. Rays that hit facet j through K carry pi L_j of
+ * Rays that hit facet j through K carry pi L_j of
  * radiance[3 j..] when observed[j] (both may be NULL: they then carry 0). */
-double rs_gather_mc_sigma(const rs_facet_gather *fg, int samples, const double *radiance, const uint8_t *observed);
+double rs_gather_mc_sigma(const rs_facet_gather *fg, const double *radiance, const uint8_t *observed);
 
 /* G of a gathered facet from observed facets: the panorama readings (gseen) plus K_ij L_j for
  * the hits the camera did not see, over observed j (unobserved ones are the reflectance

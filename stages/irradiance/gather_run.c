@@ -99,6 +99,17 @@ int rs_gather_list(const rs_gather_ctx *g, const uint32_t *list, size_t n, rs_fa
     return gather_list(g, list, n, out, 1, NULL);
 }
 
+/* count x share rounded down to a power of two (Sobol stratifies best there), at least 1 when
+ * count is: a relay's rays serve as many K rows as a needed facet's, so every kind stays on. */
+static int relay_count(int count, double share)
+{
+    if (count <= 0) return count;
+    double want = count * share;
+    int n = 1;
+    while (2.0 * n <= want) n *= 2;
+    return n < count ? n : count;
+}
+
 int rs_gather_run(const rs_gather_ctx *g, size_t nf, const uint8_t *needed, rs_facet_gather *fg, uint8_t *gathered,
                   struct rs_progress *prog, rs_gather_stats *stats)
 {
@@ -109,12 +120,22 @@ int rs_gather_run(const rs_gather_ctx *g, size_t nf, const uint8_t *needed, rs_f
     int rc = -1;
     if (!order || !list || !state) goto out;
     for (size_t f = 0; f < nf; f++) state[f] = !needed || needed[f];
+    /* Relays (every wave after the first) matter only through the K_ij L_j sums of the facets
+     * they light, which average over many relays: their own noise needs fewer rays, and no
+     * rounds to bring it down. */
+    rs_gather_ctx relay = *g;
+    if (g->relay_share > 0 && g->relay_share < 1) {
+        relay.samples = relay_count(g->samples, g->relay_share);
+        relay.sky_samples = relay_count(g->sky_samples, g->relay_share);
+        relay.sun_samples = relay_count(g->sun_samples, g->relay_share);
+        relay.target_error = relay.sun_target_error = 0;
+    }
     for (;;) {
         size_t n = 0;
         for (size_t k = 0; k < nf; k++)
             if (state[order[k]] == 1) list[n++] = order[k];
         if (!n) break;
-        if (gather_list(g, list, n, fg, 0, prog) != 0) goto out;
+        if (gather_list(stats->waves ? &relay : g, list, n, fg, 0, prog) != 0) goto out;
         stats->waves++;
         stats->gathered += n;
         for (size_t k = 0; k < n; k++) state[list[k]] = 2;
@@ -155,7 +176,8 @@ int rs_gather_mc_calibration(const rs_gather_ctx *g, size_t nf, const rs_facet_g
     *factor = 1;
     if (used) *used = 0;
     size_t n = 0;
-    for (size_t f = 0; f < nf; f++) n += fg[f].rays > 0;
+    /* Facets gathered at g's counts (relays were not): the second gather must repeat the first. */
+    for (size_t f = 0; f < nf; f++) n += fg[f].rays > 0 && fg[f].samples == (uint32_t)g->samples;
     if (!n || !max_facets) return 0;
     size_t stride = (n + max_facets - 1) / max_facets, m = 0;
     uint32_t *list = malloc(((n + stride - 1) / stride + 1) * sizeof *list);
@@ -166,7 +188,7 @@ int rs_gather_mc_calibration(const rs_gather_ctx *g, size_t nf, const rs_facet_g
         return -1;
     }
     for (size_t f = 0, k = 0; f < nf; f++)
-        if (fg[f].rays > 0 && k++ % stride == 0) list[m++] = (uint32_t)f;
+        if (fg[f].rays > 0 && fg[f].samples == (uint32_t)g->samples && k++ % stride == 0) list[m++] = (uint32_t)f;
     rs_gather_ctx g2 = *g;
     g2.seed = g->seed ^ 0x5bd1e995u;                /* an independent scrambling */
     int rc = gather_list(&g2, list, m, again, 1, NULL);
@@ -174,8 +196,8 @@ int rs_gather_mc_calibration(const rs_gather_ctx *g, size_t nf, const rs_facet_g
     size_t cnt = 0;
     for (size_t k = 0; k < m; k++) {
         const rs_facet_gather *a = &fg[list[k]], *b = &again[k];
-        double sa = rs_gather_mc_sigma(a, g->samples, radiance, observed);
-        double sb = rs_gather_mc_sigma(b, g->samples, radiance, observed);
+        double sa = rs_gather_mc_sigma(a, radiance, observed);
+        double sb = rs_gather_mc_sigma(b, radiance, observed);
         double d = facet_lum(a, radiance, observed) - facet_lum(b, radiance, observed);
         if (rc == 0 && sa + sb > 0) {
             sum += d * d / (sa * sa + sb * sb);   /* var(E - E') = sa^2 + sb^2 */

@@ -57,8 +57,7 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
         sigma[f] = fg[f].fill_sigma_lum;       /* rs_facet_gather: summed, not in quadrature */
         /* Monte Carlo noise of E_sky + G (rays toward unobserved facets count 0 here), the
          * independent-sample formula scaled by what a second seed showed (rs_gather_mc_calibration). */
-        mc[f] = mc_factor *
-                rs_gather_mc_sigma(&fg[f], (int)rs_config_int(cfg, "irradiance", "samples"), radiance, observed);
+        mc[f] = mc_factor * rs_gather_mc_sigma(&fg[f], radiance, observed);
         if (fg[f].sky_sh) mc[f] = fg[f].sh_sigma;   /* no rays: the projection's measured error bound */
     }
     rs_ply_element *faces = rs_mesh_to_ply(mesh, ply);
@@ -491,6 +490,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
                        .seed = (uint32_t)rs_config_int(cfg, "irradiance", "seed"),
                        .sun_target_error = rs_config_real(cfg, "irradiance", "sun_target_error"),
                        .skip_convex = rs_config_bool(cfg, "irradiance", "skip_convex"),
+                       .relay_share = rs_config_real(cfg, "irradiance", "relay_share"),
                        /* [irradiance] target_error: rounds of rays per facet until its E_sky + G is
                         * known that well (gather.h); rays into K then count with the radiance of
                         * the facets they hit. */

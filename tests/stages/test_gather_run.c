@@ -143,6 +143,41 @@ static void test_run_threads_and_closure(void **state)
         same_rows(&part[f], &one[f]);
         for (uint32_t q = 0; q < part[f].nentries; q++) assert_true(gathered[part[f].entries[q].col]);
     }
+
+    /* Relays at a quarter of the rays (relay_share): the needed facet keeps the full gather's row,
+     * every relay traces 16 / 16 / 4 rays and its row points only at gathered facets, and on
+     * average a relay's row sums to what the full rows do (a weight left at the needed facets'
+     * count would make it a quarter). The noise calibration regathers the needed facet alone. */
+    rs_gather_ctx rg = g;
+    rg.relay_share = 0.25;
+    rs_facet_gather *relay = calloc(nf, sizeof *relay);
+    uint8_t *rgathered = calloc(nf, 1);
+    assert_int_equal(rs_gather_run(&rg, nf, needed, relay, rgathered, NULL, &st), 0);
+    same_rows(&relay[0], &one[0]);
+    assert_int_equal(relay[0].samples, 64);
+    double sum_relay = 0, sum_full = 0;
+    size_t relays = 0;
+    for (size_t f = 1; f < nf; f++) {
+        if (!rgathered[f]) continue;
+        assert_int_equal(relay[f].samples, 16);
+        assert_int_equal(relay[f].rays, 16 + 16 + 4);
+        for (uint32_t q = 0; q < relay[f].nentries; q++) {
+            assert_true(rgathered[relay[f].entries[q].col]);
+            sum_relay += relay[f].entries[q].k;
+        }
+        for (uint32_t q = 0; q < one[f].nentries; q++) sum_full += one[f].entries[q].k;
+        relays++;
+    }
+    print_message("relays: %zu, mean K row sum %.4f at a quarter of the rays, %.4f at all\n", relays,
+                  sum_relay / relays, sum_full / relays);
+    assert_true(relays > 20);
+    assert_true(fabs(sum_relay / sum_full - 1) < 0.1);
+    double factor;
+    size_t used;
+    assert_int_equal(rs_gather_mc_calibration(&rg, nf, relay, NULL, NULL, 512, &factor, &used), 0);
+    assert_int_equal(used, 1);
+    for (size_t f = 0; f < nf; f++) free(relay[f].entries);
+    free(relay), free(rgathered);
     for (size_t f = 0; f < nf; f++) {
         free(one[f].entries);
         free(two[f].entries);

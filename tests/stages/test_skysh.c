@@ -286,7 +286,7 @@ static void test_gather_uses_it(void **state)
         assert_int_equal(a.rays, 0);
         used++;
         assert_int_equal(rs_gather_facet(&many, f, s, &r), 0);
-        double mc = rs_gather_mc_sigma(&r, many.samples, NULL, NULL);
+        double mc = rs_gather_mc_sigma(&r, NULL, NULL);
         print_message("facet %u (n.z %.0f): harmonics %.5g, %d rays %.5g +- %.2g, bound %.2g\n", f, n.z, a.esky_lum,
                       r.rays, r.esky_lum, mc, a.sh_sigma);
         assert_true(fabs(a.esky_lum - r.esky_lum) <= a.sh_sigma + 4 * mc);

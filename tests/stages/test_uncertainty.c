@@ -192,7 +192,7 @@ static void test_mc_sigma(void **state)
             for (uint32_t q = 0; q < r.nentries; q++) e += r.entries[q].k_unseen * 0.3;
             sum += e;
             sum_sq += e * e;
-            rep += rs_gather_mc_sigma(&r, counts[c], radiance, NULL);
+            rep += rs_gather_mc_sigma(&r, radiance, NULL);
             free(r.entries);
         }
         double mean = sum / seeds;
@@ -250,7 +250,7 @@ static void test_mc_calibration(void **state)
         for (size_t f = 0; f < nf; f++) {
             E[f * SEEDS + seed] = fg[f].esky_lum;
             for (uint32_t q = 0; q < fg[f].nentries; q++) E[f * SEEDS + seed] += fg[f].entries[q].k_unseen * 0.3;
-            sig[f * SEEDS + seed] = fac * rs_gather_mc_sigma(&fg[f], 64, radiance, NULL);
+            sig[f * SEEDS + seed] = fac * rs_gather_mc_sigma(&fg[f], radiance, NULL);
             free(fg[f].entries);
         }
     }
