@@ -4,6 +4,7 @@
 
 #include <errno.h>
 #include <inttypes.h>
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -204,6 +205,20 @@ int rs_stage_up_to_date(const rs_stage_def *def, const rs_config *cfg, char *why
     return same;
 }
 
+/* The process's peak resident memory in MB so far (Linux VmHWM), NAN when unknown. Read from
+ * inside: a parent's getrusage of its child also counts the parent's pages at the fork. */
+static double peak_rss_mb(void)
+{
+    FILE *f = fopen("/proc/self/status", "r");
+    if (!f) return NAN;
+    char line[256];
+    double kb = NAN;
+    while (fgets(line, sizeof line, f))
+        if (sscanf(line, "VmHWM: %lf kB", &kb) == 1) break;
+    fclose(f);
+    return kb / 1024;
+}
+
 int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_err *err)
 {
     char dir[4096], path[4096];
@@ -230,6 +245,8 @@ int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_err *err)
         return -1;
     }
     rs_json_set_num(rep.metrics, "wall_time_s", wall);
+    double peak = peak_rss_mb();
+    if (!isnan(peak)) rs_json_set_num(rep.metrics, "peak_rss_mb", peak);  /* the process's, so far */
     char hex[32];
     snprintf(hex, sizeof hex, "%016" PRIx64, fp);
     rs_json_set_str(rep.metrics, "fingerprint", hex);
