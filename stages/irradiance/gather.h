@@ -33,6 +33,7 @@ typedef struct rs_facet_gather {
     uint32_t nentries;
     uint32_t rays;             /* rays of this facet */
     uint32_t samples;          /* its base cosine-ray count (rs_gather_ctx samples; fewer for relays) */
+    uint8_t relay;             /* rs_gather_run gathered it as a relay (relay_share) */
     uint8_t sees_nothing;      /* the model lies below its plane: its rays were not traced */
     uint8_t rounds;            /* target_error: times its counts were doubled (0: the base counts) */
     uint8_t sky_sh;            /* E_sky from the sky's harmonic projection (skysh.h): no ray at all */
@@ -97,16 +98,17 @@ void rs_gather_inter_observed(const rs_facet_gather *fg, const double *radiance,
 
 /* The independent-sample formula overstates the error of the scrambled Sobol sequences, by a
  * factor that depends on the scene (2.4 to 3.2 on the reference scenes, 1.25 on a test floor).
- * This measures it: every stride-th gathered facet (at most max_facets) is gathered again with
- * another seed, and *factor = RMS over them of (E - E') / (sqrt(2) rs_gather_mc_sigma), E the
- * luminance of E_sky + G as rs_gather_mc_sigma counts it: the ratio of the actual noise to the
- * formula's (1 when no facet qualifies). *used: the facets it came from (may be NULL). The
+ * This measures it: every stride-th gathered facet that is not a relay (at most max_facets) is
+ * gathered again at g's counts with another seed, and *factor = RMS over them of
+ * (E - E') / (sqrt(2) rs_gather_mc_sigma), E the luminance of E_sky + G as rs_gather_mc_sigma
+ * counts it: the ratio of the actual noise to the formula's (1 when no facet qualifies). *used: the facets it came from (may be NULL). The
  * result does not depend on the thread count. Returns 0, -1 out of memory. */
 int rs_gather_mc_calibration(const rs_gather_ctx *g, size_t nf, const rs_facet_gather *fg, const double *radiance,
                              const uint8_t *observed, size_t max_facets, double *factor, size_t *used);
 
 typedef struct rs_gather_stats {
     size_t gathered;           /* facets gathered */
+    size_t relays;             /* of which relays, at relay_share of the rays */
     int waves;                 /* rounds of the closure (1 when every facet is needed) */
     double rays;               /* rays traced */
     size_t sees_nothing;       /* facets whose rays needed no tracing (skip_convex) */
@@ -118,9 +120,11 @@ typedef struct rs_gather_stats {
  * camera sees) and, wave after wave, every facet that the rays of a gathered facet hit, until no
  * new one is reached: the closure of the light paths that end at a needed facet. Every K row of
  * a gathered facet then points only at gathered facets, and its E_sky and row are the same as in
- * a full gather; the facets left out (no camera sees them and they light nothing that matters)
- * keep a zeroed fg[f]. gathered (may be NULL): nf flags. prog may be NULL.
- * Returns 0, or -1 when out of memory. The result does not depend on the thread count. */
+ * a full gather. With g->relay_share in (0, 1) that holds for the needed facets; the later
+ * waves, the relays, trace that share of the rays (fg[f].relay): noisier, not biased. The
+ * facets left out (no camera sees them and they light nothing that matters) keep a zeroed
+ * fg[f]. gathered (may be NULL): nf flags. prog may be NULL. Returns 0, or -1 when out of
+ * memory. The result does not depend on the thread count. */
 struct rs_progress;
 /* Gathers facets list[0 .. n-1] into out[0 .. n-1] in parallel (out[k].entries: caller frees).
  * Returns 0, or -1 when out of memory. */

@@ -99,8 +99,8 @@ int rs_gather_list(const rs_gather_ctx *g, const uint32_t *list, size_t n, rs_fa
     return gather_list(g, list, n, out, 1, NULL);
 }
 
-/* count x share rounded down to a power of two (Sobol stratifies best there), at least 1 when
- * count is: a relay's rays serve as many K rows as a needed facet's, so every kind stays on. */
+/* count x share rounded down to a power of two (Sobol stratifies best there), and at least 1
+ * when count is, so that every kind of ray in use stays in use. */
 static int relay_count(int count, double share)
 {
     if (count <= 0) return count;
@@ -124,7 +124,8 @@ int rs_gather_run(const rs_gather_ctx *g, size_t nf, const uint8_t *needed, rs_f
      * they light, which average over many relays: their own noise needs fewer rays, and no
      * rounds to bring it down. */
     rs_gather_ctx relay = *g;
-    if (g->relay_share > 0 && g->relay_share < 1) {
+    int relays = g->relay_share > 0 && g->relay_share < 1;
+    if (relays) {
         relay.samples = relay_count(g->samples, g->relay_share);
         relay.sky_samples = relay_count(g->sky_samples, g->relay_share);
         relay.sun_samples = relay_count(g->sun_samples, g->relay_share);
@@ -136,6 +137,10 @@ int rs_gather_run(const rs_gather_ctx *g, size_t nf, const uint8_t *needed, rs_f
             if (state[order[k]] == 1) list[n++] = order[k];
         if (!n) break;
         if (gather_list(stats->waves ? &relay : g, list, n, fg, 0, prog) != 0) goto out;
+        if (relays && stats->waves) {
+            for (size_t k = 0; k < n; k++) fg[list[k]].relay = 1;
+            stats->relays += n;
+        }
         stats->waves++;
         stats->gathered += n;
         for (size_t k = 0; k < n; k++) state[list[k]] = 2;
@@ -176,8 +181,8 @@ int rs_gather_mc_calibration(const rs_gather_ctx *g, size_t nf, const rs_facet_g
     *factor = 1;
     if (used) *used = 0;
     size_t n = 0;
-    /* Facets gathered at g's counts (relays were not): the second gather must repeat the first. */
-    for (size_t f = 0; f < nf; f++) n += fg[f].rays > 0 && fg[f].samples == (uint32_t)g->samples;
+    /* Not relays: the second gather, at g's counts, must repeat the first. */
+    for (size_t f = 0; f < nf; f++) n += fg[f].rays > 0 && !fg[f].relay;
     if (!n || !max_facets) return 0;
     size_t stride = (n + max_facets - 1) / max_facets, m = 0;
     uint32_t *list = malloc(((n + stride - 1) / stride + 1) * sizeof *list);
@@ -188,7 +193,7 @@ int rs_gather_mc_calibration(const rs_gather_ctx *g, size_t nf, const rs_facet_g
         return -1;
     }
     for (size_t f = 0, k = 0; f < nf; f++)
-        if (fg[f].rays > 0 && fg[f].samples == (uint32_t)g->samples && k++ % stride == 0) list[m++] = (uint32_t)f;
+        if (fg[f].rays > 0 && !fg[f].relay && k++ % stride == 0) list[m++] = (uint32_t)f;
     rs_gather_ctx g2 = *g;
     g2.seed = g->seed ^ 0x5bd1e995u;                /* an independent scrambling */
     int rc = gather_list(&g2, list, m, again, 1, NULL);

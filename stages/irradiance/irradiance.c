@@ -541,7 +541,11 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     if (gp.gs.sees_nothing)
         rs_report_skip(rep, "tracing of convex facets", "%zu facets have the whole model below their plane: "
                        "their rays escape without tracing", gp.gs.sees_nothing);
+    if (gp.gs.relays)
+        rs_report_skip(rep, "full ray counts for relays", "%zu facets that no camera sees, gathered for their light on "
+                       "seen ones, traced %g of the rays ([irradiance] relay_share)", gp.gs.relays, g.relay_share);
     rs_json_set_int(rep->metrics, "facets_gathered", (long long)gp.gs.gathered);
+    rs_json_set_int(rep->metrics, "facets_relays", (long long)gp.gs.relays);
     rs_json_set_int(rep->metrics, "facets_seeing_nothing", (long long)gp.gs.sees_nothing);
     size_t nsh = 0;
     for (size_t f = 0; f < nf; f++) nsh += fg[f].sky_sh;

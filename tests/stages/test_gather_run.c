@@ -155,11 +155,13 @@ static void test_run_threads_and_closure(void **state)
     assert_int_equal(rs_gather_run(&rg, nf, needed, relay, rgathered, NULL, &st), 0);
     same_rows(&relay[0], &one[0]);
     assert_int_equal(relay[0].samples, 64);
+    assert_false(relay[0].relay);
     double sum_relay = 0, sum_full = 0;
     size_t relays = 0;
     for (size_t f = 1; f < nf; f++) {
         if (!rgathered[f]) continue;
         assert_int_equal(relay[f].samples, 16);
+        assert_true(relay[f].relay);
         assert_int_equal(relay[f].rays, 16 + 16 + 4);
         for (uint32_t q = 0; q < relay[f].nentries; q++) {
             assert_true(rgathered[relay[f].entries[q].col]);
@@ -168,6 +170,7 @@ static void test_run_threads_and_closure(void **state)
         for (uint32_t q = 0; q < one[f].nentries; q++) sum_full += one[f].entries[q].k;
         relays++;
     }
+    assert_int_equal(st.relays, relays);
     print_message("relays: %zu, mean K row sum %.4f at a quarter of the rays, %.4f at all\n", relays,
                   sum_relay / relays, sum_full / relays);
     assert_true(relays > 20);
