@@ -69,7 +69,8 @@ static const bench_row SWEEP[] = {
 static const char *const FULL_ROWS = "s16,s32,s64,s128,default,s1024,scale,scale_adaptive,scale_target,s64_target,"
                                      "s64_target_05,s64_target_10,default_target,scale_all_facets,default_all_facets,default_trace_convex,"
                                      "no_sun_rays,cosine_only,direct,paper";
-static const char *const SCALE_ROWS = "scale,scale_adaptive,scale_target,scale_all_facets,scale_trace_convex";
+static const char *const SCALE_ROWS = "scale,survey,survey_no_relay,scale_adaptive,scale_target,scale_all_facets,"
+                                      "scale_trace_convex";
 
 typedef struct {
     char bindir[PATH_MAX], work[PATH_MAX], csv[PATH_MAX + 256];
@@ -80,7 +81,20 @@ typedef struct {
     uint32_t seed;
 } bench_opts;
 
-static double json_num(const char *path, const char *key);
+/* A number "key": value from a stage's JSON file; NAN when absent. */
+static double json_num(const char *path, const char *key)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) return NAN;
+    static char buf[1 << 16];
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = 0;
+    char pat[128];
+    snprintf(pat, sizeof pat, "\"%s\": ", key);
+    const char *p = strstr(buf, pat);
+    return p ? strtod(p + strlen(pat), NULL) : NAN;
+}
 
 /* Runs bin/rhoscan-<stage> with the overrides; wall time, the child's peak RSS (MB) and its CPU
  * time (user + system: the figure that other jobs on a shared machine do not inflate). The peak
@@ -124,21 +138,6 @@ static int run_stage(const bench_opts *o, const char *stage, const char *config,
         return -1;
     }
     return 0;
-}
-
-/* A number "key": value from a stage's JSON file; NAN when absent. */
-static double json_num(const char *path, const char *key)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f) return NAN;
-    static char buf[1 << 16];
-    size_t n = fread(buf, 1, sizeof buf - 1, f);
-    fclose(f);
-    buf[n] = 0;
-    char pat[128];
-    snprintf(pat, sizeof pat, "\"%s\": ", key);
-    const char *p = strstr(buf, pat);
-    return p ? strtod(p + strlen(pat), NULL) : NAN;
 }
 
 typedef struct {
