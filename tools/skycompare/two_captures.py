@@ -2,11 +2,13 @@
 """Albedo error with one capture against two captures (issue 8, part 2): writes docs/SKY-CAPTURES.md.
 
 usage: two_captures.py --bin BUILD --shared SHARED --out docs/SKY-CAPTURES.md --work DIR \
-           --inside SCENE_DIR --outside SCENE_DIR
+           --pair NAME INSIDE_DIR OUTSIDE_DIR [--pair ...]
 
-Both SCENE_DIRs are tools/refscene outputs of the same scene and sky (tools/skycompare/courtyard.json
-and courtyard_outside.json: the same boxes and environment, the camera inside and outside the
-courtyard). rhoscan runs once from the inside render's scan (ingest, mesh, observe), then
+Each pair's two folders are tools/refscene outputs of the same scene and sky (tools/skycompare/
+courtyard.json and courtyard_outside.json: the same boxes and environment, the camera inside and
+outside the courtyard); pairs differ in their Cycles samples, so the tables show which differences
+stand above the render's noise. For each pair rhoscan runs once from the inside render's scan
+(ingest, mesh, observe), then
 irradiance and reflectance with [sky] fill = model: with the inside capture alone, and with the
 outside panorama added as [capture.outside] (its sky fills what the inside camera cannot see), and
 with the true sky (env.exr as [sky] panorama) as the reference. The shared evaluator
@@ -31,26 +33,27 @@ def check_same_scene(tin, tout):
             sys.exit('FAIL: the inside and outside renders differ in %s' % k)
 
 
-WHY = """## Why the second capture does not help on the scanned mesh
+WHY = """## What the tables show
 
-- The scanner stands inside the courtyard. The scanned mesh lacks what it could not see: the
-  ground beyond the low south wall, and the walls' tops and outer faces. The walls above 1.5 m
-  see part of that.
-- Their rays toward it escape the model and read the sky map, which holds at infinite distance
-  whatever each run put there:
-  - one capture: the ground model;
-  - two captures: the outside camera's own view;
-  - true sky: env.exr's own ground.
-  rhoscan counts that light in E_sky; Cycles counts it in DiffInd.
-- Measured against Cycles' passes (tools/skycompare/irradiance_by_part.py), wall_east on the scan
-  has E_sky 5 to 15 % high and G 3 % low in all three runs. On the exact geometry with the true
-  sky, its E_sky is within 0.3 %.
-- On the exact geometry the order is the expected one: true sky below two captures below one
-  capture.
-- A prototype read the ground beyond the model at the scan's ground plane, from the nearest
-  capture that saw the point there. It lowered each of the three scanned runs by about
-  0.02 points and left their order as it was. That ground is therefore not the whole difference,
-  and the rest is not identified yet. The prototype is not part of rhoscan.
+- Two captures lower the error on the scanned mesh and on the exact geometry, with every seed,
+  whenever the outside panorama is rendered with as many samples as the inside one. The gain is
+  largest on the sunlit wall_north, which sees the ground beyond the low south wall: one capture
+  fills that with the ground model (level ground in full sun out to the horizon), while the
+  outside camera saw the render's ground as it is, which ends 20 m out where the sky file's own
+  ground takes over.
+- With an outside panorama of 16 samples (the pair named so), two captures are worse than one on
+  the scan with every seed, so the gather's noise is not the cause. Its sun is: 2.6 % brighter
+  than the sky file's (the "sun's flux" line). A sun of a few pixels at some 10^4 times the sky
+  carries the camera's anti-aliasing noise, and the merged map takes the mean of both captures'
+  suns, which raises E_sky on the sunlit walls by about 1 %. Earlier versions of this page had
+  only that pair.
+- On the scan, the true sky is not the lowest row. The scan lacks the ground beyond the low
+  south wall: on the exact mesh, 6 % of wall_east's kernel (0.125 of 2.11 sr, from
+  transport.ply) points at it. On the scan those rays read the sky map below the horizon, and
+  env.exr holds the sky file's photographed ground there, not the scene's. The captures show the
+  scene's ground, from afar (one capture: the ground model) or as seen from outside.
+  tools/skycompare/irradiance_by_part.py measures it against Cycles' passes: on the scan,
+  wall_east's E_sky + G is 1.6 % low with the true sky, 0.2 % high with one capture.
 
 """
 
@@ -123,9 +126,42 @@ def subdivide(shared, truth_ply, out_ply, max_edge):
     return len(tris)
 
 
-def compare(a, rhoscan, log, wdir, base, second, true_sky, first_stages):
+def median_radiance_noise(albedo_ply, shared):
+    """Median radiance_sigma_rel over observed, estimable facets: the render's own noise in L."""
+    import numpy as np
+    sys.path.insert(0, os.path.join(shared, 'tools'))
+    from plyio import read_ply
+    fp = read_ply(albedo_ply)['face']
+    sel = (fp['observed'] > 0) & (fp['estimable'] > 0)
+    return float(np.median(fp['radiance_sigma_rel'][sel])) if sel.any() else float('nan')
+
+
+def image(path):
+    import OpenImageIO as oiio
+    px = oiio.ImageBuf(path).get_pixels(oiio.FLOAT)
+    if px is None or px.size == 0:
+        sys.exit('FAIL: cannot read %s' % path)
+    return px[:, :, :3]
+
+
+def sun_flux_ratio(pano, env):
+    """The sun's flux in a capture over that in env.exr (the sky alone, same orientation), summed
+    over env.exr's pixels above 50 x the median of its upper half. A sun of a few pixels at 10^4
+    times the sky carries the camera's anti-aliasing noise: a few per cent at 256 samples."""
+    import numpy as np
+    e, p = image(env), image(pano)
+    if e.shape != p.shape:
+        return float('nan')
+    lum = e.mean(2)
+    sun = lum > 50 * np.median(lum[:lum.shape[0] // 2])
+    return float(p[sun].mean(1).sum() / e[sun].mean(1).sum())
+
+
+def compare(a, inside, rhoscan, log, wdir, base, second, true_sky, first_stages):
     """One capture, two captures and the true sky from the same mesh and observation (work folder
-    wdir/work); returns (label, interior error, per-part errors, irradiance metrics) per run."""
+    wdir/work), each with every seed of a.seeds; returns per run (label, interior error, per-part
+    errors, irradiance metrics, median noise of L) of the first seed, and the other seeds' interior
+    errors."""
     os.makedirs(wdir, exist_ok=True)
     cfg1, cfg2 = os.path.join(wdir, 'one.ini'), os.path.join(wdir, 'two.ini')
     open(cfg1, 'w').write(base)
@@ -137,20 +173,84 @@ def compare(a, rhoscan, log, wdir, base, second, true_sky, first_stages):
     res = []
     for label, cfg, sets in (('one capture (inside)', cfg1, []), ('two captures (inside + outside)', cfg2, []),
                              ('true sky', cfg1, true_sky)):
-        for stage in ('irradiance', 'reflectance'):
-            run([rhoscan, 'run', '--only', stage, cfg, '--set', 'sky.fill=model'] + sets, log)
         tag = label.split(' ')[0]
+        other_seeds = []
+        # The first seed's run is the row; the others only move the gather's own Monte Carlo noise,
+        # so their interior errors say which differences between rows stand above it.
+        for seed in reversed(a.seeds):
+            for stage in ('irradiance', 'reflectance'):
+                run([rhoscan, 'run', '--only', stage, cfg, '--set', 'sky.fill=model',
+                     '--set', 'irradiance.seed=%d' % seed] + sets, log)
+            ej = os.path.join(wdir, 'eval_%s_seed%d.json' % (tag, seed))
+            run([sys.executable, os.path.join(a.shared, 'tools', 'eval_albedo.py'), os.path.join(inside, 'truth.ply'),
+                 os.path.join(work, 'albedo.ply'), '--json', ej], log)
+            ev = json.load(open(ej))
+            if seed != a.seeds[0]:
+                other_seeds.append(ev['interior']['mean_rel'])
         shutil.copy(os.path.join(work, 'albedo.ply'), os.path.join(wdir, 'albedo_%s.ply' % tag))
-        ej = os.path.join(wdir, 'eval_%s.json' % tag)
-        run([sys.executable, os.path.join(a.shared, 'tools', 'eval_albedo.py'), os.path.join(a.inside, 'truth.ply'),
-             os.path.join(work, 'albedo.ply'), '--json', ej], log)
-        ev = json.load(open(ej))
         irr = json.load(open(os.path.join(work, 'irradiance.json')))
         im = irr.get('metrics', irr)
         parts = {int(p): v['mean_rel'] for p, v in ev['parts'].items() if v}
-        res.append((label, ev['interior']['mean_rel'], parts, im))
+        res.append((label, ev['interior']['mean_rel'], parts, im,
+                    median_radiance_noise(os.path.join(work, 'albedo.ply'), a.shared), other_seeds[::-1]))
         print('%s, %s: interior mean %.4f' % (os.path.basename(wdir), label, ev['interior']['mean_rel']))
     return res
+
+
+def run_pair(a, rhoscan, log, name, inside, outside):
+    """The six runs of one pair (scan and exact geometry, each with one capture, two and the true
+    sky); returns (header, [(title, results)])."""
+    tin, cam_in, rot_in = pose(inside)
+    tout, cam_out, rot_out = pose(outside)
+    check_same_scene(tin, tout)
+    wdir = os.path.join(a.work, name)
+    base = ('[pipeline]\nworkdir = work\n[ingest]\nscan = %s\n[capture]\npanorama = %s\nposition = %s\nrotation = %s\n'
+            % (os.path.join(inside, 'scan.ptx'), os.path.join(inside, 'pano.exr'), cam_in, rot_in))
+    second = ('[capture.outside]\npanorama = %s\nposition = %s\nrotation = %s\n'
+              % (os.path.join(outside, 'pano.exr'), cam_out, rot_out))
+    pos = [float(v) for v in cam_in.split()]
+    true_sky = ['--set', 'sky.panorama=' + os.path.join(inside, 'env.exr'),
+                '--set', 'sky.position=%.9g %.9g %.9g' % (pos[0], pos[1], pos[2] + 1000), '--set', 'sky.rotation=' + rot_in]
+    scanned = compare(a, inside, rhoscan, log, os.path.join(wdir, 'scan'), base, second, true_sky,
+                      ('ingest', 'mesh', 'observe'))
+    # The same three runs on the scene's own boxes, finely triangulated: what the captures give when
+    # the model holds everything the walls see (the scan misses the ground beyond the low wall).
+    exact_ply = os.path.join(wdir, 'exact_mesh.ply')
+    if not (a.reuse and os.path.exists(exact_ply)):
+        print('exact mesh: %d facets' % subdivide(a.shared, os.path.join(inside, 'truth.ply'), exact_ply, EXACT_EDGE_M))
+    exact_base = base.replace('[ingest]\nscan = %s\n' % os.path.join(inside, 'scan.ptx'),
+                              '[mesh]\ninput_mesh = %s\n' % exact_ply)
+    exact = compare(a, inside, rhoscan, log, os.path.join(wdir, 'exact'), exact_base, second, true_sky,
+                    ('mesh', 'observe'))
+    names = [p['name'] for p in tin['parts']]
+    env = os.path.join(inside, 'env.exr')
+    head = ('## %s: inside %s, outside %s Cycles samples per pixel, outside camera %s m south of the south wall\n\n'
+            'The sun\'s flux in each panorama over that in env.exr: inside %.3f, outside %.3f.\n\n'
+            % (name, tin.get('samples', '?'), tout.get('samples', '?'),
+               '%.0f' % abs(tout['camera_position'][1] - tin['parts'][-1]['min'][1]) if 'wall_south' in names else 'some',
+               sun_flux_ratio(os.path.join(inside, 'pano.exr'), env), sun_flux_ratio(os.path.join(outside, 'pano.exr'), env)))
+    return names, head, (('Scanned mesh (what the pipeline runs on)', scanned),
+                         ('Exact geometry (the scene\'s boxes, edges at most %.2f m)' % EXACT_EDGE_M, exact))
+
+
+def write_tables(fh, names, head, tables):
+    fh.write(head)
+    for title, res in tables:
+        fh.write('### %s\n\n' % title)
+        fh.write('| run | interior error | ' + ' | '.join(names) + ' | map pixels from the 2nd capture | '
+                 'pixels filled | share of E_sky filled | median noise of L | interior error, other seeds |\n')
+        fh.write('| --- | --- | ' + ' | '.join('---' for _ in names) + ' | --- | --- | --- | --- | --- |\n')
+        for label, interior, parts, im, noise, others in res:
+            fh.write('| %s | %.2f %% | %s | %s | %s | %.1f %% | %.2f %% | %s |\n' % (
+                label, 100 * interior, ' | '.join('%.2f %%' % (100 * parts[i]) if i in parts else '-'
+                                                 for i in range(len(names))),
+                im.get('sky_other_capture_pixels', 0), im.get('filled_pixels', '-'),
+                100 * im.get('sky_filled_share', 0), 100 * noise,
+                ', '.join('%.2f %%' % (100 * e) for e in others) or '-'))
+        diffs = [100 * (t - o) for o, t in zip([res[0][1]] + res[0][5], [res[1][1]] + res[1][5])]
+        fh.write('\nTwo captures against one, per seed: %s points (%s).\n\n'
+                 % (', '.join('%+.2f' % d for d in diffs),
+                    'lower with every seed' if max(diffs) < 0 else 'not lower with every seed'))
 
 
 def main():
@@ -159,61 +259,37 @@ def main():
     ap.add_argument('--shared', required=True)
     ap.add_argument('--out', required=True)
     ap.add_argument('--work', required=True)
-    ap.add_argument('--inside', required=True, help='render with the camera inside the courtyard')
-    ap.add_argument('--outside', required=True, help='render of the same scene, camera outside')
+    ap.add_argument('--pair', nargs=3, action='append', required=True, metavar=('NAME', 'INSIDE', 'OUTSIDE'),
+                    help='a name, the render with the camera inside the courtyard, the same scene with it outside')
+    ap.add_argument('--seeds', default='1,7,1234',
+                    help='comma-separated [irradiance] seeds; the first gives the tables, the others the spread')
     ap.add_argument('--reuse', action='store_true', help='keep the mesh and observation of an earlier run')
     a = ap.parse_args()
-    tin, cam_in, rot_in = pose(a.inside)
-    tout, cam_out, rot_out = pose(a.outside)
-    check_same_scene(tin, tout)
+    a.seeds = [int(v) for v in a.seeds.split(',')]
     os.makedirs(a.work, exist_ok=True)
     log = os.path.join(a.work, 'run.log')
     rhoscan = os.path.join(a.bin, 'rhoscan')
-    base = ('[pipeline]\nworkdir = work\n[ingest]\nscan = %s\n[capture]\npanorama = %s\nposition = %s\nrotation = %s\n'
-            % (os.path.join(a.inside, 'scan.ptx'), os.path.join(a.inside, 'pano.exr'), cam_in, rot_in))
-    second = ('[capture.outside]\npanorama = %s\nposition = %s\nrotation = %s\n'
-              % (os.path.join(a.outside, 'pano.exr'), cam_out, rot_out))
-    pos = [float(v) for v in cam_in.split()]
-    true_sky = ['--set', 'sky.panorama=' + os.path.join(a.inside, 'env.exr'),
-                '--set', 'sky.position=%.9g %.9g %.9g' % (pos[0], pos[1], pos[2] + 1000), '--set', 'sky.rotation=' + rot_in]
-    names = [p['name'] for p in tin['parts']]
-    scanned = compare(a, rhoscan, log, os.path.join(a.work, 'scan'), base, second, true_sky, ('ingest', 'mesh', 'observe'))
-    # The same three runs on the scene's own boxes, finely triangulated: what the captures give when
-    # the model holds everything the walls see (the scan misses the ground beyond the low wall).
-    exact_ply = os.path.join(a.work, 'exact_mesh.ply')
-    if not (a.reuse and os.path.exists(exact_ply)):
-        print('exact mesh: %d facets' % subdivide(a.shared, os.path.join(a.inside, 'truth.ply'), exact_ply, EXACT_EDGE_M))
-    exact_base = base.replace('[ingest]\nscan = %s\n' % os.path.join(a.inside, 'scan.ptx'),
-                              '[mesh]\ninput_mesh = %s\n' % exact_ply)
-    exact = compare(a, rhoscan, log, os.path.join(a.work, 'exact'), exact_base, second, true_sky, ('mesh', 'observe'))
-    with open(a.out, 'w') as fh:
+    pairs = [run_pair(a, rhoscan, log, name, inside, outside) for name, inside, outside in a.pair]
+    with open(a.out + '.tmp', 'w') as fh:
         fh.write('# Sky from two captures: albedo error with one and with two panoramas\n\n'
                  'Generated by `tools/skycompare/two_captures.py --bin BUILD --shared ../shared --out '
-                 'docs/SKY-CAPTURES.md --work DIR --inside COURTYARD --outside COURTYARD_OUT` (do not edit by '
+                 'docs/SKY-CAPTURES.md --work DIR --pair NAME COURTYARD COURTYARD_OUT ...` (do not edit by '
                  'hand), from tools/refscene renders of tools/skycompare/courtyard.json (camera inside the '
-                 'courtyard) and courtyard_outside.json (the same scene and sky, camera %s m outside the south '
-                 'wall). Every run uses `[sky] fill = model` and starts from the same mesh and observation: the inside '
-                 'render\'s scan (first table), or the scene\'s own boxes split into facets (second table); "two '
-                 'captures" adds the outside panorama as `[capture.outside]`; "true sky" gives the environment '
-                 'alone (env.exr) as `[sky] panorama`, the reference. Errors: the shared evaluator\'s area-weighted '
-                 'mean relative albedo error over interior facets (`eval_albedo.py`), overall and per part.\n\n'
-                 % ('%.0f' % abs(tout['camera_position'][1] - tin['parts'][-1]['min'][1])
-                    if 'wall_south' in names else 'some'))
-        for title, res in (('Scanned mesh (what the pipeline runs on)', scanned),
-                           ('Exact geometry (the scene\'s boxes, edges at most %.2f m)' % EXACT_EDGE_M, exact)):
-            fh.write('### %s\n\n' % title)
-            fh.write('| run | interior error | ' + ' | '.join(names) + ' | map pixels from the 2nd capture | '
-                     'pixels filled | share of E_sky filled |\n')
-            fh.write('| --- | --- | ' + ' | '.join('---' for _ in names) + ' | --- | --- | --- |\n')
-            for label, interior, parts, im in res:
-                fh.write('| %s | %.2f %% | %s | %s | %s | %.1f %% |\n' % (
-                    label, 100 * interior, ' | '.join('%.2f %%' % (100 * parts[i]) if i in parts else '-'
-                                                     for i in range(len(names))),
-                    im.get('sky_other_capture_pixels', 0), im.get('filled_pixels', '-'),
-                    100 * im.get('sky_filled_share', 0)))
-            fh.write('\n')
+                 'courtyard) and courtyard_outside.json (the same scene and sky, camera outside the south '
+                 'wall), each pair at its own Cycles samples. Every run uses `[sky] fill = model` and starts from the '
+                 'same mesh and observation: the inside render\'s scan, or the scene\'s own boxes split into facets; '
+                 '"two captures" adds the outside panorama as `[capture.outside]`; "true sky" gives the environment '
+                 'alone (env.exr) as `[sky] panorama`. Errors: the shared evaluator\'s area-weighted mean relative '
+                 'albedo error over interior facets (`eval_albedo.py`), overall and per part, with the gather\'s seed '
+                 '([irradiance] seed) %s; the other seeds\' interior errors show the gather\'s own noise. '
+                 '"median noise of L" '
+                 'is the median `radiance_sigma_rel` of the observed facets: the render\'s own noise in what '
+                 'each facet\'s albedo divides.\n\n' % a.seeds[0])
+        for names, head, tables in pairs:
+            write_tables(fh, names, head, tables)
         fh.write(WHY)
         fh.write('\n' + HOW)
+    os.replace(a.out + '.tmp', a.out)
     print('wrote ' + a.out)
 
 
