@@ -136,24 +136,17 @@ def median_radiance_noise(albedo_ply, shared):
     return float(np.median(fp['radiance_sigma_rel'][sel])) if sel.any() else float('nan')
 
 
-def image(path):
-    import OpenImageIO as oiio
-    px = oiio.ImageBuf(path).get_pixels(oiio.FLOAT)
-    if px is None or px.size == 0:
-        sys.exit('FAIL: cannot read %s' % path)
-    return px[:, :, :3]
-
-
 def sun_flux_ratio(pano, env):
     """The sun's flux in a capture over that in env.exr (the sky alone, same orientation), summed
     over env.exr's pixels above 50 x the median of its upper half. A sun of a few pixels at 10^4
-    times the sky carries the camera's anti-aliasing noise: a few per cent at 256 samples."""
+    times the sky carries the camera's anti-aliasing noise: 2.6 % at 16 samples here."""
     import numpy as np
-    e, p = image(env), image(pano)
+    from irradiance_by_part import image   # one EXR reader for the skycompare tools
+    e, p = image(env)[:, :3], image(pano)[:, :3]
     if e.shape != p.shape:
         return float('nan')
-    lum = e.mean(2)
-    sun = lum > 50 * np.median(lum[:lum.shape[0] // 2])
+    lum = e.mean(1)
+    sun = lum > 50 * np.median(lum[:lum.size // 2])   # rows first: the first half is the upper one
     return float(p[sun].mean(1).sum() / e[sun].mean(1).sum())
 
 
