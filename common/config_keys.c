@@ -226,7 +226,11 @@ const rs_cfg_key rs_cfg_keys[] = {
      "(and within about 32 facets' area) share the sky and interreflection part of their irradiance, not the sun's: "
      "less sampling noise at a bias of that order; 0 = each facet its own gather; not with method = paper"},
     {"reflectance", "unobserved_albedo", RS_CFG_REAL, NULL, 0, 1, NULL, "", "reflectance",
-     "albedo assumed for facets the camera does not see; default: the observed area-weighted mean"},
+     "albedo assumed for facets the camera does not see; default: see unobserved_albedo_by"},
+    {"reflectance", "unobserved_albedo_by", RS_CFG_ENUM, "orientation", 0, 0, "orientation|all", "", "reflectance",
+     "with no unobserved_albedo: orientation = the area-weighted mean albedo of the estimable facets facing the same "
+     "way (normal within 45 degrees of up, of down, or between), shrunk toward all's by 1 % of their area; all = "
+     "one mean of all"},
 
     {"render", "tolerance", RS_CFG_REAL, "1e-6", 1e-12, 0.1, NULL, "", "render",
      "forward solve stops when the largest relative change falls below this"},

@@ -8,7 +8,8 @@
  * noise, and albedo.ply carries that E.
  * Facets the camera does not see still light their neighbours: their radiance is modelled as
  * rho_fill (E_sky + G) / pi, rho_fill being [reflectance] unobserved_albedo or the
- * area-weighted mean albedo of the estimable facets, solved together by fixed-point iteration.
+ * area-weighted mean albedo of the estimable facets facing the same way (up, down or sideways),
+ * solved together by fixed-point iteration.
  * Writes albedo.ply with the face properties of DESIGN.md section 2, plus the sky completion's
  * share (sky_filled), E_sky's fill uncertainty (irradiance_sky_sigma) and the albedo's standard
  * uncertainty, independent sources in quadrature:
@@ -30,6 +31,15 @@
 #include "stages.h"
 #include "transport.h"
 
+/* Unobserved facets take the albedo measured on facets facing the same way: ground and roofs,
+ * walls, ceilings and soffits differ in material far more often than walls among themselves.
+ * A class's mean is shrunk toward the mean of all by a prior worth RS_FILL_PRIOR_SHARE of the
+ * estimable area, so a class seen on a few facets does not take their noise. */
+enum { RS_FILL_UP, RS_FILL_SIDE, RS_FILL_DOWN, RS_FILL_CLASSES };
+static const char *const fill_class_name[RS_FILL_CLASSES] = {"up", "side", "down"};
+#define RS_FILL_CLASS_COS 0.70710678   /* normal within 45 degrees of straight up or down */
+#define RS_FILL_PRIOR_SHARE 0.01
+
 typedef struct {
     size_t nf;
     const double *area, *L, *esky, *gseen;
@@ -43,6 +53,7 @@ typedef struct {
     double min_irradiance;
     int fill_given;
     double fill_given_value;
+    const uint8_t *orient;     /* fill class per facet (fill_class_of); NULL: one fill for all */
     const double *esun;        /* the sun's part of esky, never pooled (irradiance.ply) */
     const rs_pool *pool;       /* NULL: each facet's own gather (pool.h) */
 } refl_in;
@@ -51,10 +62,21 @@ typedef struct {
     double *rho, *G, *Lfill;
     double *E, *scratch;       /* E_sky + G as divided by (pooled), and room for 3 per facet */
     uint8_t *estimable;
-    double fill[3];
+    double fill[3];            /* the mean of all estimable facets */
+    double fill_class[RS_FILL_CLASSES][3];   /* what unobserved facets of each orientation take */
     int iterations;
     size_t blowups;            /* paper: rows whose kernel sums past pi */
 } refl_out;
+
+static uint8_t fill_class_of(rs_v3 n)
+{
+    return n.z > RS_FILL_CLASS_COS ? RS_FILL_UP : (n.z < -RS_FILL_CLASS_COS ? RS_FILL_DOWN : RS_FILL_SIDE);
+}
+
+static const double *fill_of(const refl_in *in, const refl_out *out, size_t i)
+{
+    return out->fill_class[in->orient ? in->orient[i] : RS_FILL_SIDE];
+}
 
 /* P(|N(0, 1)| <= 1.2816) = 0.80: the two-sided 80 % bound of a normal error, in sigmas. */
 #define RS_NORMAL_Z80 1.2816
@@ -105,10 +127,10 @@ static void total_irradiance(const refl_in *in, refl_out *out)
     for (size_t k = 0; k < n3; k++) out->E[k] += in->esun[k];
 }
 
-/* One pass: albedo and estimable flags from out->E, then the fill albedo. */
+/* One pass: albedo and estimable flags from out->E, then the fill albedos. */
 static void estimate(const refl_in *in, refl_out *out, double Emin)
 {
-    double sum[3] = {0, 0, 0}, wsum = 0;
+    double sum[RS_FILL_CLASSES][3] = {{0}}, wsum[RS_FILL_CLASSES] = {0};
     for (size_t i = 0; i < in->nf; i++) {
         const double *E = out->E + 3 * i;
         int ok = in->observed[i];
@@ -123,12 +145,20 @@ static void estimate(const refl_in *in, refl_out *out, double Emin)
         out->estimable[i] = (uint8_t)ok;
         for (int ch = 0; ch < 3; ch++) out->rho[3 * i + ch] = ok ? M_PI * in->L[3 * i + ch] / E[ch] : 0;
         if (ok) {
-            for (int ch = 0; ch < 3; ch++) sum[ch] += in->area[i] * out->rho[3 * i + ch];
-            wsum += in->area[i];
+            int c = in->orient ? in->orient[i] : RS_FILL_SIDE;
+            for (int ch = 0; ch < 3; ch++) sum[c][ch] += in->area[i] * out->rho[3 * i + ch];
+            wsum[c] += in->area[i];
         }
     }
-    for (int ch = 0; ch < 3; ch++)
-        out->fill[ch] = in->fill_given ? in->fill_given_value : (wsum > 0 ? sum[ch] / wsum : 0.5);
+    double all = wsum[0] + wsum[1] + wsum[2], prior = RS_FILL_PRIOR_SHARE * all;
+    for (int ch = 0; ch < 3; ch++) {
+        double s = sum[0][ch] + sum[1][ch] + sum[2][ch];
+        out->fill[ch] = in->fill_given ? in->fill_given_value : (all > 0 ? s / all : 0.5);
+        for (int c = 0; c < RS_FILL_CLASSES; c++)
+            out->fill_class[c][ch] = in->fill_given || !(all > 0)
+                                         ? out->fill[ch]
+                                         : (sum[c][ch] + prior * out->fill[ch]) / (wsum[c] + prior);
+    }
 }
 
 static int solve(const refl_in *in, refl_out *out)
@@ -146,7 +176,8 @@ static int solve(const refl_in *in, refl_out *out)
     free(e);
 
     memset(out->Lfill, 0, 3 * nf * sizeof *out->Lfill);
-    double prev[3] = {-1, -1, -1};
+    double prev[RS_FILL_CLASSES][3];
+    for (int c = 0; c < RS_FILL_CLASSES; c++) prev[c][0] = prev[c][1] = prev[c][2] = -1;
     for (out->iterations = 1; out->iterations <= 200; out->iterations++) {
         compute_G(in, out->Lfill, out->G);
         total_irradiance(in, out);
@@ -155,18 +186,20 @@ static int solve(const refl_in *in, refl_out *out)
         double change = 0;
         for (size_t i = 0; i < nf; i++) {
             if (in->observed[i]) continue;
+            const double *fill = fill_of(in, out, i);
             for (int ch = 0; ch < 3; ch++) {
-                double Lnew = out->fill[ch] * out->E[3 * i + ch] / M_PI;
+                double Lnew = fill[ch] * out->E[3 * i + ch] / M_PI;
                 double d = fabs(Lnew - out->Lfill[3 * i + ch]) / fmax(fabs(Lnew), 1e-30);
                 if (d > change) change = d;
                 out->Lfill[3 * i + ch] = Lnew;
             }
         }
-        for (int ch = 0; ch < 3; ch++) {
-            double d = fabs(out->fill[ch] - prev[ch]);
-            if (d > change) change = d;
-            prev[ch] = out->fill[ch];
-        }
+        for (int c = 0; c < RS_FILL_CLASSES; c++)
+            for (int ch = 0; ch < 3; ch++) {
+                double d = fabs(out->fill_class[c][ch] - prev[c][ch]);
+                if (d > change) change = d;
+                prev[c][ch] = out->fill_class[c][ch];
+            }
         if (change < 1e-7) break;
     }
     if (in->method == 1) memset(out->G, 0, 3 * nf * sizeof *out->G);
@@ -186,7 +219,7 @@ static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in
      * estimable = 0 says it is assumed, not measured. */
     for (size_t i = 0; i < nf; i++)
         for (int ch = 0; ch < 3; ch++)
-            alb[3 * i + ch] = out->estimable[i] ? out->rho[3 * i + ch] : out->fill[ch];
+            alb[3 * i + ch] = out->estimable[i] ? out->rho[3 * i + ch] : fill_of(in, out, i)[ch];
     if (rs_faceprop_add_rgb(faces, "albedo", alb) != 0 || rs_faceprop_add_rgb(faces, "radiance", in->L) != 0 ||
         rs_faceprop_add_rgb(faces, "irradiance_sky", in->esky) != 0 ||
         rs_faceprop_add_rgb(faces, "irradiance_inter", out->G) != 0)
@@ -222,9 +255,11 @@ static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in
         }
         if (!rs_ply_add_scalar(faces, rgbnames[ch], RS_PLY_UINT8, tmp)) goto oom;
     }
-    rs_ply_add_comment(ply, "rhoscan %s reflectance: method %s; albedo of non-estimable facets is the fill "
-                            "%.4f %.4f %.4f", RHOSCAN_VERSION, rs_config_string(cfg, "reflectance", "method"),
-                       out->fill[0], out->fill[1], out->fill[2]);
+    rs_ply_add_comment(ply, "rhoscan %s reflectance: method %s; albedo of non-estimable facets is the fill of "
+                            "their orientation: up %.4f %.4f %.4f, side %.4f %.4f %.4f, down %.4f %.4f %.4f",
+                       RHOSCAN_VERSION, rs_config_string(cfg, "reflectance", "method"), out->fill_class[0][0],
+                       out->fill_class[0][1], out->fill_class[0][2], out->fill_class[1][0], out->fill_class[1][1],
+                       out->fill_class[1][2], out->fill_class[2][0], out->fill_class[2][1], out->fill_class[2][2]);
     rs_ply_add_comment(ply, "rhoscan_fill_albedo %.9g %.9g %.9g", out->fill[0], out->fill[1], out->fill[2]);
     rs_ply_add_comment(ply, "albedo_sigma_rel: standard (1 sigma) relative uncertainty of the albedo = sqrt(%.4g^2 + "
                             "radiance_sigma_rel^2 + (irradiance_sky_sigma^2 + irradiance_mc_sigma^2) / (E_sky + G)^2); "
@@ -285,7 +320,7 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     if (!mesh) return -1;
     size_t nf = mesh->nfaces;
     double *buf = calloc(24 * nf + 1, sizeof *buf);
-    uint8_t *flags = calloc(3 * nf + 1, 1);
+    uint8_t *flags = calloc(4 * nf + 1, 1);
     double *pbuf = calloc(10 * nf + 1, sizeof *pbuf);   /* E, scratch, esun, inv_dist */
     rs_pool pool = {0};
     if (!buf || !flags || !pbuf) {
@@ -294,11 +329,13 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     }
     double *area = buf, *L = buf + nf, *esky = buf + 4 * nf, *gseen = buf + 7 * nf, *obsd = buf + 10 * nf;
     double *esun = pbuf + 6 * nf, *inv_dist = pbuf + 9 * nf;
-    uint8_t *gathered = flags + 2 * nf;
-    refl_out ro = {buf + 11 * nf, buf + 14 * nf, buf + 17 * nf, pbuf, pbuf + 3 * nf, flags + nf, {0, 0, 0}, 0, 0};
+    uint8_t *gathered = flags + 2 * nf, *orient = flags + 3 * nf;
+    refl_out ro = {.rho = buf + 11 * nf, .G = buf + 14 * nf, .Lfill = buf + 17 * nf, .E = pbuf,
+                   .scratch = pbuf + 3 * nf, .estimable = flags + nf};
     for (size_t f = 0; f < nf; f++) {
         rs_v3 c, n;
         rs_mesh_face(mesh, f, &c, &n, &area[f]);
+        orient[f] = fill_class_of(n);
     }
     const char *method = rs_config_string(cfg, "reflectance", "method");
     int m = strcmp(method, "direct") == 0 ? 1 : (strcmp(method, "paper") == 0 ? 2 : 0);
@@ -354,7 +391,9 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     refl_in in = {nf, area, L, esky, gseen, buf + 20 * nf, buf + 21 * nf, buf + 23 * nf, buf + 22 * nf,
                   rs_config_real(cfg, "reflectance", "albedo_sigma_floor"), flags, K, dense, m,
                   rs_config_real(cfg, "reflectance", "min_irradiance"),
-                  rs_config_has(cfg, "reflectance", "unobserved_albedo"), 0, esun, pool.start ? &pool : NULL};
+                  rs_config_has(cfg, "reflectance", "unobserved_albedo"), 0,
+                  strcmp(rs_config_string(cfg, "reflectance", "unobserved_albedo_by"), "all") == 0 ? NULL : orient,
+                  esun, pool.start ? &pool : NULL};
     if (in.fill_given) in.fill_given_value = rs_config_real(cfg, "reflectance", "unobserved_albedo");
     t0 = rs_now();
     if (solve(&in, &ro) != 0) {
@@ -397,11 +436,17 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_int(rep->metrics, "fill_iterations", ro.iterations);
     rs_json *fill = rs_json_set_arr(rep->metrics, "fill_albedo");
     for (int ch = 0; ch < 3; ch++) rs_json_push_num(fill, ro.fill[ch]);
+    rs_json *by = rs_json_set_obj(rep->metrics, "fill_albedo_by_orientation");
+    for (int c = 0; c < RS_FILL_CLASSES; c++) {
+        rs_json *a = rs_json_set_arr(by, fill_class_name[c]);
+        for (int ch = 0; ch < 3; ch++) rs_json_push_num(a, ro.fill_class[c][ch]);
+    }
     if (nobs > nest)
         rs_report_skip(rep, "albedo of observed facets", "%zu observed facets receive too little light "
                        "or are degenerate: flagged estimable = 0", nobs - nest);
-    rs_log_info("reflectance (%s): %zu facets, %zu observed, %zu estimable; fill albedo %.3f %.3f %.3f",
-                method, nf, nobs, nest, ro.fill[0], ro.fill[1], ro.fill[2]);
+    rs_log_info("reflectance (%s): %zu facets, %zu observed, %zu estimable; fill albedo up %.3f, side %.3f, "
+                "down %.3f (luminance)", method, nf, nobs, nest, lum3(ro.fill_class[RS_FILL_UP]),
+                lum3(ro.fill_class[RS_FILL_SIDE]), lum3(ro.fill_class[RS_FILL_DOWN]));
     rc = write_albedo(cfg, mesh, &in, &ro, err);
 out:
     free(buf);
