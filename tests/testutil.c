@@ -124,6 +124,27 @@ double rs_test_json_number(const char *path, const char *key)
     return strtod(p + strlen(pat), NULL);
 }
 
+void rs_test_json_rgb(const char *path, const char *key, double v[3])
+{
+    const char *p = rs_test_read_text(path);
+    char pat[128];
+    for (const char *k = key; p && *k;) {
+        size_t n = strcspn(k, "/");
+        snprintf(pat, sizeof pat, "\"%.*s\"", (int)n, k);
+        p = strstr(p, pat);
+        k += n + (k[n] == '/');
+    }
+    assert_non_null(p);
+    p = strchr(p, '[');
+    assert_non_null(p);
+    for (int ch = 0; ch < 3; ch++) {
+        char *end;
+        v[ch] = strtod(p + 1, &end);
+        assert_true(end != p + 1);
+        p = end;
+    }
+}
+
 void rs_test_rhoscan(const char *dir, const char *sets)
 {
     char cmd[8192], *out = NULL;

@@ -25,6 +25,9 @@ const char *rs_test_read_text(const char *path);
 /* The number after "key": in a stage's JSON file (its first occurrence); fails the test when
  * the key is absent. */
 double rs_test_json_number(const char *path, const char *key);
+/* The three numbers of the array after "key" in a stage's JSON file; key may be "outer/inner"
+ * (inner's first occurrence after outer's). Fails the test when a key or a number is absent. */
+void rs_test_json_rgb(const char *path, const char *key, double v[3]);
 
 /* RHOSCAN_SHARED_DIR when it exists. When it does not: prints why and exits 77 (ctest skip),
  * or exits 1 under CI=true, where the data must be there. */
