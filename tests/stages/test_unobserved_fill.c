@@ -25,7 +25,7 @@ static void run_case(const char *extra, double *wall, double *hidden, double fil
     assert_non_null(m);
     double s2 = sqrt(2.0), s20 = sqrt(20.0);
     const double ground[9] = {0, 0, 0, s2, 0, 0, 0, s2, 0};          /* +z, 1 m^2 */
-    const double wallv[9] = {5, 0, 0, 5, 0, s20, 5, s20, 0};          /* -x, 10 m^2 */
+    const double wallv[9] = {5, 0, 0, 5, s20, 0, 5, 0, s20};          /* +x, toward the hidden ground, 10 m^2 */
     const double hiddenv[9] = {10, 0, 0, 10 + s2, 0, 0, 10, s2, 0};   /* +z, 1 m^2 */
     put_tri(m, 0, ground);
     put_tri(m, 1, wallv);
