@@ -192,7 +192,7 @@ def compare(a, inside, rhoscan, log, wdir, base, second, true_sky, first_stages)
 
 def run_pair(a, rhoscan, log, name, inside, outside):
     """The six runs of one pair (scan and exact geometry, each with one capture, two and the true
-    sky); returns (header, [(title, results)])."""
+    sky); returns the part names, the pair's heading and [(title, results)] for write_tables."""
     tin, cam_in, rot_in = pose(inside)
     tout, cam_out, rot_out = pose(outside)
     check_same_scene(tin, tout)
