@@ -14,6 +14,9 @@ import argparse, json, os, shutil, subprocess, sys, tempfile
 
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import digests  # noqa: E402
+
 
 def skip_or_fail(msg):
     if os.environ.get('CI') == 'true':
@@ -83,6 +86,8 @@ def main():
     ap.add_argument('--min-coverage', type=float, default=0.95)
     ap.add_argument('--keep', help='work folder to keep (default: a temporary one)')
     ap.add_argument('--set', action='append', default=[], help='extra section.key=value')
+    ap.add_argument('--digests', help='compare every output of both runs with these digests (digests.py)')
+    ap.add_argument('--record-digests', action='store_true', help='write --digests instead')
     ARGS = ap.parse_args()
     scene_dir = os.path.join(ARGS.shared, 'reference', ARGS.scene)
     if not ARGS.shared or not os.path.isdir(scene_dir):
@@ -104,6 +109,8 @@ def main():
     r = subprocess.run([rhoscan, 'run', cfg] + sets)
     if r.returncode != 0:
         print('FAIL: rhoscan run exited %d' % r.returncode); sys.exit(1)
+    places = [(work, '$WORK'), (tmp, '$RUN'), (scene_dir, '$SCENE')]
+    outputs = digests.digest_folder(work, places) if ARGS.digests else {}
     inter = evaluate(scene_dir, os.path.join(work, 'albedo.ply'), os.path.join(tmp, 'eval_interreflection.json'))
     irr = compare_irradiance(scene_dir, work)
     shutil.copy(os.path.join(work, 'albedo.ply'), os.path.join(tmp, 'albedo_interreflection.ply'))
@@ -115,6 +122,10 @@ def main():
     for stage in ('ingest', 'mesh', 'observe', 'irradiance'):
         if 'skipped stage %s' % stage not in r.stderr:
             print('FAIL: changing the method reran %s' % stage); ok = False
+    if ARGS.digests:
+        outputs.update(digests.digest_folder(work, places, prefix='direct/'))
+        for problem in digests.check(outputs, ARGS.digests, ARGS.record_digests):
+            print('FAIL: ' + problem); ok = False
     direct = evaluate(scene_dir, os.path.join(work, 'albedo.ply'), os.path.join(tmp, 'eval_direct.json'))
     if inter is None or direct is None:
         print('FAIL: the evaluator failed'); sys.exit(1)

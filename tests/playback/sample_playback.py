@@ -18,6 +18,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 from plyread import read_ply  # noqa: E402
+import digests  # noqa: E402
 
 
 def get(d, path):
@@ -71,6 +72,8 @@ def main():
     ap.add_argument('--expected', required=True)
     ap.add_argument('--record', action='store_true')
     ap.add_argument('--keep')
+    ap.add_argument('--digests', help='compare every output with these digests (digests.py)')
+    ap.add_argument('--record-digests', action='store_true', help='write --digests instead')
     a = ap.parse_args()
     exp = json.load(open(a.expected))
     tmp = a.keep or tempfile.mkdtemp(prefix='rhoscan-playback-')
@@ -79,6 +82,11 @@ def main():
     if r.returncode != 0:
         print('FAIL: rhoscan run exited %d' % r.returncode); return 1
     ok = True
+    if a.digests:
+        src = os.path.dirname(os.path.dirname(HERE))
+        places = [(work, '$WORK'), (os.path.dirname(os.path.abspath(a.config)), '$CONFIGS'), (src, '$SRC')]
+        for problem in digests.check(digests.digest_folder(work, places), a.digests, a.record_digests):
+            print('FAIL: ' + problem); ok = False
     for name in exp['outputs']:
         if not os.path.exists(os.path.join(work, name)):
             print('FAIL: output %s missing' % name); ok = False
