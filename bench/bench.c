@@ -1,7 +1,7 @@
 /* rhoscan-bench: run time against albedo error on procedural building scenes with a known
  * answer. Per facet count: scene, sky, truth and panorama into WORK/facets_N, then the real stage
  * programs (observe, irradiance, reflectance, render) per sweep row, one CSV line per row. */
-#define _DEFAULT_SOURCE   /* wait4, getopt_long */
+#define _DEFAULT_SOURCE /* wait4, getopt_long */
 #include <errno.h>
 #include <getopt.h>
 #include <limits.h>
@@ -24,10 +24,10 @@
 #include "truth.h"
 
 typedef struct {
-    const char *name;          /* row label in the CSV */
-    int samples, sky, sun;     /* [irradiance] samples, sky_samples, sun_samples */
-    const char *method;        /* [reflectance] method */
-    const char *extra;         /* further overrides, "section.key=value" separated by spaces, or "" */
+    const char *name;      /* row label in the CSV */
+    int samples, sky, sun; /* [irradiance] samples, sky_samples, sun_samples */
+    const char *method;    /* [reflectance] method */
+    const char *extra;     /* further overrides, "section.key=value" separated by spaces, or "" */
 } bench_row;
 
 /* The accuracy sweep at small facet counts; `scale` rows at every count. Rows that differ in
@@ -66,9 +66,10 @@ static const bench_row SWEEP[] = {
     {"direct", 256, 512, 64, "direct", ""},
     {"paper", 256, 512, 64, "paper", ""},
 };
-static const char *const FULL_ROWS = "s16,s32,s64,s128,default,s1024,scale,scale_adaptive,scale_target,s64_target,"
-                                     "s64_target_05,s64_target_10,default_target,scale_all_facets,default_all_facets,default_trace_convex,"
-                                     "no_sun_rays,cosine_only,direct,paper";
+static const char *const FULL_ROWS =
+    "s16,s32,s64,s128,default,s1024,scale,scale_adaptive,scale_target,s64_target,"
+    "s64_target_05,s64_target_10,default_target,scale_all_facets,default_all_facets,default_trace_convex,"
+    "no_sun_rays,cosine_only,direct,paper";
 static const char *const SCALE_ROWS = "scale,survey,survey_no_relay,scale_adaptive,scale_target,scale_all_facets,"
                                       "scale_trace_convex";
 
@@ -76,8 +77,8 @@ typedef struct {
     char bindir[PATH_MAX], work[PATH_MAX], csv[PATH_MAX + 256];
     const char *sky;
     int width, threads, truth_factor, full;
-    const char *rows;          /* comma-separated row names, NULL: by --sweep */
-    const char *sampling_ref;  /* row whose albedo, from another seed, measures sampling error */
+    const char *rows;         /* comma-separated row names, NULL: by --sweep */
+    const char *sampling_ref; /* row whose albedo, from another seed, measures sampling error */
     uint32_t seed;
 } bench_opts;
 
@@ -131,7 +132,7 @@ static int run_stage(const bench_opts *o, const char *stage, const char *config,
     snprintf(json, sizeof json, "%.*s%s.json", slash ? (int)(slash - config + 1) : 0, config, stage);
     struct stat st;
     double own = json_num(json, "peak_rss_mb");
-    if (stat(json, &st) == 0 && st.st_mtime >= started && own > 0) *peak_mb = own;   /* written by this run */
+    if (stat(json, &st) == 0 && st.st_mtime >= started && own > 0) *peak_mb = own; /* written by this run */
     *cpu_s = ru.ru_utime.tv_sec + ru.ru_stime.tv_sec + 1e-6 * (ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
     if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
         fprintf(stderr, "rhoscan-bench: %s failed (status %d)\n", prog, status);
@@ -142,7 +143,7 @@ static int run_stage(const bench_opts *o, const char *stage, const char *config,
 
 typedef struct {
     double albedo_err, albedo_p90, irr_err, estimable_share;
-    double sampling_err;       /* against the --sampling-ref albedo; NAN without one */
+    double sampling_err; /* against the --sampling-ref albedo; NAN without one */
 } bench_err;
 
 /* The --sampling-ref run's albedo per facet (3 channels; NAN where not estimable). */
@@ -177,8 +178,10 @@ static int measure(const char *dir, const rs_bench_truth *t, const bench_ref *re
         rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory or facet count differs from the truth");
         goto out;
     }
-    if (rs_faceprop_get_rgb(ply, path, "albedo", nf, rho, err) || rs_faceprop_get_rgb(ply, path, "irradiance_sky", nf, es, err) ||
-        rs_faceprop_get_rgb(ply, path, "irradiance_inter", nf, gi, err) || rs_faceprop_get(ply, path, "estimable", nf, est, err))
+    if (rs_faceprop_get_rgb(ply, path, "albedo", nf, rho, err) ||
+        rs_faceprop_get_rgb(ply, path, "irradiance_sky", nf, es, err) ||
+        rs_faceprop_get_rgb(ply, path, "irradiance_inter", nf, gi, err) ||
+        rs_faceprop_get(ply, path, "estimable", nf, est, err))
         goto out;
     if (copy_ref) {
         copy_ref->rho = malloc(3 * nf * sizeof *copy_ref->rho);
@@ -207,7 +210,8 @@ static int measure(const char *dir, const rs_bench_truth *t, const bench_ref *re
         se += a * ee;
         if (ref && ref->rho[3 * f] > 0 && ref->rho[3 * f + 1] > 0 && ref->rho[3 * f + 2] > 0) {
             double es3 = 0;
-            for (int ch = 0; ch < 3; ch++) es3 += fabs(rho[3 * f + ch] - ref->rho[3 * f + ch]) / ref->rho[3 * f + ch] / 3;
+            for (int ch = 0; ch < 3; ch++)
+                es3 += fabs(rho[3 * f + ch] - ref->rho[3 * f + ch]) / ref->rho[3 * f + ch] / 3;
             ss += a * es3;
             wss += a;
         }
@@ -275,9 +279,9 @@ static rs_bench_truth *prepare(const bench_opts *o, size_t facets, const bench_r
     if (part)
         for (size_t f = 0; f < sc->mesh->nfaces; f++) part[f] = sc->part[f];
     int bad = !faces || !part || rs_faceprop_add_rgb(faces, "albedo", t->rho) != 0 ||
-              rs_faceprop_add_rgb(faces, "irradiance_sky", t->esky) != 0 ||
-              rs_faceprop_add_rgb(faces, "irradiance_inter", t->G) != 0 || rs_faceprop_add_rgb(faces, "radiance", t->L) != 0 ||
-              !rs_ply_add_scalar(faces, "part", RS_PLY_UINT32, part);
+        rs_faceprop_add_rgb(faces, "irradiance_sky", t->esky) != 0 ||
+        rs_faceprop_add_rgb(faces, "irradiance_inter", t->G) != 0 ||
+        rs_faceprop_add_rgb(faces, "radiance", t->L) != 0 || !rs_ply_add_scalar(faces, "part", RS_PLY_UINT32, part);
     free(part);
     if (bad) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for truth.ply");
@@ -291,8 +295,9 @@ static rs_bench_truth *prepare(const bench_opts *o, size_t facets, const bench_r
         rs_err_errno(err, path, "cannot write");
         goto fail;
     }
-    fprintf(f, "; written by rhoscan-bench: %zu facets, truth with %d x the samples\n[pipeline]\nworkdir = .\n"
-               "threads = %d\n[mesh]\ninput_mesh = scene.ply\n[capture]\npanorama = pano.exr\nposition = %.6f %.6f %.6f\n",
+    fprintf(f,
+            "; written by rhoscan-bench: %zu facets, truth with %d x the samples\n[pipeline]\nworkdir = .\n"
+            "threads = %d\n[mesh]\ninput_mesh = scene.ply\n[capture]\npanorama = pano.exr\nposition = %.6f %.6f %.6f\n",
             sc->mesh->nfaces, F, o->threads, sc->camera.x, sc->camera.y, sc->camera.z);
     fclose(f);
     goto out;
@@ -398,10 +403,11 @@ static int bench_size(const bench_opts *o, size_t facets, FILE *csv)
     }
     for (int r = 0; r < nrows; r++) {
         const bench_row *row = &rows[r];
-        if (!strcmp(row->method, "paper") && nf > 4000) continue;     /* O(m^3): [reflectance] paper_max_facets */
+        if (!strcmp(row->method, "paper") && nf > 4000) continue; /* O(m^3): [reflectance] paper_max_facets */
         double tt[3], mm[3], cc[3];
         if (run_row(o, row, config, NULL, 1, tt, mm, cc) != 0) goto out;
-        double ti = tt[0], tr = tt[1], tn = tt[2], mi = mm[0], mr = mm[1], mn = mm[2], ci = cc[0], cr = cc[1], cn = cc[2];
+        double ti = tt[0], tr = tt[1], tn = tt[2], mi = mm[0], mr = mm[1], mn = mm[2], ci = cc[0], cr = cc[1],
+               cn = cc[2];
         bench_err e;
         if (measure(dir, t, ref_row ? &ref : NULL, NULL, &e, &err) != 0) {
             print_err(&err);
@@ -411,15 +417,19 @@ static int bench_size(const bench_opts *o, size_t facets, FILE *csv)
         snprintf(jp, sizeof jp, "%s/irradiance.json", dir);
         double rays = json_num(jp, "rays"), rps = json_num(jp, "rays_per_second");
         double peak = fmax(fmax(m_obs, mi), fmax(mr, mn)), total = t_obs + ti + tr + tn;
-        fprintf(csv, "%zu,%s,%s,%d,%d,%d,%s,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.1f,%.0f,%.4g,%.5f,%.5f,"
-                     "%.5f,%.4f,%.1f,%.1f,%.1f,%.1f,%.5f\n", nf, row->name, row->method, row->samples, row->sky, row->sun,
-                row->extra[0] ? row->extra : "-", o->threads, t_obs, ti, tr, tn, total, c_obs, ci, cr, cn, peak, rays,
-                rps, e.albedo_err, e.albedo_p90, e.irr_err, e.estimable_share, m_obs, mi, mr, mn, e.sampling_err);
+        fprintf(csv,
+                "%zu,%s,%s,%d,%d,%d,%s,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.1f,%.0f,%.4g,%.5f,%.5f,"
+                "%.5f,%.4f,%.1f,%.1f,%.1f,%.1f,%.5f\n",
+                nf, row->name, row->method, row->samples, row->sky, row->sun, row->extra[0] ? row->extra : "-",
+                o->threads, t_obs, ti, tr, tn, total, c_obs, ci, cr, cn, peak, rays, rps, e.albedo_err, e.albedo_p90,
+                e.irr_err, e.estimable_share, m_obs, mi, mr, mn, e.sampling_err);
         fflush(csv);
-        fprintf(stderr, "rhoscan-bench: %zu facets %-12s total %7.2f s (obs %.2f irr %.2f refl %.2f render %.2f; cpu %.2f) "
-                        "peak %.0f MB (obs %.0f irr %.0f refl %.0f render %.0f)  albedo err %.4f  E err %.4f  sampling err %.4f\n",
-                nf, row->name, total, t_obs, ti, tr, tn, c_obs + ci + cr + cn, peak, m_obs, mi, mr, mn, e.albedo_err,
-                e.irr_err, e.sampling_err);
+        fprintf(
+            stderr,
+            "rhoscan-bench: %zu facets %-12s total %7.2f s (obs %.2f irr %.2f refl %.2f render %.2f; cpu %.2f) "
+            "peak %.0f MB (obs %.0f irr %.0f refl %.0f render %.0f)  albedo err %.4f  E err %.4f  sampling err %.4f\n",
+            nf, row->name, total, t_obs, ti, tr, tn, c_obs + ci + cr + cn, peak, m_obs, mi, mr, mn, e.albedo_err,
+            e.irr_err, e.sampling_err);
     }
     rc = 0;
 out:
@@ -454,9 +464,10 @@ int main(int argc, char **argv)
     snprintf(o.work, sizeof o.work, "bench-work");
     char facets[1024] = "2000";
     static const struct option longopts[] = {
-        {"facets", 1, 0, 'f'}, {"sweep", 1, 0, 'w'}, {"work", 1, 0, 'o'}, {"csv", 1, 0, 'c'},
-        {"sky", 1, 0, 's'}, {"width", 1, 0, 'W'}, {"threads", 1, 0, 't'}, {"truth-factor", 1, 0, 'F'},
-        {"seed", 1, 0, 'S'}, {"rows", 1, 0, 'r'}, {"sampling-ref", 1, 0, 'R'}, {"help", 0, 0, 'h'}, {0, 0, 0, 0}};
+        {"facets", 1, 0, 'f'}, {"sweep", 1, 0, 'w'}, {"work", 1, 0, 'o'},         {"csv", 1, 0, 'c'},
+        {"sky", 1, 0, 's'},    {"width", 1, 0, 'W'}, {"threads", 1, 0, 't'},      {"truth-factor", 1, 0, 'F'},
+        {"seed", 1, 0, 'S'},   {"rows", 1, 0, 'r'},  {"sampling-ref", 1, 0, 'R'}, {"help", 0, 0, 'h'},
+        {0, 0, 0, 0}};
     int c;
     o.csv[0] = 0;
     while ((c = getopt_long(argc, argv, "h", longopts, NULL)) != -1) {
@@ -495,8 +506,10 @@ int main(int argc, char **argv)
     if (!csv) return fprintf(stderr, "rhoscan-bench: %s: %s\n", o.csv, strerror(errno)), 2;
     if (fresh)
         fputs("facets,row,method,samples,sky_samples,sun_samples,extra,threads,t_observe,t_irradiance,"
-              "t_reflectance,t_render,t_total,cpu_observe,cpu_irradiance,cpu_reflectance,cpu_render,peak_mb,rays,rays_per_s,albedo_err,albedo_err_p90,irradiance_err,"
-              "estimable_share,peak_observe_mb,peak_irradiance_mb,peak_reflectance_mb,peak_render_mb,sampling_err\n", csv);
+              "t_reflectance,t_render,t_total,cpu_observe,cpu_irradiance,cpu_reflectance,cpu_render,peak_mb,rays,rays_"
+              "per_s,albedo_err,albedo_err_p90,irradiance_err,"
+              "estimable_share,peak_observe_mb,peak_irradiance_mb,peak_reflectance_mb,peak_render_mb,sampling_err\n",
+              csv);
     int rc = 0;
     char *save = NULL;
     for (char *tok = strtok_r(facets, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {

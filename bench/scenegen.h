@@ -9,10 +9,10 @@
 
 typedef struct rs_bench_scene {
     rs_mesh *mesh;
-    uint32_t *part;            /* per facet: the part (box, ring, ground) it belongs to */
-    double *albedo;            /* 3 per part: the true albedo, linear */
+    uint32_t *part; /* per facet: the part (box, ring, ground) it belongs to */
+    double *albedo; /* 3 per part: the true albedo, linear */
     size_t nparts;
-    rs_v3 camera;              /* a street-level camera position (m, world) */
+    rs_v3 camera; /* a street-level camera position (m, world) */
 } rs_bench_scene;
 
 /* Builds a scene of about target_facets facets (within a few percent; at least a few hundred).

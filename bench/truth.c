@@ -17,8 +17,8 @@ static const double SUN_ELEV = 35 * M_PI / 180, SUN_AZ = 80 * M_PI / 180, SUN_RA
 
 static void sky_radiance(rs_v3 d, const rs_v3 sun, double out[3])
 {
-    static const double horizon[3] = {0.55, 0.60, 0.70}, zenith[3] = {0.15, 0.25, 0.55},
-                        glow[3] = {0.9, 0.8, 0.6}, sunc[3] = {1.0, 0.95, 0.85}, below[3] = {0.12, 0.11, 0.10};
+    static const double horizon[3] = {0.55, 0.60, 0.70}, zenith[3] = {0.15, 0.25, 0.55}, glow[3] = {0.9, 0.8, 0.6},
+                        sunc[3] = {1.0, 0.95, 0.85}, below[3] = {0.12, 0.11, 0.10};
     if (d.z < 0) {
         memcpy(out, below, sizeof below);
         return;
@@ -27,7 +27,8 @@ static void sky_radiance(rs_v3 d, const rs_v3 sun, double out[3])
     double t = sqrt(d.z), g = 2.0 * exp(-gamma / 0.15);
     /* Sun: normal irradiance 8 (about six times the sky's horizontal irradiance). */
     double lsun = gamma < SUN_RADIUS ? 8.0 / (M_PI * SUN_RADIUS * SUN_RADIUS) : 0;
-    for (int ch = 0; ch < 3; ch++) out[ch] = horizon[ch] + (zenith[ch] - horizon[ch]) * t + glow[ch] * g + sunc[ch] * lsun;
+    for (int ch = 0; ch < 3; ch++)
+        out[ch] = horizon[ch] + (zenith[ch] - horizon[ch]) * t + glow[ch] * g + sunc[ch] * lsun;
 }
 
 rs_image *rs_bench_sky(int width, const char *hdr_path, rs_err *err)
@@ -58,12 +59,12 @@ rs_image *rs_bench_sky(int width, const char *hdr_path, rs_err *err)
             for (int j = 0; j < n; j++)
                 for (int i = 0; i < n; i++) {
                     double u = (c + (i + 0.5) / n) / w, v = (r + (j + 0.5) / n) / h, val[3];
-                    double sw = sin(M_PI * v);          /* solid-angle weight within the pixel */
+                    double sw = sin(M_PI * v); /* solid-angle weight within the pixel */
                     if (src) {
                         float f[3];
                         rs_pano_sample(src, u, v, f);
                         for (int ch = 0; ch < 3; ch++) val[ch] = isfinite(f[ch]) && f[ch] > 0 ? f[ch] : 0;
-                    } else if (overcast) {             /* CIE overcast: (1 + 2 cos theta) / 3 */
+                    } else if (overcast) { /* CIE overcast: (1 + 2 cos theta) / 3 */
                         rs_v3 d = rs_pano_uv_to_dir(u, v);
                         for (int ch = 0; ch < 3; ch++) val[ch] = d.z > 0 ? 0.8 * (1 + 2 * d.z) / 3 : 0.12;
                     } else {
@@ -114,15 +115,15 @@ static void camera_facets(const rs_scene *scene, rs_v3 camera, int w, int h, uin
             row_rays(camera, w, h, r, rays);
             rs_scene_intersect(scene, rays, hits, (size_t)w * 4);
             for (int k = 0; k < 4 * w; k++)
-                if (hits[k].face != RS_NO_HIT) seen[hits[k].face] = 1;   /* same value from any thread */
+                if (hits[k].face != RS_NO_HIT) seen[hits[k].face] = 1; /* same value from any thread */
         }
         free(rays);
         free(hits);
     }
 }
 
-rs_bench_truth *rs_bench_truth_new(const rs_bench_scene *sc, const rs_image *sky, int samples,
-                                   int sky_samples, int sun_samples, uint32_t seed, rs_err *err)
+rs_bench_truth *rs_bench_truth_new(const rs_bench_scene *sc, const rs_image *sky, int samples, int sky_samples,
+                                   int sun_samples, uint32_t seed, rs_err *err)
 {
     size_t nf = sc->mesh->nfaces;
     double t0 = rs_now();
@@ -155,8 +156,13 @@ rs_bench_truth *rs_bench_truth_new(const rs_bench_scene *sc, const rs_image *sky
     /* Only what the camera sees and the closure of the light paths ending there: the rest
      * cannot change a pixel (rs_gather_run), and at 10^6 facets it is most of the model. */
     camera_facets(scene, sc->camera, sky->width, sky->height, seen);
-    rs_gather_ctx g = {.scene = scene, .env = &env, .samples = samples, .sky_samples = sky_samples,
-                       .sun_samples = sun_samples, .seed = seed, .skip_convex = 1};  /* rays only */
+    rs_gather_ctx g = {.scene = scene,
+                       .env = &env,
+                       .samples = samples,
+                       .sky_samples = sky_samples,
+                       .sun_samples = sun_samples,
+                       .seed = seed,
+                       .skip_convex = 1}; /* rays only */
     rs_gather_stats st;
     if (rs_gather_run(&g, nf, seen, fg, NULL, NULL, &st) != 0) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory gathering the truth kernel");
@@ -180,7 +186,7 @@ rs_bench_truth *rs_bench_truth_new(const rs_bench_scene *sc, const rs_image *sky
     }
     t->rays = st.rays;
     t->gathered = st.gathered;
-    K.k_unseen = K.k;          /* the solver reads k only */
+    K.k_unseen = K.k; /* the solver reads k only */
     double residual;
     if (rs_transport_solve(&K, t->rho, t->esky, t->L, t->G, 1e-9, 100000, &residual) < 0) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory in the truth's forward solve");

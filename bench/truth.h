@@ -15,10 +15,10 @@ rs_image *rs_bench_sky(int width, const char *hdr_path, rs_err *err);
 
 typedef struct rs_bench_truth {
     size_t nfaces;
-    double *rho;               /* 3 per facet: the true albedo */
-    double *esky, *G, *L;      /* 3 per facet: E_sky, interreflection, outgoing radiance */
-    double rays;               /* rays cast for the truth */
-    size_t gathered;           /* facets gathered: what the camera sees and what lights it */
+    double *rho;          /* 3 per facet: the true albedo */
+    double *esky, *G, *L; /* 3 per facet: E_sky, interreflection, outgoing radiance */
+    double rays;          /* rays cast for the truth */
+    size_t gathered;      /* facets gathered: what the camera sees and what lights it */
     double seconds;
 } rs_bench_truth;
 
@@ -26,8 +26,8 @@ typedef struct rs_bench_truth {
  * (samples, sky_samples, sun_samples) rays and `seed`, then solves
  * L = rho E_sky / pi + diag(rho / pi) K L to 1e-9 (facets left out keep L = 0: no pixel shows
  * them and no light path from them reaches one). NULL with *err on failure. */
-rs_bench_truth *rs_bench_truth_new(const rs_bench_scene *sc, const rs_image *sky, int samples,
-                                   int sky_samples, int sun_samples, uint32_t seed, rs_err *err);
+rs_bench_truth *rs_bench_truth_new(const rs_bench_scene *sc, const rs_image *sky, int samples, int sky_samples,
+                                   int sun_samples, uint32_t seed, rs_err *err);
 void rs_bench_truth_free(rs_bench_truth *t);
 
 /* The panorama seen from sc->camera (identity rotation): facet radiance where a ray hits a

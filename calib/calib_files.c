@@ -29,8 +29,8 @@ int rs_calib_pose_solved(const rs_config *cfg, const char *section)
     /* The key table has these keys for capture sections only; asking [sky] would abort. */
     if (strncmp(section, "capture", 7) != 0 || (section[7] != 0 && section[7] != '.')) return 0;
     return rs_config_has(cfg, section, "correspondences") || rs_config_has(cfg, section, "colmap_panorama") ||
-           (strcmp(section, "capture") == 0 && rs_config_has(cfg, section, "refine_edges") &&
-            rs_config_bool(cfg, section, "refine_edges"));
+        (strcmp(section, "capture") == 0 && rs_config_has(cfg, section, "refine_edges") &&
+         rs_config_bool(cfg, section, "refine_edges"));
 }
 
 int rs_calib_pose_apply(const rs_config *cfg, const char *section, rs_pose *pose, rs_err *err)
@@ -44,7 +44,8 @@ int rs_calib_pose_apply(const rs_config *cfg, const char *section, rs_pose *pose
     if (!rs_file_exists(path))
         return rs_err_set(err, RS_ERR_INPUT, path, 0,
                           "the pose solved for [%s] (correspondences or colmap_panorama) is missing: run the calib "
-                          "stage first", section);
+                          "stage first",
+                          section);
     return rs_calib_pose_read(path, section, pose, err);
 }
 
@@ -155,8 +156,11 @@ int rs_calib_pose_read(const char *path, const char *section, rs_pose *pose, rs_
                 *pose = e[i].pose;
                 rc = 0;
             }
-        if (rc != 0) rs_err_set(err, RS_ERR_INPUT, path, 0, "no pose for [%s]: expected a `section %s` block (run "
-                                "the calib stage again)", section, section);
+        if (rc != 0)
+            rs_err_set(err, RS_ERR_INPUT, path, 0,
+                       "no pose for [%s]: expected a `section %s` block (run "
+                       "the calib stage again)",
+                       section, section);
     }
     free(e);
     return rc;

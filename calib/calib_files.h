@@ -8,8 +8,8 @@
 #include "err.h"
 #include "pano.h"
 
-#define RS_CALIB_PANO_FILE "pano_stitched.exr"   /* written when [rig] is set */
-#define RS_CALIB_POSE_FILE "capture_pose.txt"    /* poses from [capture] correspondences and [colmap] */
+#define RS_CALIB_PANO_FILE "pano_stitched.exr" /* written when [rig] is set */
+#define RS_CALIB_POSE_FILE "capture_pose.txt"  /* poses from [capture] correspondences and [colmap] */
 
 /* Where the capture's panorama comes from. Returns 1 and the stitched panorama's path in out when
  * [rig] file is set (section "capture" only), 0 when the capture reads its own [capture] panorama,

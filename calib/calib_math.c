@@ -11,8 +11,10 @@ void rs_calib_sym_eigen(int n, double *a, double *evals, double *evecs)
         double off = 0, diag = 0;
         for (int i = 0; i < n; i++)
             for (int j = 0; j < n; j++) {
-                if (i == j) diag += a[i * n + j] * a[i * n + j];
-                else off += a[i * n + j] * a[i * n + j];
+                if (i == j)
+                    diag += a[i * n + j] * a[i * n + j];
+                else
+                    off += a[i * n + j] * a[i * n + j];
             }
         if (off <= 1e-30 * (diag > 0 ? diag : 1)) break;
         for (int p = 0; p < n - 1; p++)
@@ -85,7 +87,7 @@ void rs_calib_m3_mul(const double a[9], const double b[9], double out[9])
 
 double rs_calib_rot_angle(const double a[9], const double b[9])
 {
-    double tr = 0;   /* trace(a^T b) */
+    double tr = 0; /* trace(a^T b) */
     for (int i = 0; i < 9; i++) tr += a[i] * b[i];
     double c = (tr - 1) / 2;
     return acos(c > 1 ? 1 : c < -1 ? -1 : c);
@@ -127,12 +129,11 @@ void rs_calib_quat_to_rot(const double q[4], double r[9])
     r[8] = 1 - 2 * (x * x + y * y);
 }
 
-int rs_calib_align(int n, const rs_v3 *src, const rs_v3 *dst, int with_scale, double r[9], rs_v3 *t,
-                   double *s)
+int rs_calib_align(int n, const rs_v3 *src, const rs_v3 *dst, int with_scale, double r[9], rs_v3 *t, double *s)
 {
     if (n < 3 || rs_calib_spread_ratio(n, src) < 1e-9 || rs_calib_spread_ratio(n, dst) < 1e-9) return -1;
     rs_v3 cs = centroid(n, src), cd = centroid(n, dst);
-    double m[9] = {0}, src_var = 0;   /* m[a][b] = sum src_a dst_b, centred */
+    double m[9] = {0}, src_var = 0; /* m[a][b] = sum src_a dst_b, centred */
     for (int i = 0; i < n; i++) {
         rs_v3 a = rs_v3_sub(src[i], cs), b = rs_v3_sub(dst[i], cd);
         double va[3] = {a.x, a.y, a.z}, vb[3] = {b.x, b.y, b.z};
@@ -140,21 +141,18 @@ int rs_calib_align(int n, const rs_v3 *src, const rs_v3 *dst, int with_scale, do
             for (int k = 0; k < 3; k++) m[3 * j + k] += va[j] * vb[k];
         src_var += rs_v3_dot(a, a);
     }
-    double sxx = m[0], sxy = m[1], sxz = m[2], syx = m[3], syy = m[4], syz = m[5], szx = m[6], szy = m[7],
-           szz = m[8];
+    double sxx = m[0], sxy = m[1], sxz = m[2], syx = m[3], syy = m[4], syz = m[5], szx = m[6], szy = m[7], szz = m[8];
     /* Horn's symmetric 4 x 4 matrix: its top eigenvector is the unit quaternion (w, x, y, z). */
-    double nm[16] = {sxx + syy + szz, syz - szy,        szx - sxz,        sxy - syx,
-                     syz - szy,       sxx - syy - szz,  sxy + syx,        szx + sxz,
-                     szx - sxz,       sxy + syx,        -sxx + syy - szz, syz + szy,
-                     sxy - syx,       szx + sxz,        syz + szy,        -sxx - syy + szz};
+    double nm[16] = {sxx + syy + szz, syz - szy, szx - sxz, sxy - syx,       syz - szy,        sxx - syy - szz,
+                     sxy + syx,       szx + sxz, szx - sxz, sxy + syx,       -sxx + syy - szz, syz + szy,
+                     sxy - syx,       szx + sxz, syz + szy, -sxx - syy + szz};
     double ev[4], vec[16];
     rs_calib_sym_eigen(4, nm, ev, vec);
     rs_calib_quat_to_rot((const double[4]){vec[0], vec[4], vec[8], vec[12]}, r);
     double scale = 1;
     if (with_scale) {
         double num = 0;
-        for (int i = 0; i < n; i++)
-            num += rs_v3_dot(rs_v3_sub(dst[i], cd), rs_m3_mul_v(r, rs_v3_sub(src[i], cs)));
+        for (int i = 0; i < n; i++) num += rs_v3_dot(rs_v3_sub(dst[i], cd), rs_m3_mul_v(r, rs_v3_sub(src[i], cs)));
         scale = num / src_var;
         if (!(scale > 0)) return -1;
     }

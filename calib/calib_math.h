@@ -23,8 +23,7 @@ double rs_calib_rot_angle(const double a[9], const double b[9]);
 /* Similarity (or, with with_scale 0, rigid) transform taking src to dst in the least-squares
  * sense, dst ~ s R src + t (Horn 1987, unit quaternions; the scale is Umeyama's 1991 estimate).
  * n >= 3 points not all on one line. Returns -1 when the points are degenerate. */
-int rs_calib_align(int n, const rs_v3 *src, const rs_v3 *dst, int with_scale, double r[9], rs_v3 *t,
-                   double *s);
+int rs_calib_align(int n, const rs_v3 *src, const rs_v3 *dst, int with_scale, double r[9], rs_v3 *t, double *s);
 
 /* Ratio of the second to the largest principal spread of the points (0 when they are all on one
  * line or coincide, about 1 when they spread in at least two directions). */

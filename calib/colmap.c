@@ -11,10 +11,21 @@
 #include "fileio.h"
 
 /* COLMAP 3.8's camera models (src/base/camera_models.h) and their parameter counts. */
-static const struct { const char *name; int params; } camera_models[] = {
-    {"SIMPLE_PINHOLE", 3}, {"PINHOLE", 4},       {"SIMPLE_RADIAL", 4},         {"RADIAL", 5},
-    {"OPENCV", 8},         {"OPENCV_FISHEYE", 8}, {"FULL_OPENCV", 12},         {"FOV", 5},
-    {"SIMPLE_RADIAL_FISHEYE", 4}, {"RADIAL_FISHEYE", 5}, {"THIN_PRISM_FISHEYE", 12}, {NULL, 0}};
+static const struct {
+    const char *name;
+    int params;
+} camera_models[] = {{"SIMPLE_PINHOLE", 3},
+                     {"PINHOLE", 4},
+                     {"SIMPLE_RADIAL", 4},
+                     {"RADIAL", 5},
+                     {"OPENCV", 8},
+                     {"OPENCV_FISHEYE", 8},
+                     {"FULL_OPENCV", 12},
+                     {"FOV", 5},
+                     {"SIMPLE_RADIAL_FISHEYE", 4},
+                     {"RADIAL_FISHEYE", 5},
+                     {"THIN_PRISM_FISHEYE", 12},
+                     {NULL, 0}};
 
 int rs_colmap_model_params(const char *model)
 {
@@ -37,16 +48,22 @@ int rs_ctext_next_line(rs_ctext *c)
         c->next = c->p + strlen(c->p);
     }
     size_t n = strlen(c->p);
-    if (n && c->p[n - 1] == '\r') c->p[n - 1] = 0;   /* files edited on Windows */
+    if (n && c->p[n - 1] == '\r') c->p[n - 1] = 0; /* files edited on Windows */
     c->line++;
     c->field = 0;
     while (*c->p == ' ' || *c->p == '\t') c->p++;
     return 1;
 }
 
-int rs_ctext_blank(const rs_ctext *c) { return c->p[0] == 0 || c->p[0] == '#'; }
+int rs_ctext_blank(const rs_ctext *c)
+{
+    return c->p[0] == 0 || c->p[0] == '#';
+}
 
-int rs_ctext_more(const rs_ctext *c) { return c->p[strspn(c->p, " \t")] != 0; }
+int rs_ctext_more(const rs_ctext *c)
+{
+    return c->p[strspn(c->p, " \t")] != 0;
+}
 
 int rs_ctext_token(rs_ctext *c, char *tok, size_t n)
 {
@@ -72,8 +89,8 @@ int rs_ctext_long(rs_ctext *c, const char *what, long *v, rs_err *err)
     errno = 0;
     *v = strtol(tok, &end, 10);
     if (end == tok || *end || errno)
-        return rs_err_set(err, RS_ERR_INPUT, c->path, c->line, "field %d (%s) = \"%s\": expected an integer",
-                          c->field, what, tok);
+        return rs_err_set(err, RS_ERR_INPUT, c->path, c->line, "field %d (%s) = \"%s\": expected an integer", c->field,
+                          what, tok);
     return 0;
 }
 
@@ -92,8 +109,10 @@ int rs_ctext_end(rs_ctext *c, const char *what, rs_err *err)
 {
     char tok[128];
     if (rs_ctext_token(c, tok, sizeof tok))
-        return rs_err_set(err, RS_ERR_INPUT, c->path, c->line, "field %d = \"%s\": expected the end of the line "
-                          "after %s", c->field, tok, what);
+        return rs_err_set(err, RS_ERR_INPUT, c->path, c->line,
+                          "field %d = \"%s\": expected the end of the line "
+                          "after %s",
+                          c->field, tok, what);
     return 0;
 }
 
@@ -134,16 +153,23 @@ static int read_cameras(const char *path, rs_colmap_model *m, rs_err *err)
         rs_colmap_camera *cam = &m->cameras[m->ncameras];
         memset(cam, 0, sizeof *cam);
         long w, h;
-        if (rs_ctext_long(&c, "CAMERA_ID", &cam->id, err) != 0) rc = -1;
-        else if (!rs_ctext_token(&c, cam->model, sizeof cam->model)) rc = rs_ctext_missing(&c, "MODEL", err);
+        if (rs_ctext_long(&c, "CAMERA_ID", &cam->id, err) != 0)
+            rc = -1;
+        else if (!rs_ctext_token(&c, cam->model, sizeof cam->model))
+            rc = rs_ctext_missing(&c, "MODEL", err);
         else if ((cam->nparams = rs_colmap_model_params(cam->model)) < 0)
-            rc = rs_err_set(err, RS_ERR_INPUT, path, c.line, "field 2 (MODEL) = \"%s\": expected one of COLMAP's "
+            rc = rs_err_set(err, RS_ERR_INPUT, path, c.line,
+                            "field 2 (MODEL) = \"%s\": expected one of COLMAP's "
                             "camera models (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, OPENCV_FISHEYE, "
-                            "FULL_OPENCV, FOV, SIMPLE_RADIAL_FISHEYE, RADIAL_FISHEYE, THIN_PRISM_FISHEYE)", cam->model);
-        else if (rs_ctext_long(&c, "WIDTH", &w, err) != 0 || rs_ctext_long(&c, "HEIGHT", &h, err) != 0) rc = -1;
+                            "FULL_OPENCV, FOV, SIMPLE_RADIAL_FISHEYE, RADIAL_FISHEYE, THIN_PRISM_FISHEYE)",
+                            cam->model);
+        else if (rs_ctext_long(&c, "WIDTH", &w, err) != 0 || rs_ctext_long(&c, "HEIGHT", &h, err) != 0)
+            rc = -1;
         else if (w < 1 || h < 1 || w > 1000000 || h > 1000000)
-            rc = rs_err_set(err, RS_ERR_INPUT, path, c.line, "WIDTH HEIGHT = %ld %ld: expected an image size in "
-                            "pixels, 1 to 1000000", w, h);
+            rc = rs_err_set(err, RS_ERR_INPUT, path, c.line,
+                            "WIDTH HEIGHT = %ld %ld: expected an image size in "
+                            "pixels, 1 to 1000000",
+                            w, h);
         for (int k = 0; rc == 0 && k < cam->nparams; k++) {
             char what[96];
             snprintf(what, sizeof what, "parameter %d of %d of %s", k + 1, cam->nparams, cam->model);
@@ -160,7 +186,8 @@ static int read_cameras(const char *path, rs_colmap_model *m, rs_err *err)
     }
     free(c.text);
     if (rc == 0 && m->ncameras == 0)
-        rc = rs_err_set(err, RS_ERR_INPUT, path, 0, "no camera: expected lines `CAMERA_ID MODEL WIDTH HEIGHT PARAMS...`");
+        rc = rs_err_set(err, RS_ERR_INPUT, path, 0,
+                        "no camera: expected lines `CAMERA_ID MODEL WIDTH HEIGHT PARAMS...`");
     return rc;
 }
 
@@ -262,15 +289,19 @@ static int image_header(rs_ctext *c, const rs_colmap_model *m, rs_colmap_image *
     double qq = im->q[0] * im->q[0] + im->q[1] * im->q[1] + im->q[2] * im->q[2] + im->q[3] * im->q[3];
     /* COLMAP writes unit quaternions to 17 digits; a far-off norm means a broken or hand-made file. */
     if (fabs(sqrt(qq) - 1) > 1e-3)
-        return rs_err_set(err, RS_ERR_INPUT, c->path, c->line, "QW QX QY QZ = %g %g %g %g has norm %g: expected a unit "
-                          "quaternion (world -> camera rotation)", im->q[0], im->q[1], im->q[2], im->q[3], sqrt(qq));
+        return rs_err_set(err, RS_ERR_INPUT, c->path, c->line,
+                          "QW QX QY QZ = %g %g %g %g has norm %g: expected a unit "
+                          "quaternion (world -> camera rotation)",
+                          im->q[0], im->q[1], im->q[2], im->q[3], sqrt(qq));
     for (int k = 0; k < 4; k++) im->q[k] /= sqrt(qq);
     int known = 0;
     for (int k = 0; k < m->ncameras; k++) known |= m->cameras[k].id == im->camera_id;
     if (!known)
-        return rs_err_set(err, RS_ERR_INPUT, c->path, c->line, "field 9 (CAMERA_ID) = %ld: expected a camera of "
-                          "cameras.txt", im->camera_id);
-    rs_calib_quat_to_rot(im->q, im->rot_cam_world);   /* COLMAP's QuaternionToRotationMatrix */
+        return rs_err_set(err, RS_ERR_INPUT, c->path, c->line,
+                          "field 9 (CAMERA_ID) = %ld: expected a camera of "
+                          "cameras.txt",
+                          im->camera_id);
+    rs_calib_quat_to_rot(im->q, im->rot_cam_world); /* COLMAP's QuaternionToRotationMatrix */
     im->centre = rs_v3_scale(rs_m3_mul_vt(im->rot_cam_world, im->t), -1);
     return 0;
 }
@@ -290,8 +321,10 @@ static int image_points(rs_ctext *c, const rs_colmap_model *m, rs_colmap_image *
         im->points2d++;
         if (id == -1) continue;
         if (!rs_colmap_find_point(m, id))
-            return rs_err_set(err, RS_ERR_INPUT, c->path, c->line, "field %d (POINT3D_ID) = %ld: expected -1 or a "
-                              "point of points3D.txt (image %s)", c->field, id, im->name);
+            return rs_err_set(err, RS_ERR_INPUT, c->path, c->line,
+                              "field %d (POINT3D_ID) = %ld: expected -1 or a "
+                              "point of points3D.txt (image %s)",
+                              c->field, id, im->name);
         im->points2d_with_3d++;
     }
     return 0;
@@ -316,23 +349,30 @@ static int read_images(const char *path, rs_colmap_model *m, rs_err *err)
         rs_colmap_image *im = &m->images[m->nimages];
         memset(im, 0, sizeof *im);
         im->line = c.line;
-        if (image_header(&c, m, im, err) != 0) rc = -1;
+        if (image_header(&c, m, im, err) != 0)
+            rc = -1;
         else if (image_by_id(m, im->id))
-            rc = rs_err_set(err, RS_ERR_INPUT, path, c.line, "IMAGE_ID %ld is listed twice (also on line %ld): "
-                            "expected unique ids", im->id, image_by_id(m, im->id)->line);
+            rc = rs_err_set(err, RS_ERR_INPUT, path, c.line,
+                            "IMAGE_ID %ld is listed twice (also on line %ld): "
+                            "expected unique ids",
+                            im->id, image_by_id(m, im->id)->line);
         else if (rs_colmap_find_image(m, im->name))
-            rc = rs_err_set(err, RS_ERR_INPUT, path, c.line, "NAME %s is listed twice: expected unique names",
-                            im->name);
+            rc =
+                rs_err_set(err, RS_ERR_INPUT, path, c.line, "NAME %s is listed twice: expected unique names", im->name);
         /* As in COLMAP's reader, the line after the header is the 2D points, even when empty. */
         else if (!rs_ctext_next_line(&c))
-            rc = rs_err_set(err, RS_ERR_INPUT, path, c.line, "image %s: expected a line of 2D points after it "
-                            "(X Y POINT3D_ID triples, possibly empty), found the end of the file", im->name);
-        else if (image_points(&c, m, im, err) != 0) rc = -1;
+            rc = rs_err_set(err, RS_ERR_INPUT, path, c.line,
+                            "image %s: expected a line of 2D points after it "
+                            "(X Y POINT3D_ID triples, possibly empty), found the end of the file",
+                            im->name);
+        else if (image_points(&c, m, im, err) != 0)
+            rc = -1;
         if (rc == 0) m->nimages++;
     }
     free(c.text);
     if (rc == 0 && m->nimages == 0)
-        rc = rs_err_set(err, RS_ERR_INPUT, path, 0, "no image: expected `IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME` "
+        rc = rs_err_set(err, RS_ERR_INPUT, path, 0,
+                        "no image: expected `IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME` "
                         "lines, each followed by its 2D points");
     return rc;
 }
@@ -354,12 +394,15 @@ static int check_tracks(const char *path, const rs_colmap_model *m, rs_err *err)
             idx = strtol(tok, NULL, 10);
             const rs_colmap_image *im = image_by_id(m, id);
             if (!im)
-                rc = rs_err_set(err, RS_ERR_INPUT, path, c.line, "field %d (TRACK IMAGE_ID) = %ld: expected an "
-                                "image of images.txt", c.field - 1, id);
+                rc = rs_err_set(err, RS_ERR_INPUT, path, c.line,
+                                "field %d (TRACK IMAGE_ID) = %ld: expected an "
+                                "image of images.txt",
+                                c.field - 1, id);
             else if (idx < 0 || idx >= im->points2d)
-                rc = rs_err_set(err, RS_ERR_INPUT, path, c.line, "field %d (TRACK POINT2D_IDX) = %ld: image %ld (%s) "
-                                "has %d 2D points: expected 0 to %d", c.field, idx, id, im->name, im->points2d,
-                                im->points2d - 1);
+                rc = rs_err_set(err, RS_ERR_INPUT, path, c.line,
+                                "field %d (TRACK POINT2D_IDX) = %ld: image %ld (%s) "
+                                "has %d 2D points: expected 0 to %d",
+                                c.field, idx, id, im->name, im->points2d, im->points2d - 1);
         }
     }
     free(c.text);

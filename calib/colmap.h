@@ -9,37 +9,37 @@
 
 typedef struct rs_colmap_camera {
     long id;
-    char model[32];            /* COLMAP's name: PINHOLE, SIMPLE_RADIAL, OPENCV, ... */
-    int width, height;         /* px */
-    int nparams;               /* the model's parameter count, checked against the name */
-    double params[12];         /* as in cameras.txt (f, cx, cy, distortion; px) */
+    char model[32];    /* COLMAP's name: PINHOLE, SIMPLE_RADIAL, OPENCV, ... */
+    int width, height; /* px */
+    int nparams;       /* the model's parameter count, checked against the name */
+    double params[12]; /* as in cameras.txt (f, cx, cy, distortion; px) */
 } rs_colmap_camera;
 
 typedef struct rs_colmap_image {
     long id, camera_id;
     char name[256];
-    double q[4];               /* QW QX QY QZ, normalised: rotation world -> camera */
-    rs_v3 t;                   /* TX TY TZ: x_cam = R x_world + t, model units */
-    double rot_cam_world[9];   /* R of q, row-major: world -> camera */
-    rs_v3 centre;              /* camera centre -R^T t, COLMAP world frame, model units */
-    int points2d;              /* 2D points listed on the image's second line */
-    int points2d_with_3d;      /* of those, the ones with a 3D point (POINT3D_ID != -1) */
-    long line;                 /* of its first line in images.txt */
+    double q[4];             /* QW QX QY QZ, normalised: rotation world -> camera */
+    rs_v3 t;                 /* TX TY TZ: x_cam = R x_world + t, model units */
+    double rot_cam_world[9]; /* R of q, row-major: world -> camera */
+    rs_v3 centre;            /* camera centre -R^T t, COLMAP world frame, model units */
+    int points2d;            /* 2D points listed on the image's second line */
+    int points2d_with_3d;    /* of those, the ones with a 3D point (POINT3D_ID != -1) */
+    long line;               /* of its first line in images.txt */
 } rs_colmap_image;
 
 typedef struct rs_colmap_point {
     long id;
-    rs_v3 xyz;                 /* COLMAP world frame, model units */
+    rs_v3 xyz; /* COLMAP world frame, model units */
     unsigned char rgb[3];
-    double error_px;           /* mean reprojection error */
-    int track;                 /* observations (IMAGE_ID, POINT2D_IDX pairs) */
-    long line;                 /* in points3D.txt */
+    double error_px; /* mean reprojection error */
+    int track;       /* observations (IMAGE_ID, POINT2D_IDX pairs) */
+    long line;       /* in points3D.txt */
 } rs_colmap_point;
 
 typedef struct rs_colmap_model {
     rs_colmap_camera *cameras;
     rs_colmap_image *images;
-    rs_colmap_point *points;   /* sorted by id */
+    rs_colmap_point *points; /* sorted by id */
     int ncameras, nimages, npoints;
 } rs_colmap_model;
 
@@ -67,7 +67,7 @@ typedef struct rs_colmap_view {
     char name[256];
     char panorama[64];
     double r_local_cam[9];
-    rs_v3 t_local_cam;         /* m */
+    rs_v3 t_local_cam; /* m */
     long line;
 } rs_colmap_view;
 
@@ -85,8 +85,8 @@ typedef enum { RS_COLMAP_CP_IMAGE, RS_COLMAP_CP_POINT, RS_COLMAP_CP_PANORAMA } r
 
 typedef struct rs_colmap_control {
     rs_colmap_cp_kind kind;
-    char name[256];            /* image name, point id as written, or panorama label */
-    rs_v3 world;               /* m, scan / world frame */
+    char name[256]; /* image name, point id as written, or panorama label */
+    rs_v3 world;    /* m, scan / world frame */
     long line;
 } rs_colmap_control;
 
@@ -97,30 +97,29 @@ int rs_colmap_controls_read(const char *path, rs_colmap_control **cps, int *coun
  * file in errors (an image, point or panorama the model does not have, by line). views may be NULL
  * when no control point names a panorama. */
 int rs_colmap_controls_locate(const rs_colmap_model *m, const rs_colmap_view *views, int nviews,
-                              const rs_colmap_control *cps, int count, const char *path, rs_v3 *model_xyz,
-                              rs_err *err);
+                              const rs_colmap_control *cps, int count, const char *path, rs_v3 *model_xyz, rs_err *err);
 
 /* world = scale * rot * model + t. */
 typedef struct rs_colmap_similarity {
-    double scale;              /* m per model unit */
-    double rot[9];             /* COLMAP world -> scan world, row-major */
-    rs_v3 t;                   /* m */
-    double rms_m, max_m;       /* residuals |world_i - (s R model_i + t)| over the points */
+    double scale;        /* m per model unit */
+    double rot[9];       /* COLMAP world -> scan world, row-major */
+    rs_v3 t;             /* m */
+    double rms_m, max_m; /* residuals |world_i - (s R model_i + t)| over the points */
 } rs_colmap_similarity;
 
 /* Least-squares similarity from n >= 3 point pairs (Umeyama 1991, through rs_calib_align), and
  * each point's residual in metres into residual_m[n] (may be NULL). Errors: n < 3, either point
  * set on one line (or coincident). */
-int rs_colmap_umeyama(int n, const rs_v3 *model_xyz, const rs_v3 *world, rs_colmap_similarity *sim,
-                      double *residual_m, rs_err *err);
+int rs_colmap_umeyama(int n, const rs_v3 *model_xyz, const rs_v3 *world, rs_colmap_similarity *sim, double *residual_m,
+                      rs_err *err);
 
 /* A panorama's pose in the scan's frame from its registered views: the rotation is the chordal
  * mean of the views' (local -> world), the centre the mean of theirs. */
 typedef struct rs_colmap_pano_pose {
-    rs_pose pose;              /* local -> world, centre in m */
-    int views, views_listed;   /* views registered in the model / listed in the views file */
-    double spread_deg;         /* largest angle between one view's rotation and the mean */
-    double spread_m;           /* largest distance between one view's centre and the mean */
+    rs_pose pose;            /* local -> world, centre in m */
+    int views, views_listed; /* views registered in the model / listed in the views file */
+    double spread_deg;       /* largest angle between one view's rotation and the mean */
+    double spread_m;         /* largest distance between one view's centre and the mean */
 } rs_colmap_pano;
 
 /* Errors: the label has no view in the views file, or none of its views is in the model. */

@@ -28,8 +28,8 @@ static int is_rotation(const double r[9])
             double d = r[i] * r[j] + r[3 + i] * r[3 + j] + r[6 + i] * r[6 + j] - (i == j);
             if (fabs(d) > 1e-6) return 0;
         }
-    double det = r[0] * (r[4] * r[8] - r[5] * r[7]) - r[1] * (r[3] * r[8] - r[5] * r[6]) +
-                 r[2] * (r[3] * r[7] - r[4] * r[6]);
+    double det =
+        r[0] * (r[4] * r[8] - r[5] * r[7]) - r[1] * (r[3] * r[8] - r[5] * r[6]) + r[2] * (r[3] * r[7] - r[4] * r[6]);
     return det > 0;
 }
 
@@ -54,18 +54,23 @@ int rs_colmap_views_read(const char *path, rs_colmap_view **views, int *count, r
         if (!rs_ctext_token(&c, v->panorama, sizeof v->panorama)) rc = rs_ctext_missing(&c, "PANORAMA (a label)", err);
         for (int k = 0; rc == 0 && k < 9; k++) rc = rs_ctext_real(&c, rn[k], &v->r_local_cam[k], err);
         if (rc == 0 && rs_ctext_more(&c)) {
-            if (rs_ctext_real(&c, "TX", &v->t_local_cam.x, err) != 0 || rs_ctext_real(&c, "TY", &v->t_local_cam.y, err) != 0 ||
+            if (rs_ctext_real(&c, "TX", &v->t_local_cam.x, err) != 0 ||
+                rs_ctext_real(&c, "TY", &v->t_local_cam.y, err) != 0 ||
                 rs_ctext_real(&c, "TZ", &v->t_local_cam.z, err) != 0)
                 rc = -1;
         }
         if (rc == 0) rc = rs_ctext_end(&c, "NAME PANORAMA R00..R22 [TX TY TZ]", err);
         if (rc == 0 && !is_rotation(v->r_local_cam))
-            rc = rs_err_set(err, RS_ERR_INPUT, path, c.line, "view %s: R00..R22 is not a rotation (orthonormal, det "
-                            "+1 to 1e-6): expected the view camera -> panorama rotation, row-major", v->name);
+            rc = rs_err_set(err, RS_ERR_INPUT, path, c.line,
+                            "view %s: R00..R22 is not a rotation (orthonormal, det "
+                            "+1 to 1e-6): expected the view camera -> panorama rotation, row-major",
+                            v->name);
         for (int k = 0; rc == 0 && k < *count; k++)
             if (strcmp((*views)[k].name, v->name) == 0)
-                rc = rs_err_set(err, RS_ERR_INPUT, path, c.line, "view %s is listed twice (also on line %ld): expected "
-                                "one line per COLMAP image", v->name, (*views)[k].line);
+                rc = rs_err_set(err, RS_ERR_INPUT, path, c.line,
+                                "view %s is listed twice (also on line %ld): expected "
+                                "one line per COLMAP image",
+                                v->name, (*views)[k].line);
         if (rc == 0) (*count)++;
     }
     free(c.text);
@@ -97,12 +102,17 @@ int rs_colmap_controls_read(const char *path, rs_colmap_control **cps, int *coun
         p->line = c.line;
         char kind[32];
         rs_ctext_token(&c, kind, sizeof kind);
-        if (strcmp(kind, "image") == 0) p->kind = RS_COLMAP_CP_IMAGE;
-        else if (strcmp(kind, "point") == 0) p->kind = RS_COLMAP_CP_POINT;
-        else if (strcmp(kind, "panorama") == 0) p->kind = RS_COLMAP_CP_PANORAMA;
+        if (strcmp(kind, "image") == 0)
+            p->kind = RS_COLMAP_CP_IMAGE;
+        else if (strcmp(kind, "point") == 0)
+            p->kind = RS_COLMAP_CP_POINT;
+        else if (strcmp(kind, "panorama") == 0)
+            p->kind = RS_COLMAP_CP_PANORAMA;
         else {
-            rc = rs_err_set(err, RS_ERR_INPUT, path, c.line, "field 1 = \"%s\": expected image, point or panorama "
-                            "(then a name or id and X Y Z in metres)", kind);
+            rc = rs_err_set(err, RS_ERR_INPUT, path, c.line,
+                            "field 1 = \"%s\": expected image, point or panorama "
+                            "(then a name or id and X Y Z in metres)",
+                            kind);
             break;
         }
         if (!rs_ctext_token(&c, p->name, sizeof p->name)) {
@@ -113,8 +123,10 @@ int rs_colmap_controls_read(const char *path, rs_colmap_control **cps, int *coun
             char *end;
             strtol(p->name, &end, 10);
             if (end == p->name || *end) {
-                rc = rs_err_set(err, RS_ERR_INPUT, path, c.line, "field 2 = \"%s\": expected a POINT3D_ID (an integer "
-                                "of points3D.txt)", p->name);
+                rc = rs_err_set(err, RS_ERR_INPUT, path, c.line,
+                                "field 2 = \"%s\": expected a POINT3D_ID (an integer "
+                                "of points3D.txt)",
+                                p->name);
                 break;
             }
         }
@@ -127,9 +139,10 @@ int rs_colmap_controls_read(const char *path, rs_colmap_control **cps, int *coun
     }
     free(c.text);
     if (rc == 0 && *count < 3)
-        rc = rs_err_set(err, RS_ERR_INPUT, path, 0, "%d control point%s: expected at least 3, not on one line "
-                        "(`image NAME X Y Z`, `point ID X Y Z` or `panorama LABEL X Y Z`)", *count,
-                        *count == 1 ? "" : "s");
+        rc = rs_err_set(err, RS_ERR_INPUT, path, 0,
+                        "%d control point%s: expected at least 3, not on one line "
+                        "(`image NAME X Y Z`, `point ID X Y Z` or `panorama LABEL X Y Z`)",
+                        *count, *count == 1 ? "" : "s");
     if (rc != 0) {
         free(*cps);
         *cps = NULL;
@@ -157,30 +170,35 @@ static int panorama_centre(const rs_colmap_model *m, const rs_colmap_view *views
 }
 
 int rs_colmap_controls_locate(const rs_colmap_model *m, const rs_colmap_view *views, int nviews,
-                              const rs_colmap_control *cps, int count, const char *path, rs_v3 *model_xyz,
-                              rs_err *err)
+                              const rs_colmap_control *cps, int count, const char *path, rs_v3 *model_xyz, rs_err *err)
 {
     for (int i = 0; i < count; i++) {
         const rs_colmap_control *p = &cps[i];
         if (p->kind == RS_COLMAP_CP_IMAGE) {
             const rs_colmap_image *im = rs_colmap_find_image(m, p->name);
             if (!im)
-                return rs_err_set(err, RS_ERR_INPUT, path, p->line, "image %s is not in the COLMAP model (%d images "
-                                  "registered): expected the NAME of a line of images.txt", p->name, m->nimages);
+                return rs_err_set(err, RS_ERR_INPUT, path, p->line,
+                                  "image %s is not in the COLMAP model (%d images "
+                                  "registered): expected the NAME of a line of images.txt",
+                                  p->name, m->nimages);
             model_xyz[i] = im->centre;
         } else if (p->kind == RS_COLMAP_CP_POINT) {
             const rs_colmap_point *pt = rs_colmap_find_point(m, strtol(p->name, NULL, 10));
             if (!pt)
-                return rs_err_set(err, RS_ERR_INPUT, path, p->line, "point %s is not in the COLMAP model: expected a "
-                                  "POINT3D_ID of points3D.txt", p->name);
+                return rs_err_set(err, RS_ERR_INPUT, path, p->line,
+                                  "point %s is not in the COLMAP model: expected a "
+                                  "POINT3D_ID of points3D.txt",
+                                  p->name);
             model_xyz[i] = pt->xyz;
         } else {
             int used = 0, listed = 0;
             for (int k = 0; k < nviews; k++)
                 if (strcmp(views[k].panorama, p->name) == 0 && rs_v3_len(views[k].t_local_cam) > 0)
-                    return rs_err_set(err, RS_ERR_INPUT, path, p->line, "panorama %s: view %s is offset from the "
+                    return rs_err_set(err, RS_ERR_INPUT, path, p->line,
+                                      "panorama %s: view %s is offset from the "
                                       "panorama's centre (views file line %ld): expected `image` control points "
-                                      "for offset (rig) cameras", p->name, views[k].name, views[k].line);
+                                      "for offset (rig) cameras",
+                                      p->name, views[k].name, views[k].line);
             if (panorama_centre(m, views, nviews, p->name, &model_xyz[i], &used, &listed) != 0)
                 return rs_err_set(err, RS_ERR_INPUT, path, p->line, "panorama %s: %s", p->name,
                                   listed ? "none of its views is in the COLMAP model (the mapper did not register "
@@ -191,22 +209,29 @@ int rs_colmap_controls_locate(const rs_colmap_model *m, const rs_colmap_view *vi
     return 0;
 }
 
-int rs_colmap_umeyama(int n, const rs_v3 *model_xyz, const rs_v3 *world, rs_colmap_similarity *sim,
-                      double *residual_m, rs_err *err)
+int rs_colmap_umeyama(int n, const rs_v3 *model_xyz, const rs_v3 *world, rs_colmap_similarity *sim, double *residual_m,
+                      rs_err *err)
 {
     if (n < 3)
-        return rs_err_set(err, RS_ERR_INPUT, NULL, 0, "%d control point%s: a similarity needs at least 3 points "
-                          "not on one line", n, n == 1 ? "" : "s");
+        return rs_err_set(err, RS_ERR_INPUT, NULL, 0,
+                          "%d control point%s: a similarity needs at least 3 points "
+                          "not on one line",
+                          n, n == 1 ? "" : "s");
     /* Spread ratio below 1e-6: the points lie on one line to a part in a million of their extent,
      * and the rotation about that line is undetermined. */
     if (rs_calib_spread_ratio(n, world) < 1e-6)
-        return rs_err_set(err, RS_ERR_INPUT, NULL, 0, "the %d control points lie on one line in the scan's frame: "
-                          "expected at least 3 not on one line (the rotation about it is undetermined)", n);
+        return rs_err_set(err, RS_ERR_INPUT, NULL, 0,
+                          "the %d control points lie on one line in the scan's frame: "
+                          "expected at least 3 not on one line (the rotation about it is undetermined)",
+                          n);
     if (rs_calib_spread_ratio(n, model_xyz) < 1e-6)
-        return rs_err_set(err, RS_ERR_INPUT, NULL, 0, "the %d control points lie on one line in the COLMAP model: "
-                          "expected at least 3 not on one line (the rotation about it is undetermined)", n);
+        return rs_err_set(err, RS_ERR_INPUT, NULL, 0,
+                          "the %d control points lie on one line in the COLMAP model: "
+                          "expected at least 3 not on one line (the rotation about it is undetermined)",
+                          n);
     if (rs_calib_align(n, model_xyz, world, 1, sim->rot, &sim->t, &sim->scale) != 0)
-        return rs_err_set(err, RS_ERR_INPUT, NULL, 0, "the control points give no similarity with a positive scale: "
+        return rs_err_set(err, RS_ERR_INPUT, NULL, 0,
+                          "the control points give no similarity with a positive scale: "
                           "expected the same points in the model and the scan");
     double sum = 0;
     sim->max_m = 0;

@@ -8,10 +8,10 @@
 
 typedef struct rs_ctext {
     char path[4096];
-    char *text;                /* the whole file; the caller frees it */
-    char *next, *p;            /* the next line; the rest of the current one */
-    long line;                 /* 1-based number of the current line */
-    int field;                 /* fields read on it */
+    char *text;     /* the whole file; the caller frees it */
+    char *next, *p; /* the next line; the rest of the current one */
+    long line;      /* 1-based number of the current line */
+    int field;      /* fields read on it */
 } rs_ctext;
 
 /* Reads path whole (a missing file is an input error naming it). */

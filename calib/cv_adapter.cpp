@@ -69,7 +69,7 @@ int read_matrix(const cv::FileNode &cam, const char *key, int index, double *out
     return d.cols;
 }
 
-}  // namespace
+}   // namespace
 
 extern "C" int rs_cv_rig_read(const char *path, rs_cv_camera **cams, int *count, int *declared_count, char *msg,
                               size_t msg_size)
@@ -81,8 +81,9 @@ extern "C" int rs_cv_rig_read(const char *path, rs_cv_camera **cams, int *count,
     try {
         cv::FileStorage fs(path, cv::FileStorage::READ);
         if (!fs.isOpened()) {
-            set_msg(msg, msg_size, "cannot open as an OpenCV FileStorage file (expected %YAML:1.0 with "
-                                   "camera_count and cameras)");
+            set_msg(msg, msg_size,
+                    "cannot open as an OpenCV FileStorage file (expected %YAML:1.0 with "
+                    "camera_count and cameras)");
             return -1;
         }
         cv::FileNode cc = fs["camera_count"];
@@ -105,7 +106,8 @@ extern "C" int rs_cv_rig_read(const char *path, rs_cv_camera **cams, int *count,
             std::snprintf(c->name, sizeof c->name, "%s", name.c_str());
             std::string model = cam["model"].empty() ? "pinhole" : std::string(cam["model"]);
             std::snprintf(c->model, sizeof c->model, "%s", model.c_str());
-            if (!cam["image_width"].empty() && cam["image_width"].isInt()) c->width = static_cast<int>(cam["image_width"]);
+            if (!cam["image_width"].empty() && cam["image_width"].isInt())
+                c->width = static_cast<int>(cam["image_width"]);
             if (!cam["image_height"].empty() && cam["image_height"].isInt())
                 c->height = static_cast<int>(cam["image_height"]);
             c->has_matrix = read_matrix(cam, "camera_matrix", i, c->camera_matrix, 9) == 9;
@@ -150,8 +152,10 @@ extern "C" int rs_cv_image_read(const char *path, float **data, int *width, int 
         double scale = depth == CV_8U ? 1.0 / 255 : depth == CV_16U ? 1.0 / 65535 : 1.0;
         cv::Mat f;
         m.convertTo(f, CV_32F, scale);
-        if (f.channels() == 4) cv::cvtColor(f, f, cv::COLOR_BGRA2RGB);
-        else if (f.channels() == 3) cv::cvtColor(f, f, cv::COLOR_BGR2RGB);
+        if (f.channels() == 4)
+            cv::cvtColor(f, f, cv::COLOR_BGRA2RGB);
+        else if (f.channels() == 3)
+            cv::cvtColor(f, f, cv::COLOR_BGR2RGB);
         else if (f.channels() != 1) {
             set_msg(msg, msg_size, "image has " + std::to_string(f.channels()) + " channels: expected 1, 3 or 4");
             return -1;
@@ -205,8 +209,8 @@ extern "C" int rs_cv_merge_debevec(const unsigned char *const *images, const flo
     }
 }
 
-extern "C" int rs_cv_project(int fisheye, const double *camera_matrix, const double *dist, int n,
-                             const double *points, double *pixels, char *msg, size_t msg_size)
+extern "C" int rs_cv_project(int fisheye, const double *camera_matrix, const double *dist, int n, const double *points,
+                             double *pixels, char *msg, size_t msg_size)
 {
     try {
         cv::Mat k(3, 3, CV_64F, const_cast<double *>(camera_matrix));
@@ -214,8 +218,10 @@ extern "C" int rs_cv_project(int fisheye, const double *camera_matrix, const dou
         cv::Mat pts(n, 1, CV_64FC3, const_cast<double *>(points));
         cv::Mat zero = cv::Mat::zeros(3, 1, CV_64F);
         cv::Mat out;
-        if (fisheye) cv::fisheye::projectPoints(pts, out, zero, zero, k, d);
-        else cv::projectPoints(pts, zero, zero, k, d, out);
+        if (fisheye)
+            cv::fisheye::projectPoints(pts, out, zero, zero, k, d);
+        else
+            cv::projectPoints(pts, zero, zero, k, d, out);
         cv::Mat o64;
         out.convertTo(o64, CV_64FC2);
         std::memcpy(pixels, o64.ptr<double>(), static_cast<size_t>(n) * 2 * sizeof(double));
@@ -225,14 +231,15 @@ extern "C" int rs_cv_project(int fisheye, const double *camera_matrix, const dou
     }
 }
 
-extern "C" int rs_cv_edge_distance(const float *image, int width, int height, double sigma_px, double lo,
-                                   double hi, unsigned char *edges, float *dist, long *edge_count, char *msg,
-                                   size_t msg_size)
+extern "C" int rs_cv_edge_distance(const float *image, int width, int height, double sigma_px, double lo, double hi,
+                                   unsigned char *edges, float *dist, long *edge_count, char *msg, size_t msg_size)
 {
     try {
         cv::Mat img(height, width, CV_32F, const_cast<float *>(image)), smooth;
-        if (sigma_px > 0) cv::GaussianBlur(img, smooth, cv::Size(0, 0), sigma_px, sigma_px, cv::BORDER_REFLECT);
-        else smooth = img;
+        if (sigma_px > 0)
+            cv::GaussianBlur(img, smooth, cv::Size(0, 0), sigma_px, sigma_px, cv::BORDER_REFLECT);
+        else
+            smooth = img;
         // Sobel's 3 x 3 kernel weighs the difference over 2 px by 1 + 2 + 1: scale 1/8 gives the
         // derivative per pixel. Canny takes 16-bit derivatives: a fixed gain keeps the thresholds
         // in the image's own units (saturation at 32767 / gain is far above any real edge).

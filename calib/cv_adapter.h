@@ -13,21 +13,20 @@ extern "C" {
 /* One camera of a rig file as written (DESIGN.md section 7); validation is the caller's. */
 typedef struct rs_cv_camera {
     char name[64];
-    char model[32];            /* "pinhole", "fisheye", or what the file says */
-    int width, height;         /* 0 when missing */
+    char model[32];    /* "pinhole", "fisheye", or what the file says */
+    int width, height; /* 0 when missing */
     int has_matrix, has_rotation, has_translation;
-    double camera_matrix[9];   /* row-major */
+    double camera_matrix[9]; /* row-major */
     double distortion[8];
-    int distortion_count;      /* entries given (0 when missing) */
-    double r_rig_cam[9];       /* camera -> rig, row-major */
-    double t_rig_cam[3];       /* camera centre in the rig frame, m */
+    int distortion_count; /* entries given (0 when missing) */
+    double r_rig_cam[9];  /* camera -> rig, row-major */
+    double t_rig_cam[3];  /* camera centre in the rig frame, m */
 } rs_cv_camera;
 
 /* Reads a FileStorage YAML rig file: camera_count and the cameras sequence. *cams is allocated
  * (free with rs_cv_free); *declared_count is camera_count (-1 when missing). On error msg tells
  * which field of which camera was wrong and what was expected. */
-int rs_cv_rig_read(const char *path, rs_cv_camera **cams, int *count, int *declared_count, char *msg,
-                   size_t msg_size);
+int rs_cv_rig_read(const char *path, rs_cv_camera **cams, int *count, int *declared_count, char *msg, size_t msg_size);
 
 /* Reads any image OpenCV decodes (TIFF among others) as float RGB or grey, row 0 on top.
  * Integer images are scaled to [0, 1] (8-bit by 255, 16-bit by 65535) and *integer_bits set to
@@ -40,9 +39,8 @@ int rs_cv_image_read(const char *path, float **data, int *width, int *height, in
  * OpenCV's CalibrateDebevec response (or the given response: 256 x 3 values, linear
  * exposure per code; NULL to calibrate) and MergeDebevec. The calibrated response goes into
  * response_out when it is not NULL (256 x 3). */
-int rs_cv_merge_debevec(const unsigned char *const *images, const float *times_s, int count, int width,
-                        int height, const float *response, float *out, float *response_out, char *msg,
-                        size_t msg_size);
+int rs_cv_merge_debevec(const unsigned char *const *images, const float *times_s, int count, int width, int height,
+                        const float *response, float *out, float *response_out, char *msg, size_t msg_size);
 
 /* cv::projectPoints (fisheye: cv::fisheye::projectPoints) of n camera-frame points (x y z each)
  * with camera_matrix (3 x 3 row-major) and dist (5 or 4 entries) into pixels (x y each): the

@@ -28,8 +28,8 @@ void rs_edge_refine_defaults(rs_edge_refine_opts *o)
 /* One pyramid level: linear luminance, then the image edges' distance transform. */
 typedef struct {
     int w, h;
-    float *lum;                /* w x h linear luminance */
-    float *dist;               /* w x h px to the nearest image edge, clipped at max_dist_px */
+    float *lum;  /* w x h linear luminance */
+    float *dist; /* w x h px to the nearest image edge, clipped at max_dist_px */
     long image_edges;
 } level;
 
@@ -96,9 +96,10 @@ static int build_levels(const rs_image *pano, const rs_edge_refine_opts *o, leve
         lv[l].w = pano->width / (f << l);
         lv[l].h = pano->height / (f << l);
         if (lv[l].w < 16 || lv[l].h < 8)
-            return rs_err_set(err, RS_ERR_INPUT, NULL, 0, "a %d x %d panorama is too small for %d pyramid levels: "
-                              "level %d would be %d x %d, expected at least 16 x 8", pano->width, pano->height,
-                              o->levels, l + 1, lv[l].w, lv[l].h);
+            return rs_err_set(err, RS_ERR_INPUT, NULL, 0,
+                              "a %d x %d panorama is too small for %d pyramid levels: "
+                              "level %d would be %d x %d, expected at least 16 x 8",
+                              pano->width, pano->height, o->levels, l + 1, lv[l].w, lv[l].h);
         lv[l].lum = calloc((size_t)lv[l].w * lv[l].h, sizeof(float));
         lv[l].dist = calloc((size_t)lv[l].w * lv[l].h, sizeof(float));
         if (!lv[l].lum || !lv[l].dist) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
@@ -240,7 +241,7 @@ static int model_edges(const rs_scene *scene, const rs_pose *pose, int w, int h,
 /* A candidate pose as a change from the level's base pose: rotation base * exp(w) (local frame),
  * centre base + dp (world, m). */
 typedef struct {
-    double rt[9];              /* (base rotation * exp(w))^T: world -> local */
+    double rt[9]; /* (base rotation * exp(w))^T: world -> local */
     rs_v3 centre;
 } cand;
 
@@ -277,12 +278,18 @@ static double sample(const level *lv, double x, double y)
     int r0 = (int)fy, r1 = r0 + 1 < lv->h ? r0 + 1 : r0;
     const float *d = lv->dist;
     return (1 - ay) * ((1 - ax) * d[(size_t)r0 * lv->w + c0] + ax * d[(size_t)r0 * lv->w + c1]) +
-           ay * ((1 - ax) * d[(size_t)r1 * lv->w + c0] + ax * d[(size_t)r1 * lv->w + c1]);
+        ay * ((1 - ax) * d[(size_t)r1 * lv->w + c0] + ax * d[(size_t)r1 * lv->w + c1]);
 }
 
 /* Cauchy's robust cost of a chamfer distance r (px) with scale s, and its IRLS weight. */
-static double rho(double r, double s) { return 0.5 * s * s * log1p((r / s) * (r / s)); }
-static double weight(double r, double s) { return 1.0 / (1.0 + (r / s) * (r / s)); }
+static double rho(double r, double s)
+{
+    return 0.5 * s * s * log1p((r / s) * (r / s));
+}
+static double weight(double r, double s)
+{
+    return 1.0 / (1.0 + (r / s) * (r / s));
+}
 
 static int cmp_float(const void *a, const void *b)
 {
@@ -397,8 +404,8 @@ static void refine_level(const level *lv, rs_pose *pose, const rs_v3 *pts, long 
     cand_make(pose, x, &c, pose);
 }
 
-int rs_edge_refine(const rs_scene *scene, const rs_image *pano, const rs_pose *start,
-                   const rs_edge_refine_opts *opts, rs_edge_refine_result *res, rs_err *err)
+int rs_edge_refine(const rs_scene *scene, const rs_image *pano, const rs_pose *start, const rs_edge_refine_opts *opts,
+                   rs_edge_refine_result *res, rs_err *err)
 {
     enum { MAX_LEVELS = 8 };
     level lv[MAX_LEVELS];
@@ -408,18 +415,20 @@ int rs_edge_refine(const rs_scene *scene, const rs_image *pano, const rs_pose *s
     long n = 0;
     int rc = -1;
     if (pano->width != 2 * pano->height)
-        return rs_err_set(err, RS_ERR_INPUT, NULL, 0, "the panorama is %d x %d: expected width = 2 x height "
-                          "(equirectangular)", pano->width, pano->height);
+        return rs_err_set(err, RS_ERR_INPUT, NULL, 0,
+                          "the panorama is %d x %d: expected width = 2 x height "
+                          "(equirectangular)",
+                          pano->width, pano->height);
     if (opts->levels < 1 || opts->levels > MAX_LEVELS)
-        return rs_err_set(err, RS_ERR_INPUT, NULL, 0, "%d pyramid levels: expected 1 to %d", opts->levels,
-                          MAX_LEVELS);
+        return rs_err_set(err, RS_ERR_INPUT, NULL, 0, "%d pyramid levels: expected 1 to %d", opts->levels, MAX_LEVELS);
     if (build_levels(pano, opts, lv, err) != 0) goto out;
     for (int l = 0; l < opts->levels; l++)
         if (lv[l].image_edges < opts->min_edges) {
-            rs_err_set(err, RS_ERR_INPUT, NULL, 0, "the panorama shows %ld edge pixels at %d x %d (Canny on ln "
+            rs_err_set(err, RS_ERR_INPUT, NULL, 0,
+                       "the panorama shows %ld edge pixels at %d x %d (Canny on ln "
                        "luminance, thresholds %g and %g per pixel): expected at least %d, there is nothing to "
-                       "align the model's edges with", lv[l].image_edges, lv[l].w, lv[l].h, opts->edge_lo,
-                       opts->edge_hi, opts->min_edges);
+                       "align the model's edges with",
+                       lv[l].image_edges, lv[l].w, lv[l].h, opts->edge_lo, opts->edge_hi, opts->min_edges);
             goto out;
         }
     rs_pose pose = *start;
@@ -432,10 +441,11 @@ int rs_edge_refine(const rs_scene *scene, const rs_image *pano, const rs_pose *s
         pts = NULL;
         if (model_edges(scene, &pose, l->w, l->h, opts->crease_deg, &pts, &n, err) != 0) goto out;
         if (n < opts->min_edges) {
-            rs_err_set(err, RS_ERR_INPUT, NULL, 0, "%ld model edge pixels are visible from centre (%g, %g, %g) at "
+            rs_err_set(err, RS_ERR_INPUT, NULL, 0,
+                       "%ld model edge pixels are visible from centre (%g, %g, %g) at "
                        "%d x %d: expected at least %d (is the pose near the model, and the model more than one "
-                       "flat surface?)", n, pose.position.x, pose.position.y, pose.position.z, l->w, l->h,
-                       opts->min_edges);
+                       "flat surface?)",
+                       n, pose.position.x, pose.position.y, pose.position.z, l->w, l->h, opts->min_edges);
             goto out;
         }
         if (pass == opts->levels)

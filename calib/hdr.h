@@ -7,10 +7,10 @@
 #include "image.h"
 
 typedef struct rs_hdr_report {
-    size_t clipped_px;         /* pixels saturated even in the shortest exposure: radiance is a lower bound */
-    int sun_clipped;           /* 1 when the largest clipped blob is small and compact: a clipped sun */
-    double sun_x, sun_y;       /* its centroid, image pixels (centres at integers) */
-    size_t sun_px;             /* its area, pixels */
+    size_t clipped_px;   /* pixels saturated even in the shortest exposure: radiance is a lower bound */
+    int sun_clipped;     /* 1 when the largest clipped blob is small and compact: a clipped sun */
+    double sun_x, sun_y; /* its centroid, image pixels (centres at integers) */
+    size_t sun_px;       /* its area, pixels */
 } rs_hdr_report;
 
 /* Merges count >= 2 exposures (3 channels, values = 8-bit codes / 255 as stored in the files,

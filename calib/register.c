@@ -48,7 +48,8 @@ int rs_pairs_read(const char *path, int width, int height, rs_pair **pairs, int 
         if (v[0] < -0.5 || v[0] >= width - 0.5 || v[1] < -0.5 || v[1] > height - 0.5) {
             rs_err_set(err, RS_ERR_INPUT, path, lineno,
                        "pixel (%g, %g) lies outside the %d x %d panorama: expected column in [-0.5, %g) "
-                       "and row in [-0.5, %g]", v[0], v[1], width, height, width - 0.5, height - 0.5);
+                       "and row in [-0.5, %g]",
+                       v[0], v[1], width, height, width - 0.5, height - 0.5);
             goto out;
         }
         if (n == cap) {
@@ -282,7 +283,8 @@ int rs_register_solve(const rs_v3 *bearing, const rs_v3 *world, int n, const rs_
     if (rs_calib_spread_ratio(n, world) < 1e-6)
         return rs_err_set(err, RS_ERR_INPUT, NULL, 0,
                           "the %d world points all lie on one line (or coincide): the pose is undetermined; "
-                          "expected points spread in at least two directions", n);
+                          "expected points spread in at least two directions",
+                          n);
     double thr = opts->inlier_deg * M_PI / 180;
     rs_pose best;
     double best_cost = INFINITY;
@@ -294,8 +296,10 @@ int rs_register_solve(const rs_v3 *bearing, const rs_v3 *world, int n, const rs_
     for (int it = 0; it < opts->iterations; it++) {
         int idx[3];
         idx[0] = (int)(rng_next(&rng) % (uint64_t)n);
-        do idx[1] = (int)(rng_next(&rng) % (uint64_t)n); while (idx[1] == idx[0]);
-        do idx[2] = (int)(rng_next(&rng) % (uint64_t)n); while (idx[2] == idx[0] || idx[2] == idx[1]);
+        do idx[1] = (int)(rng_next(&rng) % (uint64_t)n);
+        while (idx[1] == idx[0]);
+        do idx[2] = (int)(rng_next(&rng) % (uint64_t)n);
+        while (idx[2] == idx[0] || idx[2] == idx[1]);
         rs_v3 b[3] = {bearing[idx[0]], bearing[idx[1]], bearing[idx[2]]};
         rs_v3 x[3] = {world[idx[0]], world[idx[1]], world[idx[2]]};
         rs_pose cand[8];
@@ -311,7 +315,8 @@ int rs_register_solve(const rs_v3 *bearing, const rs_v3 *world, int n, const rs_
     if (!isfinite(best_cost))
         return rs_err_set(err, RS_ERR_INPUT, NULL, 0,
                           "no pose fits any 3 of the %d correspondences: expected pixel and world points "
-                          "of the same features", n);
+                          "of the same features",
+                          n);
     /* Refine on the inliers, re-select with the refined pose, until the set settles. */
     int k = mark_inliers(&best, bearing, world, n, opts->inlier_deg, inlier, residual_deg);
     for (int round = 0; round < 5 && k >= 3; round++) {
@@ -327,7 +332,8 @@ int rs_register_solve(const rs_v3 *bearing, const rs_v3 *world, int n, const rs_
     if (k < 4)
         return rs_err_set(err, RS_ERR_INPUT, NULL, 0,
                           "only %d of %d correspondences agree on one pose within %g deg: expected at least 4 "
-                          "(check the pairs, or raise [calib] inlier_deg)", k, n, opts->inlier_deg);
+                          "(check the pairs, or raise [calib] inlier_deg)",
+                          k, n, opts->inlier_deg);
     rs_v3 *xin = malloc((size_t)k * sizeof *xin);
     if (!xin) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
     double sum2 = 0, mx = 0;

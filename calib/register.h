@@ -9,9 +9,9 @@
 #include "pano.h"
 
 typedef struct rs_pair {
-    double col, row;           /* continuous pixel coordinates, pixel centres at integers */
-    rs_v3 world;               /* m, world frame */
-    long line;                 /* line in the pairs file (0 when made in code) */
+    double col, row; /* continuous pixel coordinates, pixel centres at integers */
+    rs_v3 world;     /* m, world frame */
+    long line;       /* line in the pairs file (0 when made in code) */
 } rs_pair;
 
 /* Reads a pairs file: `column row X Y Z` per line, `#` starts a comment. The coordinates must
@@ -23,16 +23,16 @@ int rs_pairs_read(const char *path, int width, int height, rs_pair **pairs, int 
 rs_v3 rs_pair_bearing(double col, double row, int width, int height);
 
 typedef struct rs_register_opts {
-    int iterations;            /* RANSAC samples of 3 pairs */
-    double inlier_deg;         /* a pair is an inlier when its angular residual is below this */
+    int iterations;    /* RANSAC samples of 3 pairs */
+    double inlier_deg; /* a pair is an inlier when its angular residual is below this */
     uint64_t seed;
-    const rs_pose *guess;      /* optional initial pose, scored with the RANSAC candidates */
+    const rs_pose *guess; /* optional initial pose, scored with the RANSAC candidates */
 } rs_register_opts;
 
 typedef struct rs_register_result {
-    rs_pose pose;              /* local -> world rotation and centre */
+    rs_pose pose; /* local -> world rotation and centre */
     int inliers;
-    double rms_deg, max_deg;   /* over the inliers, after refinement */
+    double rms_deg, max_deg; /* over the inliers, after refinement */
 } rs_register_result;
 
 /* Solves the pose from n >= 4 bearings (local frame, unit) and their world points. Fills

@@ -29,8 +29,10 @@ int rs_response_read(const char *path, float *out, rs_err *err)
             char *end;
             double x = strtod(q, &end);
             if (end == q || n == 4) {
-                rs_err_set(err, RS_ERR_INPUT, path, line, "\"%s\": expected 1 or 3 numbers (linear exposure of "
-                           "code %d for all channels, or for R G B)", s, code);
+                rs_err_set(err, RS_ERR_INPUT, path, line,
+                           "\"%s\": expected 1 or 3 numbers (linear exposure of "
+                           "code %d for all channels, or for R G B)",
+                           s, code);
                 goto out;
             }
             v[n++] = x;
@@ -48,13 +50,17 @@ int rs_response_read(const char *path, float *out, rs_err *err)
         for (int ch = 0; ch < 3; ch++) {
             double x = v[n == 1 ? 0 : ch];
             if (!(x > 0) || x > 1e30) {
-                rs_err_set(err, RS_ERR_INPUT, path, line, "code %d: %g: expected a linear exposure > 0 (the merge "
-                           "takes its logarithm)", code, x);
+                rs_err_set(err, RS_ERR_INPUT, path, line,
+                           "code %d: %g: expected a linear exposure > 0 (the merge "
+                           "takes its logarithm)",
+                           code, x);
                 goto out;
             }
             if (code > 0 && x < out[3 * (code - 1) + ch]) {
-                rs_err_set(err, RS_ERR_INPUT, path, line, "code %d, channel %d: %g is below code %d's %g: expected a "
-                           "response that does not decrease", code, ch, x, code - 1, out[3 * (code - 1) + ch]);
+                rs_err_set(err, RS_ERR_INPUT, path, line,
+                           "code %d, channel %d: %g is below code %d's %g: expected a "
+                           "response that does not decrease",
+                           code, ch, x, code - 1, out[3 * (code - 1) + ch]);
                 goto out;
             }
             out[3 * code + ch] = (float)x;

@@ -16,7 +16,7 @@ static double radial_slope(const rs_rig_camera *c, double r)
     if (c->model == RS_LENS_PINHOLE)
         return 1 + 3 * c->dist[0] * r2 + 5 * c->dist[1] * r2 * r2 + 7 * c->dist[4] * r2 * r2 * r2;
     return 1 + 3 * c->dist[0] * r2 + 5 * c->dist[1] * r2 * r2 + 7 * c->dist[2] * r2 * r2 * r2 +
-           9 * c->dist[3] * r2 * r2 * r2 * r2;
+        9 * c->dist[3] * r2 * r2 * r2 * r2;
 }
 
 /* The largest field (tan of the angle, or the angle for fisheye) up to which the radial model
@@ -39,8 +39,8 @@ static int rotation_ok(const double r[9])
             double d = r[i] * r[j] + r[3 + i] * r[3 + j] + r[6 + i] * r[6 + j];
             if (fabs(d - (i == j)) > 1e-4) return 0;
         }
-    double det = r[0] * (r[4] * r[8] - r[5] * r[7]) - r[1] * (r[3] * r[8] - r[5] * r[6]) +
-                 r[2] * (r[3] * r[7] - r[4] * r[6]);
+    double det =
+        r[0] * (r[4] * r[8] - r[5] * r[7]) - r[1] * (r[3] * r[8] - r[5] * r[6]) + r[2] * (r[3] * r[7] - r[4] * r[6]);
     return fabs(det - 1) < 1e-4;
 }
 
@@ -51,15 +51,18 @@ static int check_camera(const char *path, int i, const rs_cv_camera *in, rs_rig_
 #define BAD(...) rs_err_set(err, RS_ERR_INPUT, path, 0, __VA_ARGS__)
     if (in->width <= 0 || in->height <= 0)
         return BAD("camera %d (%s): image_width and image_height must be positive integers", i, in->name);
-    if (strcmp(in->model, "pinhole") == 0) c->model = RS_LENS_PINHOLE;
-    else if (strcmp(in->model, "fisheye") == 0) c->model = RS_LENS_FISHEYE;
-    else return BAD("camera %d (%s): model \"%s\": expected pinhole or fisheye", i, in->name, in->model);
+    if (strcmp(in->model, "pinhole") == 0)
+        c->model = RS_LENS_PINHOLE;
+    else if (strcmp(in->model, "fisheye") == 0)
+        c->model = RS_LENS_FISHEYE;
+    else
+        return BAD("camera %d (%s): model \"%s\": expected pinhole or fisheye", i, in->name, in->model);
     if (!in->has_matrix) return BAD("camera %d (%s): camera_matrix is missing (3 x 3)", i, in->name);
     const double *k = in->camera_matrix;
     if (!(k[0] > 0 && k[4] > 0) || k[1] != 0 || k[3] != 0 || k[6] != 0 || k[7] != 0 || k[8] != 1)
         return BAD("camera %d (%s): camera_matrix [%g %g %g; %g %g %g; %g %g %g]: expected "
-                   "[fx 0 cx; 0 fy cy; 0 0 1] with fx, fy > 0", i, in->name, k[0], k[1], k[2], k[3], k[4], k[5],
-                   k[6], k[7], k[8]);
+                   "[fx 0 cx; 0 fy cy; 0 0 1] with fx, fy > 0",
+                   i, in->name, k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7], k[8]);
     int want = c->model == RS_LENS_PINHOLE ? 5 : 4;
     if (in->distortion_count != want && !(c->model == RS_LENS_PINHOLE && in->distortion_count == 4))
         return BAD("camera %d (%s): distortion_coefficients has %d entries: expected %s", i, in->name,
@@ -172,8 +175,7 @@ int rs_rig_project(const rs_rig_camera *c, rs_v3 d, double *x, double *y, double
     double edge = fmin(fmin(*x, c->width - 1 - *x), fmin(*y, c->height - 1 - *y));
     /* Distance to the field limit in pixels, through the local radial scale. */
     double f = 0.5 * (c->fx + c->fy);
-    double field_px = (c->max_field - field) * f *
-                      fmax(radial_slope(c, field), 0.05);
+    double field_px = (c->max_field - field) * f * fmax(radial_slope(c, field), 0.05);
     if (margin_px) *margin_px = fmin(edge, field_px);
     return in_field && edge >= 0;
 }

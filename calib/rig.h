@@ -11,13 +11,13 @@ typedef enum { RS_LENS_PINHOLE, RS_LENS_FISHEYE } rs_lens_model;
 
 typedef struct rs_rig_camera {
     char name[64];
-    int width, height;         /* px */
+    int width, height; /* px */
     rs_lens_model model;
-    double fx, fy, cx, cy;     /* px; pixel centres at integer coordinates (OpenCV) */
-    double dist[5];            /* pinhole: k1 k2 p1 p2 k3; fisheye: k1 k2 k3 k4 (dist[4] = 0) */
-    double r_rig_cam[9];       /* camera -> rig rotation, row-major */
-    rs_v3 t_rig_cam;           /* camera centre in the rig frame, m */
-    double max_field;          /* pinhole: largest usable tan of the angle off the axis;
+    double fx, fy, cx, cy; /* px; pixel centres at integer coordinates (OpenCV) */
+    double dist[5];        /* pinhole: k1 k2 p1 p2 k3; fisheye: k1 k2 k3 k4 (dist[4] = 0) */
+    double r_rig_cam[9];   /* camera -> rig rotation, row-major */
+    rs_v3 t_rig_cam;       /* camera centre in the rig frame, m */
+    double max_field;      /* pinhole: largest usable tan of the angle off the axis;
                                   fisheye: largest usable angle off the axis (rad) */
 } rs_rig_camera;
 

@@ -11,7 +11,7 @@
 #include "linsolve.h"
 #include "pano.h"
 
-#define MIN_OVERLAP_PX 64      /* fewer shared pixels say too little about a gain ratio */
+#define MIN_OVERLAP_PX 64 /* fewer shared pixels say too little about a gain ratio */
 
 int rs_stitch_default_width(const rs_rig *rig)
 {
@@ -41,8 +41,8 @@ typedef struct {
  * R_i^T (t d - t_i), provided nothing lies between the camera's centre and the point. Returns
  * the row's solid angle with model depth in *model_sa and the hidden camera samples in *hidden
  * (of *candidates). */
-static int plan_row(const rs_rig *rig, const rs_stitch_opts *o, int r, cam_px *plan, double *model_sa,
-                    double *hidden, double *candidates)
+static int plan_row(const rs_rig *rig, const rs_stitch_opts *o, int r, cam_px *plan, double *model_sa, double *hidden,
+                    double *candidates)
 {
     int n = rig->count, w = o->width, h = o->width / 2;
     rs_ray *rays = NULL;
@@ -50,7 +50,7 @@ static int plan_row(const rs_rig *rig, const rs_stitch_opts *o, int r, cam_px *p
     uint8_t *occ = NULL;
     int *map = NULL;
     if (o->scene) {
-        rays = malloc((size_t)w * (n + 1) * sizeof *rays);   /* the row's rays, then the cameras' */
+        rays = malloc((size_t)w * (n + 1) * sizeof *rays); /* the row's rays, then the cameras' */
         hits = malloc((size_t)w * sizeof *hits);
         occ = malloc((size_t)w * n);
         map = malloc((size_t)w * n * sizeof *map);
@@ -184,8 +184,8 @@ static int solve_gains(int n, const double *sum, const double *count, double *ga
     return 0;
 }
 
-int rs_stitch(const rs_rig *rig, rs_image *const *frames, const rs_stitch_opts *opts, rs_image **pano,
-              double *gains, rs_stitch_stats *stats, rs_err *err)
+int rs_stitch(const rs_rig *rig, rs_image *const *frames, const rs_stitch_opts *opts, rs_image **pano, double *gains,
+              rs_stitch_stats *stats, rs_err *err)
 {
     int n = rig->count, w = opts->width, h = opts->width / 2;
     *pano = NULL;
@@ -222,7 +222,8 @@ int rs_stitch(const rs_rig *rig, rs_image *const *frames, const rs_stitch_opts *
                 continue;
             }
             for (int col = 0; col < w; col++) {
-                for (int i = 0; i < n; i++) seen[i] = sample_camera(&plan[(size_t)col * n + i], frames[i], 1, rgb[i], &wt);
+                for (int i = 0; i < n; i++)
+                    seen[i] = sample_camera(&plan[(size_t)col * n + i], frames[i], 1, rgb[i], &wt);
                 for (int i = 0; i < n; i++)
                     for (int j = i + 1; j < n; j++)
                         if (seen[i] && seen[j]) {

@@ -10,23 +10,23 @@
 #include "scene.h"
 
 typedef struct rs_stitch_opts {
-    int width;                 /* panorama width (px); height = width / 2 */
-    double feather_px;         /* blending weight reaches 1 this many camera pixels inside the usable edge */
-    int estimate_gain;         /* 1: estimate and divide out one gain per camera */
-    const rs_scene *scene;     /* NULL: infinite depth. Else the model (world frame): each pixel's
+    int width;             /* panorama width (px); height = width / 2 */
+    double feather_px;     /* blending weight reaches 1 this many camera pixels inside the usable edge */
+    int estimate_gain;     /* 1: estimate and divide out one gain per camera */
+    const rs_scene *scene; /* NULL: infinite depth. Else the model (world frame): each pixel's
                                   point is where its ray from the rig centre hits the model, and
                                   every camera looks at that point from its own centre (cameras
                                   that the model hides it from are left out); rays that miss the
                                   model (sky) keep infinite depth, without the cameras whose own
                                   ray in that direction hits the model */
-    rs_pose pose;              /* with scene: rig -> world (the rig centre and rotation) */
+    rs_pose pose;          /* with scene: rig -> world (the rig centre and rotation) */
 } rs_stitch_opts;
 
 typedef struct rs_stitch_stats {
-    double coverage;           /* share of the sphere (solid angle) that some camera sees */
-    int overlap_pairs;         /* camera pairs that share enough pixels for the gain estimate */
-    double model_coverage;     /* share of the sphere whose depth came from the model (0 without) */
-    double hidden_share;       /* with a model: share of the camera samples (model points and sky)
+    double coverage;       /* share of the sphere (solid angle) that some camera sees */
+    int overlap_pairs;     /* camera pairs that share enough pixels for the gain estimate */
+    double model_coverage; /* share of the sphere whose depth came from the model (0 without) */
+    double hidden_share;   /* with a model: share of the camera samples (model points and sky)
                                   dropped because the model hides them from that camera */
 } rs_stitch_stats;
 
@@ -34,8 +34,8 @@ typedef struct rs_stitch_stats {
  * where no camera sees). gains[i] gets camera i's estimated gain (observed = gain x true,
  * geometric mean 1 over the cameras; all 1 without estimate_gain). Deterministic for any
  * thread count. Caller frees *pano with rs_image_free. */
-int rs_stitch(const rs_rig *rig, rs_image *const *frames, const rs_stitch_opts *opts, rs_image **pano,
-              double *gains, rs_stitch_stats *stats, rs_err *err);
+int rs_stitch(const rs_rig *rig, rs_image *const *frames, const rs_stitch_opts *opts, rs_image **pano, double *gains,
+              rs_stitch_stats *stats, rs_err *err);
 
 /* The panorama width that matches the finest camera: 2 pi times its largest focal length, even. */
 int rs_stitch_default_width(const rs_rig *rig);

@@ -17,8 +17,8 @@ int rs_capture_load(const rs_config *cfg, const char *section, rs_capture *cap, 
     if (!img) return -1;
     if (img->width != 2 * img->height) {
         rs_err_set(err, RS_ERR_INPUT, cap->path, 0,
-                   "panorama is %d x %d: expected an equirectangular image with width = 2 x height",
-                   img->width, img->height);
+                   "panorama is %d x %d: expected an equirectangular image with width = 2 x height", img->width,
+                   img->height);
         rs_image_free(img);
         return -1;
     }
@@ -36,8 +36,10 @@ int rs_capture_load(const rs_config *cfg, const char *section, rs_capture *cap, 
     cap->pano = img;
     for (size_t k = 0; k < (size_t)img->width * img->height; k++) {
         const float *px = img->data + 3 * k;
-        if (!(isfinite(px[0]) && isfinite(px[1]) && isfinite(px[2]))) cap->nonfinite++;
-        else if (px[0] < 0 || px[1] < 0 || px[2] < 0) cap->negative++;
+        if (!(isfinite(px[0]) && isfinite(px[1]) && isfinite(px[2])))
+            cap->nonfinite++;
+        else if (px[0] < 0 || px[1] < 0 || px[2] < 0)
+            cap->negative++;
     }
     /* With [capture] correspondences or colmap_panorama, the pose the calib stage solved is the
      * capture's pose (position and rotation only seeded it, so position is not required then).

@@ -8,11 +8,11 @@
 #include "pano.h"
 
 typedef struct rs_capture {
-    rs_image *pano;            /* 3 channels; single-channel files are copied to R=G=B */
+    rs_image *pano; /* 3 channels; single-channel files are copied to R=G=B */
     rs_pose pose;
     char path[4096];
-    size_t nonfinite;          /* pixels with a NaN or Inf channel (left as they are) */
-    size_t negative;           /* pixels with a negative channel (left as they are) */
+    size_t nonfinite; /* pixels with a NaN or Inf channel (left as they are) */
+    size_t negative;  /* pixels with a negative channel (left as they are) */
 } rs_capture;
 
 /* Loads [capture] panorama, position, rotation (section may be "capture.NAME").

@@ -9,8 +9,8 @@
 
 #include "fileio.h"
 
-#define SCAN_COMMENT "rhoscan_scan"
-#define ORIGIN_COMMENT "rhoscan_origin"
+#define SCAN_COMMENT      "rhoscan_scan"
+#define ORIGIN_COMMENT    "rhoscan_origin"
 #define VIEWPOINT_COMMENT "rhoscan_viewpoint"
 
 void rs_cloud_free(rs_cloud *c)
@@ -182,28 +182,30 @@ int rs_cloud_write_ply(const rs_cloud *c, const char *path, rs_err *err)
     }
     for (int s = 0; s < c->nscans; s++) {
         const rs_scan *sc = &c->scans[s];
-        if (rs_ply_add_comment(ply, SCAN_COMMENT " %d %d %d %.17g %.17g %.17g", s, sc->cols, sc->rows,
-                               sc->position[0], sc->position[1], sc->position[2]) != 0)
+        if (rs_ply_add_comment(ply, SCAN_COMMENT " %d %d %d %.17g %.17g %.17g", s, sc->cols, sc->rows, sc->position[0],
+                               sc->position[1], sc->position[2]) != 0)
             goto nomem;
     }
     if ((c->origin[0] != 0 || c->origin[1] != 0 || c->origin[2] != 0) &&
         rs_ply_add_comment(ply, ORIGIN_COMMENT " %.17g %.17g %.17g", c->origin[0], c->origin[1], c->origin[2]) != 0)
         goto nomem;
-    if (c->has_viewpoint && rs_ply_add_comment(ply, VIEWPOINT_COMMENT " %.17g %.17g %.17g", c->viewpoint[0],
-                                               c->viewpoint[1], c->viewpoint[2]) != 0)
+    if (c->has_viewpoint &&
+        rs_ply_add_comment(ply, VIEWPOINT_COMMENT " %.17g %.17g %.17g", c->viewpoint[0], c->viewpoint[1],
+                           c->viewpoint[2]) != 0)
         goto nomem;
     rs_ply_element *el = rs_ply_add_element(ply, "vertex", nvalid);
     if (!el || !rs_ply_add_scalar(el, "x", RS_PLY_FLOAT64, x) || !rs_ply_add_scalar(el, "y", RS_PLY_FLOAT64, y) ||
         !rs_ply_add_scalar(el, "z", RS_PLY_FLOAT64, z))
         goto nomem;
     if (in && !rs_ply_add_scalar(el, "intensity", RS_PLY_FLOAT32, in)) goto nomem;
-    if (rgb && (!rs_ply_add_scalar(el, "red", RS_PLY_UINT8, rgb) ||
-                !rs_ply_add_scalar(el, "green", RS_PLY_UINT8, rgb + nvalid) ||
-                !rs_ply_add_scalar(el, "blue", RS_PLY_UINT8, rgb + 2 * nvalid)))
+    if (rgb &&
+        (!rs_ply_add_scalar(el, "red", RS_PLY_UINT8, rgb) ||
+         !rs_ply_add_scalar(el, "green", RS_PLY_UINT8, rgb + nvalid) ||
+         !rs_ply_add_scalar(el, "blue", RS_PLY_UINT8, rgb + 2 * nvalid)))
         goto nomem;
-    if (scan && (!rs_ply_add_scalar(el, "scan", RS_PLY_INT32, scan) ||
-                 !rs_ply_add_scalar(el, "row", RS_PLY_INT32, row) ||
-                 !rs_ply_add_scalar(el, "col", RS_PLY_INT32, col)))
+    if (scan &&
+        (!rs_ply_add_scalar(el, "scan", RS_PLY_INT32, scan) || !rs_ply_add_scalar(el, "row", RS_PLY_INT32, row) ||
+         !rs_ply_add_scalar(el, "col", RS_PLY_INT32, col)))
         goto nomem;
     rc = rs_ply_write(ply, path, 1, err);
     goto out;
@@ -241,12 +243,14 @@ static int read_scan_comments(const rs_ply *ply, const char *name, rs_scan **out
         if (strncmp(cm, SCAN_COMMENT " ", sizeof SCAN_COMMENT) != 0) continue;
         int idx, cols, rows, used = 0;
         double p[3];
-        if (sscanf(cm + sizeof SCAN_COMMENT, "%d %d %d %lf %lf %lf %n", &idx, &cols, &rows, p, p + 1, p + 2,
-                   &used) != 6 || cm[sizeof SCAN_COMMENT + used] != '\0' || idx < 0 || idx >= n || seen[idx] ||
-            cols < 1 || rows < 1 || !isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) {
+        if (sscanf(cm + sizeof SCAN_COMMENT, "%d %d %d %lf %lf %lf %n", &idx, &cols, &rows, p, p + 1, p + 2, &used) !=
+                6 ||
+            cm[sizeof SCAN_COMMENT + used] != '\0' || idx < 0 || idx >= n || seen[idx] || cols < 1 || rows < 1 ||
+            !isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) {
             rs_err_set(err, RS_ERR_INPUT, name, 0,
                        "comment \"%.200s\": expected \"" SCAN_COMMENT " INDEX COLS ROWS PX PY PZ\" with INDEX from 0 "
-                       "to %d (each once), COLS and ROWS >= 1 and a finite position", cm, n - 1);
+                       "to %d (each once), COLS and ROWS >= 1 and a finite position",
+                       cm, n - 1);
             free(scans);
             free(seen);
             return -1;
@@ -289,8 +293,10 @@ rs_cloud *rs_cloud_from_ply(const rs_ply *ply, const char *name, rs_err *err)
         int used = 0;
         if (sscanf(origin, "%lf %lf %lf %n", c->origin, c->origin + 1, c->origin + 2, &used) != 3 ||
             origin[used] != '\0' || !isfinite(c->origin[0]) || !isfinite(c->origin[1]) || !isfinite(c->origin[2])) {
-            rs_err_set(err, RS_ERR_INPUT, name, 0, "comment \"" ORIGIN_COMMENT " %.200s\": expected three finite "
-                       "numbers (the offset added to every coordinate)", origin);
+            rs_err_set(err, RS_ERR_INPUT, name, 0,
+                       "comment \"" ORIGIN_COMMENT " %.200s\": expected three finite "
+                       "numbers (the offset added to every coordinate)",
+                       origin);
             goto fail;
         }
     }
@@ -300,16 +306,20 @@ rs_cloud *rs_cloud_from_ply(const rs_ply *ply, const char *name, rs_err *err)
         if (sscanf(vp, "%lf %lf %lf %n", c->viewpoint, c->viewpoint + 1, c->viewpoint + 2, &used) != 3 ||
             vp[used] != '\0' || !isfinite(c->viewpoint[0]) || !isfinite(c->viewpoint[1]) ||
             !isfinite(c->viewpoint[2])) {
-            rs_err_set(err, RS_ERR_INPUT, name, 0, "comment \"" VIEWPOINT_COMMENT " %.200s\": expected three finite "
-                       "numbers (the scanner centre)", vp);
+            rs_err_set(err, RS_ERR_INPUT, name, 0,
+                       "comment \"" VIEWPOINT_COMMENT " %.200s\": expected three finite "
+                       "numbers (the scanner centre)",
+                       vp);
             goto fail;
         }
         c->has_viewpoint = 1;
     }
     const double *scan = scalar(el, "scan"), *row = scalar(el, "row"), *col = scalar(el, "col");
     if (nscans > 0 && (!scan || !row || !col)) {
-        rs_err_set(err, RS_ERR_INPUT, name, 0, "the file describes %d scan grid(s) but its vertices lack scan, row "
-                   "and col properties", nscans);
+        rs_err_set(err, RS_ERR_INPUT, name, 0,
+                   "the file describes %d scan grid(s) but its vertices lack scan, row "
+                   "and col properties",
+                   nscans);
         goto fail;
     }
     c->nscans = nscans;
@@ -321,8 +331,10 @@ rs_cloud *rs_cloud_from_ply(const rs_ply *ply, const char *name, rs_err *err)
         c->scans[s].first = grid;
         grid += (size_t)c->scans[s].cols * (size_t)c->scans[s].rows;
         if (grid > 1000000 + 1000 * nv) {
-            rs_err_set(err, RS_ERR_INPUT, name, 0, "scan grids of %zu cells for %zu points; expected at most "
-                       "1000 cells per point (corrupt " SCAN_COMMENT " comment?)", grid, nv);
+            rs_err_set(err, RS_ERR_INPUT, name, 0,
+                       "scan grids of %zu cells for %zu points; expected at most "
+                       "1000 cells per point (corrupt " SCAN_COMMENT " comment?)",
+                       grid, nv);
             goto fail;
         }
     }
@@ -341,8 +353,8 @@ rs_cloud *rs_cloud_from_ply(const rs_ply *ply, const char *name, rs_err *err)
     size_t next_loose = grid;
     for (size_t k = 0; k < nv; k++) {
         if (!isfinite(x[k]) || !isfinite(y[k]) || !isfinite(z[k])) {
-            rs_err_set(err, RS_ERR_INPUT, name, 0, "vertex %zu: (%g, %g, %g); expected finite coordinates",
-                       k, x[k], y[k], z[k]);
+            rs_err_set(err, RS_ERR_INPUT, name, 0, "vertex %zu: (%g, %g, %g); expected finite coordinates", k, x[k],
+                       y[k], z[k]);
             goto fail;
         }
         size_t i;
@@ -350,18 +362,21 @@ rs_cloud *rs_cloud_from_ply(const rs_ply *ply, const char *name, rs_err *err)
             i = next_loose++;
         } else {
             double s = scan[k], r = row[k], cl = col[k];
-            if (!(s >= 0 && s < nscans && s == floor(s)) ||
-                !(r >= 0 && r < c->scans[(int)s].rows && r == floor(r)) ||
+            if (!(s >= 0 && s < nscans && s == floor(s)) || !(r >= 0 && r < c->scans[(int)s].rows && r == floor(r)) ||
                 !(cl >= 0 && cl < c->scans[(int)s].cols && cl == floor(cl))) {
-                rs_err_set(err, RS_ERR_INPUT, name, 0, "vertex %zu: scan %g, row %g, col %g is outside the grids "
-                           "in the " SCAN_COMMENT " comments (or not -1 for a point outside them)", k, s, r, cl);
+                rs_err_set(err, RS_ERR_INPUT, name, 0,
+                           "vertex %zu: scan %g, row %g, col %g is outside the grids "
+                           "in the " SCAN_COMMENT " comments (or not -1 for a point outside them)",
+                           k, s, r, cl);
                 goto fail;
             }
             const rs_scan *sc = &c->scans[(int)s];
             i = sc->first + (size_t)cl * (size_t)sc->rows + (size_t)r;
             if (c->valid[i]) {
-                rs_err_set(err, RS_ERR_INPUT, name, 0, "vertex %zu: scan %g, row %g, col %g holds a point already; "
-                           "expected one point per grid cell", k, s, r, cl);
+                rs_err_set(err, RS_ERR_INPUT, name, 0,
+                           "vertex %zu: scan %g, row %g, col %g holds a point already; "
+                           "expected one point per grid cell",
+                           k, s, r, cl);
                 goto fail;
             }
         }

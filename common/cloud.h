@@ -12,25 +12,25 @@
  * point (col, row) at index first + col * rows + row. */
 typedef struct rs_scan {
     int cols, rows;
-    double position[3];        /* scanner centre, world frame (the registered frame) */
+    double position[3]; /* scanner centre, world frame (the registered frame) */
     size_t first;
 } rs_scan;
 
 typedef struct rs_cloud {
     size_t npoints;
-    double *xyz;               /* 3 * npoints, world frame, metres */
-    float *intensity;          /* npoints, NULL if none */
-    uint8_t *rgb;              /* 3 * npoints, NULL if none */
-    uint8_t *valid;            /* npoints: 0 for no-return points (0 0 0 in PTX) */
-    int nscans;                /* 0 for an unorganized cloud */
+    double *xyz;      /* 3 * npoints, world frame, metres */
+    float *intensity; /* npoints, NULL if none */
+    uint8_t *rgb;     /* 3 * npoints, NULL if none */
+    uint8_t *valid;   /* npoints: 0 for no-return points (0 0 0 in PTX) */
+    int nscans;       /* 0 for an unorganized cloud */
     rs_scan *scans;
-    double origin[3];          /* world = xyz + origin (m): non-zero once georeferenced
+    double origin[3];    /* world = xyz + origin (m): non-zero once georeferenced
                                   coordinates were recentred (rs_cloud_recentre) */
-    int has_viewpoint;         /* the unorganized points' scanner centre is known */
-    double viewpoint[3];       /* it, in the frame of xyz (normals are turned toward it) */
+    int has_viewpoint;   /* the unorganized points' scanner centre is known */
+    double viewpoint[3]; /* it, in the frame of xyz (normals are turned toward it) */
 } rs_cloud;
 
-void rs_cloud_free(rs_cloud *c);          /* NULL is fine */
+void rs_cloud_free(rs_cloud *c); /* NULL is fine */
 
 /* Reads a point-cloud file told apart by content: PLY ("ply" magic) or else PTX. */
 rs_cloud *rs_cloud_read(const char *path, rs_err *err);

@@ -15,10 +15,12 @@ enum { COL_SKIP, COL_X, COL_Y, COL_Z, COL_I, COL_R, COL_G, COL_B };
 /* Parses the column map; returns the column count or -1. */
 static int parse_columns(const char *spec, int *kind, const char *name, rs_err *err)
 {
-    static const struct { const char *word; int kind; } words[] = {
-        {"x", COL_X}, {"y", COL_Y}, {"z", COL_Z}, {"intensity", COL_I}, {"i", COL_I},
-        {"r", COL_R}, {"g", COL_G}, {"b", COL_B}, {"red", COL_R}, {"green", COL_G}, {"blue", COL_B},
-        {"-", COL_SKIP}, {"nx", COL_SKIP}, {"ny", COL_SKIP}, {"nz", COL_SKIP}};
+    static const struct {
+        const char *word;
+        int kind;
+    } words[] = {{"x", COL_X},    {"y", COL_Y},    {"z", COL_Z},     {"intensity", COL_I}, {"i", COL_I},
+                 {"r", COL_R},    {"g", COL_G},    {"b", COL_B},     {"red", COL_R},       {"green", COL_G},
+                 {"blue", COL_B}, {"-", COL_SKIP}, {"nx", COL_SKIP}, {"ny", COL_SKIP},     {"nz", COL_SKIP}};
     int n = 0, seen[8] = {0};
     const char *p = spec ? spec : "x y z";
     while (*p) {
@@ -31,24 +33,31 @@ static int parse_columns(const char *spec, int *kind, const char *name, rs_err *
         for (size_t w = 0; w < sizeof words / sizeof *words; w++)
             if (strlen(words[w].word) == len && strncmp(words[w].word, s, len) == 0) k = words[w].kind;
         if (k < 0)
-            return rs_err_set(err, RS_ERR_INPUT, name, 0, "[ingest] columns: \"%.*s\" is not a column name; expected "
+            return rs_err_set(err, RS_ERR_INPUT, name, 0,
+                              "[ingest] columns: \"%.*s\" is not a column name; expected "
                               "x y z intensity r g b (or red green blue), nx ny nz or - for a column to ignore",
                               (int)(len < 40 ? len : 40), s);
         if (k != COL_SKIP && seen[k]++)
-            return rs_err_set(err, RS_ERR_INPUT, name, 0, "[ingest] columns: \"%.*s\" named twice; expected each "
-                              "quantity once", (int)len, s);
+            return rs_err_set(err, RS_ERR_INPUT, name, 0,
+                              "[ingest] columns: \"%.*s\" named twice; expected each "
+                              "quantity once",
+                              (int)len, s);
         if (n == MAX_COLS)
             return rs_err_set(err, RS_ERR_INPUT, name, 0, "[ingest] columns: more than %d columns", MAX_COLS);
         kind[n++] = k;
     }
     if (!seen[COL_X] || !seen[COL_Y] || !seen[COL_Z])
-        return rs_err_set(err, RS_ERR_INPUT, name, 0, "[ingest] columns = \"%s\": expected x, y and z among them", spec);
+        return rs_err_set(err, RS_ERR_INPUT, name, 0, "[ingest] columns = \"%s\": expected x, y and z among them",
+                          spec);
     if ((seen[COL_R] || seen[COL_G] || seen[COL_B]) && !(seen[COL_R] && seen[COL_G] && seen[COL_B]))
         return rs_err_set(err, RS_ERR_INPUT, name, 0, "[ingest] columns = \"%s\": expected all of r g b or none", spec);
     return n;
 }
 
-static int is_sep(char ch) { return ch == ' ' || ch == '\t' || ch == ',' || ch == ';' || ch == '\r'; }
+static int is_sep(char ch)
+{
+    return ch == ' ' || ch == '\t' || ch == ',' || ch == ';' || ch == '\r';
+}
 
 rs_cloud *rs_cloud_read_text(const char *path, const char *columns, rs_err *err)
 {
@@ -105,7 +114,7 @@ rs_cloud *rs_cloud_read_text(const char *path, const char *columns, rs_err *err)
             char *stop;
             double x = strtod(buf, &stop);
             if (len >= sizeof buf || stop != buf + len || !isfinite(x)) {
-                if (c->npoints == 0 && n == 0) break;   /* a header line before any point: n stays 0 */
+                if (c->npoints == 0 && n == 0) break; /* a header line before any point: n stays 0 */
                 rs_err_set(err, RS_ERR_INPUT, path, line, "column %d \"%s\": expected a finite number", n + 1, buf);
                 goto fail;
             }
@@ -113,7 +122,7 @@ rs_cloud *rs_cloud_read_text(const char *path, const char *columns, rs_err *err)
             n++;
         }
         if (n == 0) continue;
-        if (n == 1 && c->npoints == 0) continue;   /* Leica PTS: a point count before the points */
+        if (n == 1 && c->npoints == 0) continue; /* Leica PTS: a point count before the points */
         if (n < ncols) {
             rs_err_set(err, RS_ERR_INPUT, path, line, "%d numbers; expected %d ([ingest] columns)", n, ncols);
             goto fail;
@@ -125,7 +134,9 @@ rs_cloud *rs_cloud_read_text(const char *path, const char *columns, rs_err *err)
             case COL_Y: c->xyz[3 * i + 1] = v[k]; break;
             case COL_Z: c->xyz[3 * i + 2] = v[k]; break;
             case COL_I: c->intensity[i] = (float)v[k]; break;
-            case COL_R: case COL_G: case COL_B:
+            case COL_R:
+            case COL_G:
+            case COL_B:
                 if (v[k] < 0) {
                     rs_err_set(err, RS_ERR_INPUT, path, line, "column %d: colour %g; expected >= 0", k + 1, v[k]);
                     goto fail;
@@ -139,12 +150,14 @@ rs_cloud *rs_cloud_read_text(const char *path, const char *columns, rs_err *err)
         c->valid[i] = 1;
     }
     if (c->npoints == 0) {
-        rs_err_set(err, RS_ERR_INPUT, path, 0, "no point lines; expected lines of numbers in the order of "
-                   "[ingest] columns = \"%s\"", columns ? columns : "x y z");
+        rs_err_set(err, RS_ERR_INPUT, path, 0,
+                   "no point lines; expected lines of numbers in the order of "
+                   "[ingest] columns = \"%s\"",
+                   columns ? columns : "x y z");
         goto fail;
     }
     if (want_rgb) {
-        float scale = rgb_max > 1 ? 1.0f : 255.0f;   /* 0..1 floats or 0..255 integers */
+        float scale = rgb_max > 1 ? 1.0f : 255.0f; /* 0..1 floats or 0..255 integers */
         for (size_t k = 0; k < 3 * c->npoints; k++) {
             float x = rgbf[k] * scale;
             c->rgb[k] = (uint8_t)(x < 255 ? lroundf(x) : 255);

@@ -28,15 +28,15 @@
 
 typedef struct entry {
     const rs_cfg_key *key;
-    char *section;        /* as written: "mesh", "capture.north" */
-    char *text;           /* the value as given, trimmed */
-    rs_cfg_value value;   /* checked, paths resolved */
-    long line;            /* 0 for --set */
+    char *section;      /* as written: "mesh", "capture.north" */
+    char *text;         /* the value as given, trimmed */
+    rs_cfg_value value; /* checked, paths resolved */
+    long line;          /* 0 for --set */
 } entry;
 
 typedef struct section_seen {
     char *name;
-    long line;            /* heading line; 0 when only --set named it */
+    long line; /* heading line; 0 when only --set named it */
 } section_seen;
 
 struct rs_config {
@@ -49,9 +49,9 @@ struct rs_config {
 
 typedef struct load_ctx {
     rs_config *cfg;
-    const char *name;     /* file name for messages */
+    const char *name; /* file name for messages */
     rs_err *err;
-    int failed;           /* err holds the first error */
+    int failed; /* err holds the first error */
 } load_ctx;
 
 static void die(const char *fmt, ...) __attribute__((format(printf, 1, 2), noreturn));
@@ -84,8 +84,7 @@ static char *trimmed(const char *s, size_t n)
 static entry *find_entry(const rs_config *cfg, const char *section, const char *key)
 {
     for (int i = 0; i < cfg->nentries; i++)
-        if (strcmp(cfg->entries[i].section, section) == 0 &&
-            strcmp(cfg->entries[i].key->key, key) == 0)
+        if (strcmp(cfg->entries[i].section, section) == 0 && strcmp(cfg->entries[i].key->key, key) == 0)
             return &cfg->entries[i];
     return NULL;
 }
@@ -116,13 +115,15 @@ static int add_section(rs_config *cfg, const char *name, long line)
 
 /* Checks and stores one value. file/line place messages ("--set" and 0 for overrides); a file
  * may not give a key twice, an override replaces what the file gave. */
-static int set_value(rs_config *cfg, const char *file, long line, const char *section,
-                     const char *key, const char *text, rs_err *err)
+static int set_value(rs_config *cfg, const char *file, long line, const char *section, const char *key,
+                     const char *text, rs_err *err)
 {
     char why[900];
     if (!*key)
-        return rs_err_set(err, RS_ERR_INPUT, file, line, "[%s] = \"%.120s\": a value with no key "
-                          "name; expected key = value", section, text);
+        return rs_err_set(err, RS_ERR_INPUT, file, line,
+                          "[%s] = \"%.120s\": a value with no key "
+                          "name; expected key = value",
+                          section, text);
     const rs_cfg_key *k = rs_cfg_find_row(section, key);
     if (!k) {
         rs_cfg_unknown_key(section, key, why, sizeof why);
@@ -130,14 +131,16 @@ static int set_value(rs_config *cfg, const char *file, long line, const char *se
     }
     entry *old = find_entry(cfg, section, key);
     if (old && old->line > 0 && line > 0)
-        return rs_err_set(err, RS_ERR_INPUT, file, line, "[%s] %s is given twice, on lines %ld "
-                          "and %ld; keep one", section, key, old->line, line);
+        return rs_err_set(err, RS_ERR_INPUT, file, line,
+                          "[%s] %s is given twice, on lines %ld "
+                          "and %ld; keep one",
+                          section, key, old->line, line);
     rs_cfg_value v;
     int rc = rs_cfg_parse(k, text, cfg->dir, &v, why, sizeof why);
     if (rc == -2) return oom(err);
     if (rc)
-        return rs_err_set(err, RS_ERR_INPUT, file, line, "[%s] %s = \"%.120s%s\": %s", section,
-                          key, text, strlen(text) > 120 ? "..." : "", why);
+        return rs_err_set(err, RS_ERR_INPUT, file, line, "[%s] %s = \"%.120s%s\": %s", section, key, text,
+                          strlen(text) > 120 ? "..." : "", why);
     char *text_copy = strdup(text);
     if (!text_copy) {
         rs_cfg_value_clear(&v);
@@ -182,8 +185,10 @@ static int on_value(void *user, const char *section, const char *key, const char
     if (!sec)
         oom(c->err);
     else if (!*sec)
-        rs_err_set(c->err, RS_ERR_INPUT, c->name, line, "%s = \"%.120s\": a key outside any "
-                   "section; put it under a [section] heading", key, value);
+        rs_err_set(c->err, RS_ERR_INPUT, c->name, line,
+                   "%s = \"%.120s\": a key outside any "
+                   "section; put it under a [section] heading",
+                   key, value);
     else if (rs_cfg_check_section(sec, why, sizeof why) != 0) {
         section_seen *s = find_section(c->cfg, sec);
         rs_err_set(c->err, RS_ERR_INPUT, c->name, s ? s->line : line, "%s", why);
@@ -193,7 +198,7 @@ static int on_value(void *user, const char *section, const char *key, const char
     }
     free(sec);
     c->failed = 1;
-    return 0;   /* stops libinih (ini_stop_on_first_error) */
+    return 0; /* stops libinih (ini_stop_on_first_error) */
 }
 
 /* Before libinih runs: refuse overlong lines (libinih would split them) and NUL bytes, and
@@ -205,11 +210,12 @@ static int scan_lines(rs_config *cfg, const char *text, size_t size, const char 
     for (const char *p = text; p < text + size; line++) {
         const char *end = memchr(p, '\n', (size_t)(text + size - p));
         if (!end) end = text + size;
-        if (nul && nul < end)
-            return rs_err_set(err, RS_ERR_INPUT, name, line, "a NUL byte: expected a text file");
+        if (nul && nul < end) return rs_err_set(err, RS_ERR_INPUT, name, line, "a NUL byte: expected a text file");
         if (end - p > LINE_LIMIT)
-            return rs_err_set(err, RS_ERR_INPUT, name, line, "line of %ld characters: expected at "
-                              "most %d", (long)(end - p), LINE_LIMIT);
+            return rs_err_set(err, RS_ERR_INPUT, name, line,
+                              "line of %ld characters: expected at "
+                              "most %d",
+                              (long)(end - p), LINE_LIMIT);
         if (line == 1 && end - p >= 3 && memcmp(p, "\xEF\xBB\xBF", 3) == 0) p += 3;
         while (p < end && isspace((unsigned char)*p)) p++;
         const char *close = p < end && *p == '[' ? memchr(p, ']', (size_t)(end - p)) : NULL;
@@ -218,8 +224,10 @@ static int scan_lines(rs_config *cfg, const char *text, size_t size, const char 
             if (!sec) return oom(err);
             int rc = strlen(sec) > SECTION_NAME_MAX ? 1 : add_section(cfg, sec, line);
             if (rc == 1)
-                rs_err_set(err, RS_ERR_INPUT, name, line, "[%.60s...]: section name longer than %d "
-                           "characters", sec, SECTION_NAME_MAX);
+                rs_err_set(err, RS_ERR_INPUT, name, line,
+                           "[%.60s...]: section name longer than %d "
+                           "characters",
+                           sec, SECTION_NAME_MAX);
             free(sec);
             if (rc) return rc == 1 ? -1 : oom(err);
         }
@@ -237,7 +245,7 @@ static void ini_setup(void)
     ini_allow_realloc = true;
     ini_initial_alloc = 256;
     ini_max_line = LINE_LIMIT + 16;
-    ini_allow_multiline = false;   /* an indented line is an ordinary line, not a continuation */
+    ini_allow_multiline = false; /* an indented line is an ordinary line, not a continuation */
     ini_allow_bom = true;
     ini_allow_inline_comments = true;
     ini_inline_comment_prefixes = comment_chars;
@@ -261,12 +269,13 @@ static int parse_text(rs_config *cfg, const char *text, size_t size, const char 
             if (p) p++;
         }
         size_t len = p ? strcspn(p, "\r\n") : 0;
-        return rs_err_set(err, RS_ERR_INPUT, name, rc, "\"%.*s%s\": expected \"key = value\", "
-                          "\"[section]\" or a comment", (int)(len > 120 ? 120 : len), p ? p : "",
-                          len > 120 ? "..." : "");
+        return rs_err_set(err, RS_ERR_INPUT, name, rc,
+                          "\"%.*s%s\": expected \"key = value\", "
+                          "\"[section]\" or a comment",
+                          (int)(len > 120 ? 120 : len), p ? p : "", len > 120 ? "..." : "");
     }
     char why[900];
-    for (int i = 0; i < cfg->nsections; i++)   /* sections without keys */
+    for (int i = 0; i < cfg->nsections; i++) /* sections without keys */
         if (rs_cfg_check_section(cfg->sections[i].name, why, sizeof why) != 0)
             return rs_err_set(err, RS_ERR_INPUT, name, cfg->sections[i].line, "%s", why);
     return 0;
@@ -277,18 +286,21 @@ static int apply_override(rs_config *cfg, const char *o, rs_err *err)
     const char *eq = strchr(o, '=');
     char *left = eq ? trimmed(o, (size_t)(eq - o)) : NULL;
     char *value = eq ? trimmed(eq + 1, strlen(eq + 1)) : NULL;
-    char *dot = left ? strrchr(left, '.') : NULL;   /* the last dot: capture.north.position */
+    char *dot = left ? strrchr(left, '.') : NULL; /* the last dot: capture.north.position */
     char why[900];
     int rc = -1;
-    if (eq && (!left || !value)) rc = oom(err);
+    if (eq && (!left || !value))
+        rc = oom(err);
     else if (!dot || dot == left || !dot[1])
         rs_err_set(err, RS_ERR_INPUT, "--set", 0, "\"%.200s\": expected section.key=value", o);
     else {
         *dot = '\0';
         if (rs_cfg_check_section(left, why, sizeof why) != 0)
             rs_err_set(err, RS_ERR_INPUT, "--set", 0, "%s", why);
-        else if (add_section(cfg, left, 0) != 0) oom(err);
-        else rc = set_value(cfg, "--set", 0, left, dot + 1, value, err);
+        else if (add_section(cfg, left, 0) != 0)
+            oom(err);
+        else
+            rc = set_value(cfg, "--set", 0, left, dot + 1, value, err);
     }
     free(left);
     free(value);
@@ -303,8 +315,7 @@ static char *absolute_dir(const char *dir, rs_err *err)
         return NULL;
     }
     if (rs_cfg_resolve(cwd, dir ? dir : ".", out, sizeof out) != 0) {
-        rs_err_set(err, RS_ERR_INPUT, dir, 0, "folder name longer than %d characters",
-                   RS_CFG_PATH_MAX - 1);
+        rs_err_set(err, RS_ERR_INPUT, dir, 0, "folder name longer than %d characters", RS_CFG_PATH_MAX - 1);
         return NULL;
     }
     char *s = strdup(out);
@@ -321,8 +332,7 @@ static rs_config *load_text(const char *text, size_t size, const char *name, con
         oom(err);
         return NULL;
     }
-    if (!(cfg->dir = absolute_dir(dir, err)) || parse_text(cfg, text, size, name, err) != 0)
-        goto fail;
+    if (!(cfg->dir = absolute_dir(dir, err)) || parse_text(cfg, text, size, name, err) != 0) goto fail;
     for (int i = 0; overrides && overrides[i]; i++)
         if (apply_override(cfg, overrides[i], err) != 0) goto fail;
     return cfg;
@@ -331,8 +341,8 @@ fail:
     return NULL;
 }
 
-rs_config *rs_config_load_string(const char *text, const char *name, const char *base_dir,
-                                 const char *const *overrides, rs_err *err)
+rs_config *rs_config_load_string(const char *text, const char *name, const char *base_dir, const char *const *overrides,
+                                 rs_err *err)
 {
     return load_text(text, strlen(text), name ? name : "(string)", base_dir, overrides, err);
 }
@@ -368,8 +378,7 @@ rs_config *rs_config_load(const char *path, const char *const *overrides, rs_err
     }
     fclose(f);
     if (failed == 1) oom(err);
-    if (failed == 2) rs_err_set(err, RS_ERR_INPUT, path, 0, "larger than %ld MiB: not a config file",
-                                FILE_LIMIT >> 20);
+    if (failed == 2) rs_err_set(err, RS_ERR_INPUT, path, 0, "larger than %ld MiB: not a config file", FILE_LIMIT >> 20);
     if (failed) {
         free(text);
         return NULL;
@@ -410,24 +419,22 @@ void rs_config_free(rs_config *cfg)
 
 #define T(type) (1u << (type))
 
-static const rs_cfg_key *row_for(const char *section, const char *key, unsigned types,
-                                 const char *caller)
+static const rs_cfg_key *row_for(const char *section, const char *key, unsigned types, const char *caller)
 {
     char why[900];
     if (!section || !key) die("%s called with a NULL section or key", caller);
     if (rs_cfg_check_section(section, why, sizeof why) != 0) die("%s: %s", caller, why);
     const rs_cfg_key *k = rs_cfg_find_row(section, key);
     if (!k) die("%s: [%s] %s is not in the key table (common/config_keys.c)", caller, section, key);
-    if (!(T(k->type) & types)) die("%s: [%s] %s has type %d, which this getter does not read",
-                                   caller, section, key, (int)k->type);
+    if (!(T(k->type) & types))
+        die("%s: [%s] %s has type %d, which this getter does not read", caller, section, key, (int)k->type);
     return k;
 }
 
 /* The value in effect: the given one, else the default parsed into *tmp (caller clears it), else
  * NULL. *text gets the value's text. */
-static const rs_cfg_value *value_for(const rs_config *cfg, const char *section, const char *key,
-                                     unsigned types, const char *caller, rs_cfg_value *tmp,
-                                     const char **text)
+static const rs_cfg_value *value_for(const rs_config *cfg, const char *section, const char *key, unsigned types,
+                                     const char *caller, rs_cfg_value *tmp, const char **text)
 {
     const rs_cfg_key *k = row_for(section, key, types, caller);
     memset(tmp, 0, sizeof *tmp);
@@ -496,15 +503,15 @@ int rs_config_reals(const rs_config *cfg, const char *section, const char *key, 
 {
     rs_cfg_value tmp;
     const char *text;
-    const rs_cfg_value *v = value_for(cfg, section, key, T(RS_CFG_VEC3) | T(RS_CFG_ROTATION),
-                                      "rs_config_reals", &tmp, &text);
+    const rs_cfg_value *v =
+        value_for(cfg, section, key, T(RS_CFG_VEC3) | T(RS_CFG_ROTATION), "rs_config_reals", &tmp, &text);
     if (v) memcpy(out, v->r, (size_t)v->nr * sizeof *out);
     rs_cfg_value_clear(&tmp);
     return v ? 0 : -1;
 }
 
-static const char *path_out(const rs_config *cfg, const char *section, const char *key, int i,
-                            char *out, size_t n, unsigned types, const char *caller)
+static const char *path_out(const rs_config *cfg, const char *section, const char *key, int i, char *out, size_t n,
+                            unsigned types, const char *caller)
 {
     rs_cfg_value tmp;
     const char *text;
@@ -518,8 +525,7 @@ static const char *path_out(const rs_config *cfg, const char *section, const cha
     return v ? out : NULL;
 }
 
-const char *rs_config_path(const rs_config *cfg, const char *section, const char *key,
-                           char *out, size_t n)
+const char *rs_config_path(const rs_config *cfg, const char *section, const char *key, char *out, size_t n)
 {
     return path_out(cfg, section, key, 0, out, n, T(RS_CFG_PATH), "rs_config_path");
 }
@@ -528,18 +534,16 @@ int rs_config_path_count(const rs_config *cfg, const char *section, const char *
 {
     rs_cfg_value tmp;
     const char *text;
-    const rs_cfg_value *v = value_for(cfg, section, key, T(RS_CFG_PATH) | T(RS_CFG_PATHS),
-                                      "rs_config_path_count", &tmp, &text);
+    const rs_cfg_value *v =
+        value_for(cfg, section, key, T(RS_CFG_PATH) | T(RS_CFG_PATHS), "rs_config_path_count", &tmp, &text);
     int count = v ? v->npaths : 0;
     rs_cfg_value_clear(&tmp);
     return count;
 }
 
-const char *rs_config_path_at(const rs_config *cfg, const char *section, const char *key, int i,
-                              char *out, size_t n)
+const char *rs_config_path_at(const rs_config *cfg, const char *section, const char *key, int i, char *out, size_t n)
 {
-    return path_out(cfg, section, key, i, out, n, T(RS_CFG_PATH) | T(RS_CFG_PATHS),
-                    "rs_config_path_at");
+    return path_out(cfg, section, key, i, out, n, T(RS_CFG_PATH) | T(RS_CFG_PATHS), "rs_config_path_at");
 }
 
 /* Returns how many sections match (names gets the first max of them). */
@@ -567,8 +571,7 @@ char *rs_config_section_text(const rs_config *cfg, const char *section)
         if (strlen(k->section) != blen || strncmp(k->section, section, blen) != 0) continue;
         rs_cfg_value tmp;
         const char *text;
-        const rs_cfg_value *v = value_for(cfg, section, k->key, ~0u, "rs_config_section_text",
-                                          &tmp, &text);
+        const rs_cfg_value *v = value_for(cfg, section, k->key, ~0u, "rs_config_section_text", &tmp, &text);
         if (v) {
             rs_cfg_buf_printf(&b, "%s = ", k->key);
             rs_cfg_format(k, text, v, &b);

@@ -34,9 +34,12 @@ static void put_cell(rs_cfg_buf *b, const char *s, int code)
     rs_cfg_buf_put(b, " ", 1);
     if (code) rs_cfg_buf_put(b, "`", 1);
     for (; *s; s++) {
-        if (*s == '|') rs_cfg_buf_put(b, "\\|", 2);
-        else if (*s == '\n' || *s == '\r') rs_cfg_buf_put(b, " ", 1);
-        else rs_cfg_buf_put(b, s, 1);
+        if (*s == '|')
+            rs_cfg_buf_put(b, "\\|", 2);
+        else if (*s == '\n' || *s == '\r')
+            rs_cfg_buf_put(b, " ", 1);
+        else
+            rs_cfg_buf_put(b, s, 1);
     }
     if (code) rs_cfg_buf_put(b, "`", 1);
     rs_cfg_buf_put(b, " |", 2);
@@ -57,8 +60,7 @@ char *rs_config_keys_markdown(void)
         char type[512];
         rs_cfg_describe(k, type, sizeof type);
         /* The descriptions come from error messages ("a real in ..."): drop the article. */
-        const char *t = strncmp(type, "a ", 2) == 0 ? type + 2 :
-                        strncmp(type, "an ", 3) == 0 ? type + 3 : type;
+        const char *t = strncmp(type, "a ", 2) == 0 ? type + 2 : strncmp(type, "an ", 3) == 0 ? type + 3 : type;
         rs_cfg_buf_put(&b, "|", 1);
         put_cell(&b, k->key, 1);
         put_cell(&b, t, 0);

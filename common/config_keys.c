@@ -6,8 +6,7 @@
 
 const rs_cfg_key rs_cfg_keys[] = {
     /* section, key, type, default, min, max, choices, unit, stages, help */
-    {"pipeline", "workdir", RS_CFG_PATH, "out", 0, 0, NULL, "", "all",
-     "output folder for every stage's files"},
+    {"pipeline", "workdir", RS_CFG_PATH, "out", 0, 0, NULL, "", "all", "output folder for every stage's files"},
     {"pipeline", "threads", RS_CFG_INT, "0", 0, 4096, NULL, "", "all",
      "worker threads; 0 uses every core (results do not depend on it)"},
 
@@ -45,8 +44,7 @@ const rs_cfg_key rs_cfg_keys[] = {
      "unorganized clouds: neighbours of each point's normal estimate"},
     {"mesh", "max_edge", RS_CFG_REAL, NULL, 1e-4, 1e3, NULL, "m", "mesh",
      "unorganized clouds: longest triangle edge before simplification; default 8 x the 90th percentile spacing"},
-    {"mesh", "poisson_depth", RS_CFG_INT, "10", 5, 14, NULL, "", "mesh",
-     "surface = poisson: octree depth"},
+    {"mesh", "poisson_depth", RS_CFG_INT, "10", 5, 14, NULL, "", "mesh", "surface = poisson: octree depth"},
     {"mesh", "overlap_tolerance", RS_CFG_REAL, "0.03", 1e-4, 10, NULL, "m", "mesh",
      "several scans: surfaces closer than this are one surface, kept from the scan that saw it best"},
     {"mesh", "report_points", RS_CFG_INT, "200000", 0, 100000000, NULL, "", "mesh",
@@ -76,9 +74,11 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"capture", "rotation", RS_CFG_ROTATION, "1 0 0 0 1 0 0 0 1", 0, 0, NULL, "", "mesh observe irradiance render",
      "camera local -> world rotation, 9 numbers row-major"},
     {"capture", "correspondences", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib observe irradiance render",
-     "pairs file `column row X Y Z` per line (>= 4): the calib stage solves the pose; position and rotation only seed it"},
+     "pairs file `column row X Y Z` per line (>= 4): the calib stage solves the pose; position and rotation only seed "
+     "it"},
     {"capture", "colmap_panorama", RS_CFG_STRING, NULL, 0, 0, NULL, "", "calib observe irradiance render",
-     "label of a panorama in the [colmap] views file: its views in the COLMAP model pose this capture (position, rotation unused)"},
+     "label of a panorama in the [colmap] views file: its views in the COLMAP model pose this capture (position, "
+     "rotation unused)"},
     {"capture", "refine_edges", RS_CFG_BOOL, NULL, 0, 0, NULL, "", "calib observe irradiance render",
      "true: the calib stage refines the pose (solved, or position and rotation as a rough start) by aligning the "
      "panorama's edges with the model's (mesh.ply); unset or false: no refinement; [capture] only"},
@@ -88,7 +88,8 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"rig", "frames", RS_CFG_PATHS, NULL, 0, 0, NULL, "", "calib",
      "one image per rig camera, in the order of the rig file's cameras (EXR, HDR, PNG, JPEG, TIFF)"},
     {"rig", "exposure_times_s", RS_CFG_STRING, NULL, 0, 0, NULL, "s", "calib",
-     "exposure brackets: times of each camera's 8-bit exposures; frames then lists them camera by camera (Debevec merge)"},
+     "exposure brackets: times of each camera's 8-bit exposures; frames then lists them camera by camera (Debevec "
+     "merge)"},
     {"rig", "response_file", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib",
      "with exposure_times_s: camera response, 256 lines (code 0..255) of 1 or 3 linear exposures > 0, non-decreasing; "
      "replaces CalibrateDebevec"},
@@ -106,8 +107,7 @@ const rs_cfg_key rs_cfg_keys[] = {
      "registration: a pair is an inlier when the pose predicts its pixel within this angle"},
     {"calib", "ransac_iterations", RS_CFG_INT, "1000", 0, 10000000, NULL, "", "calib",
      "registration: random samples of 3 pairs tried before refinement"},
-    {"calib", "seed", RS_CFG_INT, "1", 0, 2147483647, NULL, "", "calib",
-     "registration: seed of the RANSAC samples"},
+    {"calib", "seed", RS_CFG_INT, "1", 0, 2147483647, NULL, "", "calib", "registration: seed of the RANSAC samples"},
     {"calib", "edge_levels", RS_CFG_INT, "3", 1, 8, NULL, "", "calib",
      "edge refinement: pyramid levels, coarse to fine, each half the width of the next (more: a wider capture range)"},
     {"calib", "edge_max_width", RS_CFG_INT, "2048", 64, 65536, NULL, "px", "calib",
@@ -120,9 +120,11 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"colmap", "model", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib",
      "folder of a COLMAP text model: cameras.txt, images.txt, points3D.txt (docs/COLMAP.md)"},
     {"colmap", "views", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib",
-     "views file `NAME PANORAMA R00..R22 [TX TY TZ]`: which model images are views of which panorama, and their rotation"},
+     "views file `NAME PANORAMA R00..R22 [TX TY TZ]`: which model images are views of which panorama, and their "
+     "rotation"},
     {"colmap", "control_points", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib",
-     "`image NAME X Y Z`, `point ID X Y Z` or `panorama LABEL X Y Z` per line (>= 3, not on one line; m): the similarity"},
+     "`image NAME X Y Z`, `point ID X Y Z` or `panorama LABEL X Y Z` per line (>= 3, not on one line; m): the "
+     "similarity"},
     {"colmap", "max_rms_m", RS_CFG_REAL, "0.1", 0, 1e6, NULL, "m", "calib",
      "the alignment fails when the control points' RMS residual exceeds this"},
 
@@ -147,8 +149,7 @@ const rs_cfg_key rs_cfg_keys[] = {
      "sky pixels brighter than this multiple of the median sky radiance are sampled explicitly"},
     {"irradiance", "sun_max_cone_deg", RS_CFG_REAL, "3", 0.01, 90, NULL, "deg", "irradiance",
      "bright pixels are sampled explicitly up to the solid angle of a cone of this half-angle"},
-    {"irradiance", "seed", RS_CFG_INT, "1", 0, 2147483647, NULL, "", "irradiance",
-     "seed of the sample sequences"},
+    {"irradiance", "seed", RS_CFG_INT, "1", 0, 2147483647, NULL, "", "irradiance", "seed of the sample sequences"},
     {"irradiance", "skip_unseen", RS_CFG_BOOL, "true", 0, 0, NULL, "", "irradiance",
      "gather only the facets a camera sees and, transitively, those their rays hit (the rest light nothing seen)"},
     {"irradiance", "relay_share", RS_CFG_REAL, "0.125", 0.001, 1, NULL, "", "irradiance",
@@ -172,7 +173,8 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"sky", "rotation", RS_CFG_ROTATION, "1 0 0 0 1 0 0 0 1", 0, 0, NULL, "", "irradiance",
      "sky panorama's local -> world rotation, 9 numbers row-major"},
     {"sky", "fill", RS_CFG_ENUM, "model", 0, 0, "row|model", "", "irradiance",
-     "directions no camera saw: model = Perez sky + harmonics, ground from the visible ground; row = interpolate along rows"},
+     "directions no camera saw: model = Perez sky + harmonics, ground from the visible ground; row = interpolate along "
+     "rows"},
     {"sky", "sun_azimuth_deg", RS_CFG_REAL, NULL, -360, 360, NULL, "deg", "irradiance",
      "world azimuth atan2(y, x) toward the sun (with sun_elevation_deg); default: from datetime or the image"},
     {"sky", "sun_elevation_deg", RS_CFG_REAL, NULL, -10, 90, NULL, "deg", "irradiance",
@@ -186,7 +188,8 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"sky", "north_deg", RS_CFG_REAL, "90", -360, 360, NULL, "deg", "irradiance",
      "world azimuth atan2(y, x) of geographic north (90: +Y is north)"},
     {"sky", "sun_irradiance", RS_CFG_REAL, NULL, 0, 1e12, NULL, "pano x sr", "irradiance",
-     "clipped or hidden sun: its direct normal irradiance in the panorama's radiance unit x sr (W m^-2 for W m^-2 sr^-1), "
+     "clipped or hidden sun: its direct normal irradiance in the panorama's radiance unit x sr (W m^-2 for W m^-2 "
+     "sr^-1), "
      "e.g. from a pyrheliometer; the disc leaves the sky map and each facet gets DNI max(0, n.s) V"},
     {"sky", "sun_color", RS_CFG_VEC3, "1 1 1", 0, 0, NULL, "", "irradiance",
      "with sun_irradiance: the sun's colour (linear RGB of the panorama, any scale, each >= 0); scaled to "
@@ -198,7 +201,8 @@ const rs_cfg_key rs_cfg_keys[] = {
      "direction too, searched among those no camera saw for shadows that match the radiance; on: always (a clipped "
      "sun's disc leaves the panoramas); off: never"},
     {"sky", "sun_clip_level", RS_CFG_REAL, NULL, 0, 1e30, NULL, "pano", "irradiance",
-     "with sun_irradiance: luminance from which sky pixels are the clipped disc; default 0.9 x the brightest near the sun"},
+     "with sun_irradiance: luminance from which sky pixels are the clipped disc; default 0.9 x the brightest near the "
+     "sun"},
     {"sky", "sun_mask_deg", RS_CFG_REAL, "4", 0, 45, NULL, "deg", "irradiance",
      "model fill: sky within this angle of the sun is left out of the fit"},
     {"sky", "sh_order", RS_CFG_INT, "2", -1, 4, NULL, "", "irradiance",
@@ -213,12 +217,13 @@ const rs_cfg_key rs_cfg_keys[] = {
      "upward facets that see only observed ones, each gathered first (not with an explicit sun, which comes after "
      "the gather: the measured ground is copied then); config = ground_albedo"},
 
-    {"reflectance", "method", RS_CFG_ENUM, "interreflection", 0, 0, "interreflection|direct|paper", "",
-     "reflectance", "interreflection: rho = pi L / (E_sky + G); direct: pi L / E_sky; paper: dense K"},
+    {"reflectance", "method", RS_CFG_ENUM, "interreflection", 0, 0, "interreflection|direct|paper", "", "reflectance",
+     "interreflection: rho = pi L / (E_sky + G); direct: pi L / E_sky; paper: dense K"},
     {"reflectance", "min_irradiance", RS_CFG_REAL, "0.001", 0, 1, NULL, "", "reflectance",
      "facets whose irradiance is below this share of the median are not estimable"},
     {"reflectance", "albedo_sigma_floor", RS_CFG_REAL, "0.0025", 0, 1, NULL, "", "reflectance",
-     "relative albedo uncertainty of what is not modelled (calibration, mesh); added in quadrature. Real captures: the grey card's relative deviation"},
+     "relative albedo uncertainty of what is not modelled (calibration, mesh); added in quadrature. Real captures: the "
+     "grey card's relative deviation"},
     {"reflectance", "paper_max_facets", RS_CFG_INT, "4000", 1, 100000, NULL, "facets", "reflectance",
      "refuse method = paper above this facet count (O(m^3) visibility)"},
     {"reflectance", "pool_accuracy", RS_CFG_REAL, "0.1", 0, 0.5, NULL, "", "reflectance",
@@ -234,8 +239,7 @@ const rs_cfg_key rs_cfg_keys[] = {
 
     {"render", "tolerance", RS_CFG_REAL, "1e-6", 1e-12, 0.1, NULL, "", "render",
      "forward solve stops when the largest relative change falls below this"},
-    {"render", "max_iterations", RS_CFG_INT, "10000", 1, 10000000, NULL, "", "render",
-     "forward solve iteration limit"},
+    {"render", "max_iterations", RS_CFG_INT, "10000", 1, 10000000, NULL, "", "render", "forward solve iteration limit"},
     {"render", "exposure", RS_CFG_REAL, NULL, 1e-12, 1e12, NULL, "", "render",
      "scale of the radiance PNG previews; default maps the 99th percentile to 1"},
 

@@ -21,18 +21,17 @@ void rs_cfg_buf_put(rs_cfg_buf *b, const char *s, size_t n);
 
 /* One value checked against its row. Paths are resolved to absolute, normalised text. */
 typedef struct rs_cfg_value {
-    long i;          /* INT */
-    int b;           /* BOOL */
-    double r[9];     /* REAL (r[0]), VEC3, ROTATION */
-    int nr;          /* count of r in use */
-    char **paths;    /* PATH (one) and PATHS; malloc'd */
+    long i;       /* INT */
+    int b;        /* BOOL */
+    double r[9];  /* REAL (r[0]), VEC3, ROTATION */
+    int nr;       /* count of r in use */
+    char **paths; /* PATH (one) and PATHS; malloc'd */
     int npaths;
 } rs_cfg_value;
 
 /* Checks text for row k; relative paths are resolved against base_dir (absolute). Returns 0, or -1
  * with what was wrong in `why` ("expected a real in [0, 1] (m)"), or -2 when out of memory. */
-int rs_cfg_parse(const rs_cfg_key *k, const char *text, const char *base_dir, rs_cfg_value *v,
-                 char *why, size_t n);
+int rs_cfg_parse(const rs_cfg_key *k, const char *text, const char *base_dir, rs_cfg_value *v, char *why, size_t n);
 void rs_cfg_value_clear(rs_cfg_value *v);
 /* Appends the canonical text of a checked value (text is the value as given; used for STRING and
  * ENUM): numbers in the shortest form that reads back exactly, paths absolute. */

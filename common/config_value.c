@@ -75,15 +75,23 @@ static void describe_range(const rs_cfg_key *k, const char *what, char *buf, siz
 {
     int lo = has_range(k) && k->min > -1e299, hi = has_range(k) && k->max < 1e299;
     if (k->type == RS_CFG_INT) {
-        if (lo && hi) snprintf(buf, n, "%s in [%ld, %ld]", what, (long)k->min, (long)k->max);
-        else if (lo) snprintf(buf, n, "%s >= %ld", what, (long)k->min);
-        else if (hi) snprintf(buf, n, "%s <= %ld", what, (long)k->max);
-        else snprintf(buf, n, "%s", what);
+        if (lo && hi)
+            snprintf(buf, n, "%s in [%ld, %ld]", what, (long)k->min, (long)k->max);
+        else if (lo)
+            snprintf(buf, n, "%s >= %ld", what, (long)k->min);
+        else if (hi)
+            snprintf(buf, n, "%s <= %ld", what, (long)k->max);
+        else
+            snprintf(buf, n, "%s", what);
     } else {
-        if (lo && hi) snprintf(buf, n, "%s in [%.10g, %.10g]", what, k->min, k->max);
-        else if (lo) snprintf(buf, n, "%s >= %.10g", what, k->min);
-        else if (hi) snprintf(buf, n, "%s <= %.10g", what, k->max);
-        else snprintf(buf, n, "%s", what);
+        if (lo && hi)
+            snprintf(buf, n, "%s in [%.10g, %.10g]", what, k->min, k->max);
+        else if (lo)
+            snprintf(buf, n, "%s >= %.10g", what, k->min);
+        else if (hi)
+            snprintf(buf, n, "%s <= %.10g", what, k->max);
+        else
+            snprintf(buf, n, "%s", what);
     }
 }
 
@@ -114,8 +122,8 @@ static int expected(const rs_cfg_key *k, const char *extra, char *why, size_t n)
     char desc[256];
     rs_cfg_describe(k, desc, sizeof desc);
     int unit = k->unit && *k->unit;
-    snprintf(why, n, "expected %s%s%s%s%s", desc, unit ? " (" : "", unit ? k->unit : "",
-             unit ? ")" : "", extra ? extra : "");
+    snprintf(why, n, "expected %s%s%s%s%s", desc, unit ? " (" : "", unit ? k->unit : "", unit ? ")" : "",
+             extra ? extra : "");
     return -1;
 }
 
@@ -166,8 +174,7 @@ static double rotation_deviation(const double *r, double *det)
             d -= (i == j);
             if (fabs(d) > worst) worst = fabs(d);
         }
-    *det = r[0] * (r[4] * r[8] - r[5] * r[7]) - r[1] * (r[3] * r[8] - r[5] * r[6]) +
-           r[2] * (r[3] * r[7] - r[4] * r[6]);
+    *det = r[0] * (r[4] * r[8] - r[5] * r[7]) - r[1] * (r[3] * r[8] - r[5] * r[6]) + r[2] * (r[3] * r[7] - r[4] * r[6]);
     return worst;
 }
 
@@ -186,8 +193,8 @@ static int add_path(rs_cfg_value *v, const char *base_dir, const char *path, cha
     return 0;
 }
 
-static int parse_paths(const rs_cfg_key *k, const char *text, const char *base_dir,
-                       rs_cfg_value *v, char *why, size_t n)
+static int parse_paths(const rs_cfg_key *k, const char *text, const char *base_dir, rs_cfg_value *v, char *why,
+                       size_t n)
 {
     if (!*text) return expected(k, NULL, why, n);
     if (k->type == RS_CFG_PATH) return add_path(v, base_dir, text, why, n);
@@ -205,8 +212,8 @@ static int parse_paths(const rs_cfg_key *k, const char *text, const char *base_d
     }
 }
 
-static int parse_inner(const rs_cfg_key *k, const char *text, const char *base_dir,
-                       rs_cfg_value *v, char *why, size_t n)
+static int parse_inner(const rs_cfg_key *k, const char *text, const char *base_dir, rs_cfg_value *v, char *why,
+                       size_t n)
 {
     char bad[QUOTE_MAX + 8], extra[QUOTE_MAX + 64];
     switch (k->type) {
@@ -214,14 +221,12 @@ static int parse_inner(const rs_cfg_key *k, const char *text, const char *base_d
     case RS_CFG_PATH:
     case RS_CFG_PATHS: return parse_paths(k, text, base_dir, v, why, n);
     case RS_CFG_INT:
-        if (parse_long(text, &v->i) != 0 ||
-            (has_range(k) && (v->i < k->min || v->i > k->max)))
+        if (parse_long(text, &v->i) != 0 || (has_range(k) && (v->i < k->min || v->i > k->max)))
             return expected(k, NULL, why, n);
         return 0;
     case RS_CFG_REAL: {
         int count = parse_reals(text, v->r, 1, bad, sizeof bad);
-        if (count != 1 || (has_range(k) && (v->r[0] < k->min || v->r[0] > k->max)))
-            return expected(k, NULL, why, n);
+        if (count != 1 || (has_range(k) && (v->r[0] < k->min || v->r[0] > k->max))) return expected(k, NULL, why, n);
         v->nr = 1;
         return 0;
     }
@@ -258,13 +263,17 @@ static int parse_inner(const rs_cfg_key *k, const char *text, const char *base_d
         if (k->type == RS_CFG_ROTATION) {
             double det, dev = rotation_deviation(v->r, &det);
             if (dev > ROTATION_TOL) {
-                snprintf(why, n, "not a rotation: R^T R differs from the identity by up to %.3g "
-                         "(tolerance %g)", dev, ROTATION_TOL);
+                snprintf(why, n,
+                         "not a rotation: R^T R differs from the identity by up to %.3g "
+                         "(tolerance %g)",
+                         dev, ROTATION_TOL);
                 return -1;
             }
             if (fabs(det - 1) > ROTATION_TOL) {
-                snprintf(why, n, "not a rotation: its determinant is %.6g (a reflection; expected "
-                         "+1 within %g)", det, ROTATION_TOL);
+                snprintf(why, n,
+                         "not a rotation: its determinant is %.6g (a reflection; expected "
+                         "+1 within %g)",
+                         det, ROTATION_TOL);
                 return -1;
             }
         }
@@ -275,8 +284,7 @@ static int parse_inner(const rs_cfg_key *k, const char *text, const char *base_d
     return -1;
 }
 
-int rs_cfg_parse(const rs_cfg_key *k, const char *text, const char *base_dir, rs_cfg_value *v,
-                 char *why, size_t n)
+int rs_cfg_parse(const rs_cfg_key *k, const char *text, const char *base_dir, rs_cfg_value *v, char *why, size_t n)
 {
     memset(v, 0, sizeof *v);
     int rc = parse_inner(k, text, base_dir, v, why, n);
@@ -349,8 +357,10 @@ int rs_cfg_resolve(const char *base_dir, const char *path, char *out, size_t n)
     size_t bl = strlen(base_dir ? base_dir : ""), pl = strlen(path);
     char *joined = malloc(bl + pl + 3);
     if (!joined) return -1;
-    if (path[0] == '/') snprintf(joined, bl + pl + 3, "%s", path);
-    else snprintf(joined, bl + pl + 3, "/%s/%s", base_dir ? base_dir : "", path);
+    if (path[0] == '/')
+        snprintf(joined, bl + pl + 3, "%s", path);
+    else
+        snprintf(joined, bl + pl + 3, "/%s/%s", base_dir ? base_dir : "", path);
     size_t len = 0;
     int ok = 1;
     for (char *save = NULL, *c = strtok_r(joined, "/", &save); c; c = strtok_r(NULL, "/", &save)) {
@@ -390,9 +400,7 @@ const rs_cfg_key *rs_cfg_find_row(const char *section, const char *key)
 {
     size_t blen = strcspn(section, ".");
     for (const rs_cfg_key *k = rs_cfg_keys; k->section; k++)
-        if (strlen(k->section) == blen && strncmp(k->section, section, blen) == 0 &&
-            strcmp(k->key, key) == 0)
-            return k;
+        if (strlen(k->section) == blen && strncmp(k->section, section, blen) == 0 && strcmp(k->key, key) == 0) return k;
     return NULL;
 }
 
@@ -417,16 +425,18 @@ int rs_cfg_check_section(const char *section, char *why, size_t n)
     if (base_in_table(section, blen)) {
         if (!name) return 0;
         if (!is_named_base(section, blen)) {
-            snprintf(why, n, "unknown section [%s]: only [%s.NAME] sections may carry a name",
-                     section, named_sections[0]);
+            snprintf(why, n, "unknown section [%s]: only [%s.NAME] sections may carry a name", section,
+                     named_sections[0]);
             return -1;
         }
         int ok = *name != '\0';
         for (const char *c = name; *c; c++)
             if (!isalnum((unsigned char)*c) && *c != '_' && *c != '-') ok = 0;
         if (ok) return 0;
-        snprintf(why, n, "bad section name [%s]: expected [%.*s.NAME] with a NAME of letters, "
-                 "digits, '_' or '-'", section, (int)blen, section);
+        snprintf(why, n,
+                 "bad section name [%s]: expected [%.*s.NAME] with a NAME of letters, "
+                 "digits, '_' or '-'",
+                 section, (int)blen, section);
         return -1;
     }
     char base[128];
@@ -468,13 +478,12 @@ void rs_cfg_unknown_key(const char *section, const char *key, char *why, size_t 
         if (d < best_dist) best_dist = d, best = k;
     }
     if (elsewhere)
-        snprintf(why, n, "[%s] %s: unknown key; %s is a key of [%s]", section, key, key,
-                 elsewhere->section);
+        snprintf(why, n, "[%s] %s: unknown key; %s is a key of [%s]", section, key, key, elsewhere->section);
     else if (best && close_enough(best_dist, key))
         snprintf(why, n, "[%s] %s: unknown key; did you mean %s?", section, key, best->key);
     else {
-        size_t len = (size_t)snprintf(why, n, "[%s] %s: unknown key; the keys of [%.*s] are",
-                                      section, key, (int)blen, section);
+        size_t len =
+            (size_t)snprintf(why, n, "[%s] %s: unknown key; the keys of [%.*s] are", section, key, (int)blen, section);
         int first = 1;
         for (const rs_cfg_key *k = rs_cfg_keys; k->section && len < n; k++)
             if (strlen(k->section) == blen && strncmp(k->section, section, blen) == 0) {

@@ -6,8 +6,7 @@
 #include <stdio.h>
 #include <string.h>
 
-static void err_fill(rs_err *err, rs_err_kind kind, const char *file, long line,
-                     const char *fmt, va_list ap)
+static void err_fill(rs_err *err, rs_err_kind kind, const char *file, long line, const char *fmt, va_list ap)
 {
     err->kind = kind;
     snprintf(err->file, sizeof err->file, "%s", file ? file : "");

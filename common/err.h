@@ -8,16 +8,16 @@
 /* Categories map to the programs' exit codes. */
 typedef enum {
     RS_OK = 0,
-    RS_ERR_INPUT = 1,    /* bad input file, config or value */
-    RS_ERR_SYSTEM = 2,   /* I/O, memory */
-    RS_ERR_INTERNAL = 3  /* a bug or a library failure */
+    RS_ERR_INPUT = 1,   /* bad input file, config or value */
+    RS_ERR_SYSTEM = 2,  /* I/O, memory */
+    RS_ERR_INTERNAL = 3 /* a bug or a library failure */
 } rs_err_kind;
 
 typedef struct rs_err {
     rs_err_kind kind;
-    char file[512];      /* the file concerned, "" if none */
-    long line;           /* 1-based line in that file, 0 if none */
-    char msg[1024];      /* what was found and what was expected */
+    char file[512]; /* the file concerned, "" if none */
+    long line;      /* 1-based line in that file, 0 if none */
+    char msg[1024]; /* what was found and what was expected */
 } rs_err;
 
 /* Sets *err (if err is not NULL) and returns -1, so that `return rs_err_set(...)` reads well.
@@ -27,8 +27,7 @@ int rs_err_set(rs_err *err, rs_err_kind kind, const char *file, long line, const
 
 /* Same, appending strerror(errno) to the message; kind RS_ERR_INPUT for a missing or
  * unreadable path (ENOENT, EACCES, EISDIR, ENOTDIR), RS_ERR_SYSTEM otherwise. */
-int rs_err_errno(rs_err *err, const char *file, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
+int rs_err_errno(rs_err *err, const char *file, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 
 /* "file:line: msg" (parts that are empty are left out) into buf. */
 void rs_err_format(const rs_err *err, char *buf, size_t size);

@@ -39,10 +39,10 @@ class MemoryStream : public Imf::IStream {
     size_t size_, pos_ = 0;
 };
 
-}  // namespace
+}   // namespace
 
-extern "C" int rs_exr_cxx_read(const void *data, size_t size, const char *const *names, int nnames, int x0,
-                               int y0, int width, int height, float *out, char *msg, size_t msg_size)
+extern "C" int rs_exr_cxx_read(const void *data, size_t size, const char *const *names, int nnames, int x0, int y0,
+                               int width, int height, float *out, char *msg, size_t msg_size)
 {
     try {
         MemoryStream stream(static_cast<const char *>(data), size);
@@ -59,9 +59,9 @@ extern "C" int rs_exr_cxx_read(const void *data, size_t size, const char *const 
             // whenever the window does not start at 0, so it is computed on integers: pointer
             // arithmetic out of the object is undefined (UBSan, found by fuzz_image).
             const ptrdiff_t off = static_cast<ptrdiff_t>(dw.min.x) * static_cast<ptrdiff_t>(xs) +
-                                  static_cast<ptrdiff_t>(dw.min.y) * static_cast<ptrdiff_t>(ys);
-            char *base = reinterpret_cast<char *>(reinterpret_cast<uintptr_t>(tmp.data() + k) -
-                                                  static_cast<uintptr_t>(off));
+                static_cast<ptrdiff_t>(dw.min.y) * static_cast<ptrdiff_t>(ys);
+            char *base =
+                reinterpret_cast<char *>(reinterpret_cast<uintptr_t>(tmp.data() + k) - static_cast<uintptr_t>(off));
             fb.insert(names[k], Imf::Slice(Imf::FLOAT, base, xs, ys));
         }
         file.setFrameBuffer(fb);

@@ -14,8 +14,8 @@ extern "C" {
  * out (caller-allocated, width x height x nnames floats, interleaved), where the image covers
  * the display window [x0, x0 + width) x [y0, y0 + height); pixels outside the data window stay
  * as they are. Returns 0, or -1 with a message in msg. */
-int rs_exr_cxx_read(const void *data, size_t size, const char *const *names, int nnames, int x0, int y0,
-                    int width, int height, float *out, char *msg, size_t msg_size);
+int rs_exr_cxx_read(const void *data, size_t size, const char *const *names, int nnames, int x0, int y0, int width,
+                    int height, float *out, char *msg, size_t msg_size);
 
 #ifdef __cplusplus
 }

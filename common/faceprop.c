@@ -5,8 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-int rs_faceprop_get(const rs_ply *ply, const char *file, const char *name, size_t nfaces,
-                    double *out, rs_err *err)
+int rs_faceprop_get(const rs_ply *ply, const char *file, const char *name, size_t nfaces, double *out, rs_err *err)
 {
     rs_ply_element *faces = rs_ply_find_element(ply, "face");
     if (!faces) return rs_err_set(err, RS_ERR_INPUT, file, 0, "no 'face' element");
@@ -14,14 +13,13 @@ int rs_faceprop_get(const rs_ply *ply, const char *file, const char *name, size_
         return rs_err_set(err, RS_ERR_INPUT, file, 0, "has %zu faces: expected %zu (same mesh as mesh.ply)",
                           faces->count, nfaces);
     rs_ply_prop *p = rs_ply_find_prop(faces, name);
-    if (!p || p->is_list)
-        return rs_err_set(err, RS_ERR_INPUT, file, 0, "face property '%s' is missing", name);
+    if (!p || p->is_list) return rs_err_set(err, RS_ERR_INPUT, file, 0, "face property '%s' is missing", name);
     memcpy(out, p->data, nfaces * sizeof *out);
     return 0;
 }
 
-int rs_faceprop_get_rgb(const rs_ply *ply, const char *file, const char *prefix, size_t nfaces,
-                        double *out, rs_err *err)
+int rs_faceprop_get_rgb(const rs_ply *ply, const char *file, const char *prefix, size_t nfaces, double *out,
+                        rs_err *err)
 {
     static const char suffix[3] = {'r', 'g', 'b'};
     double *tmp = malloc((nfaces ? nfaces : 1) * sizeof *tmp);

@@ -28,8 +28,7 @@ int rs_fault_should_fail(void)
 int rs_atomic_open(rs_atomic_file *f, const char *path, rs_err *err)
 {
     memset(f, 0, sizeof *f);
-    if (strlen(path) >= sizeof f->path)
-        return rs_err_set(err, RS_ERR_INPUT, path, 0, "path too long");
+    if (strlen(path) >= sizeof f->path) return rs_err_set(err, RS_ERR_INPUT, path, 0, "path too long");
     snprintf(f->path, sizeof f->path, "%s", path);
     snprintf(f->tmp_path, sizeof f->tmp_path, "%s.tmp.%ld", path, (long)getpid());
     f->fp = fopen(f->tmp_path, "wb");
@@ -171,7 +170,8 @@ int rs_hash_file(const char *path, uint64_t *hash, rs_err *err)
                 uint64_t x = (lane[q] ^ buf[k + q]) * 0x100000001b3ULL;
                 lane[q] = x ^ (x >> 29);
             }
-        tail = rs_hash_bytes((const unsigned char *)buf + 8 * words, n - 8 * words, tail);  /* only the last read has one */
+        tail =
+            rs_hash_bytes((const unsigned char *)buf + 8 * words, n - 8 * words, tail); /* only the last read has one */
         total += n;
     }
     int bad = ferror(fp);
@@ -209,7 +209,9 @@ int rs_mkdir_p(const char *path, rs_err *err)
 
 char *rs_path_join(char *out, size_t n, const char *dir, const char *name)
 {
-    if (!dir || !*dir || name[0] == '/') snprintf(out, n, "%s", name);
-    else snprintf(out, n, "%s%s%s", dir, dir[strlen(dir) - 1] == '/' ? "" : "/", name);
+    if (!dir || !*dir || name[0] == '/')
+        snprintf(out, n, "%s", name);
+    else
+        snprintf(out, n, "%s%s%s", dir, dir[strlen(dir) - 1] == '/' ? "" : "/", name);
     return out;
 }

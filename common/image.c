@@ -37,12 +37,11 @@ static unsigned char *png_deflate(unsigned char *data, int len, int *out_len, in
 
 rs_image *rs_image_new(int width, int height, int channels)
 {
-    if (width <= 0 || height <= 0 || width > RS_IMAGE_MAX_SIDE || height > RS_IMAGE_MAX_SIDE ||
-        channels <= 0 || channels > 64)
+    if (width <= 0 || height <= 0 || width > RS_IMAGE_MAX_SIDE || height > RS_IMAGE_MAX_SIDE || channels <= 0 ||
+        channels > 64)
         return NULL;
     size_t n = (size_t)width * (size_t)height;
-    if (n > SIZE_MAX / (size_t)channels || n * (size_t)channels > SIZE_MAX / sizeof(float))
-        return NULL;
+    if (n > SIZE_MAX / (size_t)channels || n * (size_t)channels > SIZE_MAX / sizeof(float)) return NULL;
     rs_image *img = malloc(sizeof *img);
     if (!img) return NULL;
     img->data = calloc(n * (size_t)channels, sizeof(float));
@@ -76,9 +75,9 @@ float rs_linear_to_srgb(float v)
 
 void rs_image_ramp(double t, float rgb[3])
 {
-    static const double stop[5][3] = {{0.10, 0.20, 0.90}, {0.00, 0.80, 0.90}, {0.10, 0.85, 0.20},
-                                      {1.00, 0.90, 0.00}, {0.90, 0.10, 0.10}};
-    t = t < 0 ? 0 : t > 1 ? 1 : t;       /* NaN takes the first stop below */
+    static const double stop[5][3] = {
+        {0.10, 0.20, 0.90}, {0.00, 0.80, 0.90}, {0.10, 0.85, 0.20}, {1.00, 0.90, 0.00}, {0.90, 0.10, 0.10}};
+    t = t < 0 ? 0 : t > 1 ? 1 : t; /* NaN takes the first stop below */
     int k = t >= 1 ? 3 : t > 0 ? (int)(t * 4) : 0;
     double s = t > 0 ? t * 4 - k : 0;
     for (int c = 0; c < 3; c++) rgb[c] = rs_srgb_to_linear((float)(stop[k][c] * (1 - s) + stop[k + 1][c] * s));
@@ -87,12 +86,10 @@ void rs_image_ramp(double t, float rgb[3])
 int rs_image_check_size(long long w, long long h, const char *name, rs_err *err)
 {
     if (w <= 0 || h <= 0 || w > RS_IMAGE_MAX_SIDE || h > RS_IMAGE_MAX_SIDE)
-        return rs_err_set(err, RS_ERR_INPUT, name, 0,
-                          "image size %lld x %lld: expected 1 to %d pixels per side", w, h,
+        return rs_err_set(err, RS_ERR_INPUT, name, 0, "image size %lld x %lld: expected 1 to %d pixels per side", w, h,
                           RS_IMAGE_MAX_SIDE);
     if (w * h > RS_IMAGE_MAX_PIXELS)
-        return rs_err_set(err, RS_ERR_INPUT, name, 0,
-                          "image size %lld x %lld: expected at most %lld pixels", w, h,
+        return rs_err_set(err, RS_ERR_INPUT, name, 0, "image size %lld x %lld: expected at most %lld pixels", w, h,
                           RS_IMAGE_MAX_PIXELS);
     return 0;
 }
@@ -100,8 +97,7 @@ int rs_image_check_size(long long w, long long h, const char *name, rs_err *err)
 rs_image *rs_image_new_or_fail(int w, int h, int c, const char *name, rs_err *err)
 {
     rs_image *img = rs_image_new(w, h, c);
-    if (!img)
-        rs_err_set(err, RS_ERR_SYSTEM, name, 0, "out of memory for a %d x %d x %d image", w, h, c);
+    if (!img) rs_err_set(err, RS_ERR_SYSTEM, name, 0, "out of memory for a %d x %d x %d image", w, h, c);
     return img;
 }
 
@@ -182,8 +178,10 @@ static rs_image *hdr_read_mem(const void *data, size_t size, const char *name, r
     if (rs_image_check_size(w, h, name, err) != 0) return NULL;
     size_t bad = hdr_zero_run_at(data, size, w, h);
     if (bad) {
-        rs_err_set(err, RS_ERR_INPUT, name, 0, "Radiance .hdr: run-length data %s at byte %zu: "
-                   "expected %d x %d pixels", bad >= size ? "truncated" : "corrupt", bad, w, h);
+        rs_err_set(err, RS_ERR_INPUT, name, 0,
+                   "Radiance .hdr: run-length data %s at byte %zu: "
+                   "expected %d x %d pixels",
+                   bad >= size ? "truncated" : "corrupt", bad, w, h);
         return NULL;
     }
     float *px = stbi_loadf_from_memory(data, (int)size, &w, &h, &comp, 3);
@@ -197,8 +195,14 @@ static rs_image *hdr_read_mem(const void *data, size_t size, const char *name, r
     return img;
 }
 
-static unsigned be16(const unsigned char *p) { return (unsigned)p[0] << 8 | p[1]; }
-static size_t be32(const unsigned char *p) { return (size_t)be16(p) << 16 | be16(p + 2); }
+static unsigned be16(const unsigned char *p)
+{
+    return (unsigned)p[0] << 8 | p[1];
+}
+static size_t be32(const unsigned char *p)
+{
+    return (size_t)be16(p) << 16 | be16(p + 2);
+}
 
 /* stb_image 2.27 builds JPEG Huffman tables without checking that a table has at most 256
  * codes, and writes past its arrays when one claims more (fixed upstream after 2.27). This
@@ -248,15 +252,16 @@ static int png_first_idat_empty(const unsigned char *p, size_t n)
 
 /* 8- or 16-bit PNG and JPEG: sRGB-decoded to linear; grey (+alpha) -> 1 channel, colour
  * (+alpha) -> 3; alpha is dropped. */
-static rs_image *ldr_read_mem(const void *data, size_t size, const char *name, const char *kind,
-                              rs_err *err)
+static rs_image *ldr_read_mem(const void *data, size_t size, const char *name, const char *kind, rs_err *err)
 {
     int w = 0, h = 0, comp = 0;
     /* Before any stb call: stbi_info already builds the Huffman tables. */
     size_t bad_dht = kind[0] == 'J' ? jpeg_bad_huffman_at(data, size) : 0;
     if (bad_dht) {
-        rs_err_set(err, RS_ERR_INPUT, name, 0, "JPEG: Huffman table at byte %zu has more than "
-                   "256 codes: expected a valid JPEG", bad_dht);
+        rs_err_set(err, RS_ERR_INPUT, name, 0,
+                   "JPEG: Huffman table at byte %zu has more than "
+                   "256 codes: expected a valid JPEG",
+                   bad_dht);
         return NULL;
     }
     if (kind[0] == 'P' && png_first_idat_empty(data, size)) {
@@ -272,8 +277,10 @@ static rs_image *ldr_read_mem(const void *data, size_t size, const char *name, c
      * can ask for millions of pixels. Real JPEGs hold at most a few hundred pixels per byte
      * (a flat 8 x 8 block still costs bits), so 4096 only refuses impossible ones. */
     if (kind[0] == 'J' && (long long)w * h > 4096LL * (long long)size) {
-        rs_err_set(err, RS_ERR_INPUT, name, 0, "JPEG: %d x %d pixels cannot come from %zu bytes: "
-                   "truncated or corrupt", w, h, size);
+        rs_err_set(err, RS_ERR_INPUT, name, 0,
+                   "JPEG: %d x %d pixels cannot come from %zu bytes: "
+                   "truncated or corrupt",
+                   w, h, size);
         return NULL;
     }
     int is16 = stbi_is_16_bit_from_memory(data, (int)size);
@@ -292,9 +299,9 @@ static rs_image *ldr_read_mem(const void *data, size_t size, const char *name, c
         for (size_t i = 0; i < n; i++)
             for (int k = 0; k < out_c; k++) {
                 size_t s = i * (size_t)comp + (size_t)k;
-                img->data[i * (size_t)out_c + (size_t)k] =
-                    is16 ? rs_srgb_to_linear((float)((const uint16_t *)px)[s] / 65535.0f)
-                         : lut[((const unsigned char *)px)[s]];
+                img->data[i * (size_t)out_c + (size_t)k] = is16
+                    ? rs_srgb_to_linear((float)((const uint16_t *)px)[s] / 65535.0f)
+                    : lut[((const unsigned char *)px)[s]];
             }
     }
     stbi_image_free(px);
@@ -309,8 +316,7 @@ static rs_image *ldr_read_mem(const void *data, size_t size, const char *name, c
 static size_t png_chunk_past_end_at(const unsigned char *p, size_t n)
 {
     for (size_t pos = 8; pos + 8 <= n;) {
-        size_t len = (size_t)p[pos] << 24 | (size_t)p[pos + 1] << 16 | (size_t)p[pos + 2] << 8 |
-                     p[pos + 3];
+        size_t len = (size_t)p[pos] << 24 | (size_t)p[pos + 1] << 16 | (size_t)p[pos + 2] << 8 | p[pos + 3];
         if (len > n - pos - 8 || n - pos - 8 - len < 4) return pos; /* data and CRC must fit */
         if (memcmp(p + pos + 4, "IEND", 4) == 0) break;
         pos += 12 + len;
@@ -328,33 +334,30 @@ rs_image *rs_image_read_mem(const void *data, size_t size, const char *name, rs_
         rs_err_set(err, RS_ERR_INPUT, name, 0, "empty file: expected " FORMATS);
         return NULL;
     }
-    if (size >= 4 && memcmp(p, exr_magic, 4) == 0)
-        return rs_image_exr_read_mem(data, size, name, err);
+    if (size >= 4 && memcmp(p, exr_magic, 4) == 0) return rs_image_exr_read_mem(data, size, name, err);
     /* stb takes int sizes. */
     if (size > (size_t)INT_MAX) {
-        rs_err_set(err, RS_ERR_INPUT, name, 0, "file of %zu bytes: too large for a non-EXR image",
-                   size);
+        rs_err_set(err, RS_ERR_INPUT, name, 0, "file of %zu bytes: too large for a non-EXR image", size);
         return NULL;
     }
-    if ((size >= 10 && memcmp(p, "#?RADIANCE", 10) == 0) ||
-        (size >= 6 && memcmp(p, "#?RGBE", 6) == 0))
+    if ((size >= 10 && memcmp(p, "#?RADIANCE", 10) == 0) || (size >= 6 && memcmp(p, "#?RGBE", 6) == 0))
         return hdr_read_mem(data, size, name, err);
     if (size >= 8 && memcmp(p, png_magic, 8) == 0) {
         size_t cut = png_chunk_past_end_at(p, size);
         if (cut) {
-            rs_err_set(err, RS_ERR_INPUT, name, 0, "PNG: chunk at byte %zu runs past the end of "
-                       "the %zu-byte file: truncated or corrupt", cut, size);
+            rs_err_set(err, RS_ERR_INPUT, name, 0,
+                       "PNG: chunk at byte %zu runs past the end of "
+                       "the %zu-byte file: truncated or corrupt",
+                       cut, size);
             return NULL;
         }
         return ldr_read_mem(data, size, name, "PNG", err);
     }
-    if (size >= 3 && p[0] == 0xff && p[1] == 0xd8 && p[2] == 0xff)
-        return ldr_read_mem(data, size, name, "JPEG", err);
+    if (size >= 3 && p[0] == 0xff && p[1] == 0xd8 && p[2] == 0xff) return ldr_read_mem(data, size, name, "JPEG", err);
     char first[40] = "";
     for (size_t i = 0, len = 0; i < size && i < 8; i++)
         len += (size_t)snprintf(first + len, sizeof first - len, "%s%02x", i ? " " : "", p[i]);
-    rs_err_set(err, RS_ERR_INPUT, name, 0,
-               "unknown file format (first bytes %s): expected " FORMATS, first);
+    rs_err_set(err, RS_ERR_INPUT, name, 0, "unknown file format (first bytes %s): expected " FORMATS, first);
     return NULL;
 }
 
@@ -418,7 +421,10 @@ typedef struct {
     unsigned char base[SRGB_BUCKETS + 1];
 } srgb_table;
 
-static int srgb_slow(float v) { return (int)(rs_linear_to_srgb(v) * 255.0f + 0.5f); }
+static int srgb_slow(float v)
+{
+    return (int)(rs_linear_to_srgb(v) * 255.0f + 0.5f);
+}
 
 static void srgb_table_init(srgb_table *t)
 {
@@ -440,16 +446,17 @@ static void srgb_table_init(srgb_table *t)
 static unsigned char srgb_code(const srgb_table *t, float v)
 {
     int code = t->base[(int)(v * SRGB_BUCKETS)];
-    if (code > 0 && v < t->thr[code - 1]) code--;
-    else if (code < 255 && v >= t->thr[code]) code++;
+    if (code > 0 && v < t->thr[code - 1])
+        code--;
+    else if (code < 255 && v >= t->thr[code])
+        code++;
     return (unsigned char)code;
 }
 
 int rs_image_write_png(const rs_image *img, const char *path, float scale, rs_err *err)
 {
     if (!img || !img->data || (img->channels != 1 && img->channels != 3))
-        return rs_err_set(err, RS_ERR_INTERNAL, path, 0,
-                          "rs_image_write_png: %d channels: expected 1 or 3",
+        return rs_err_set(err, RS_ERR_INTERNAL, path, 0, "rs_image_write_png: %d channels: expected 1 or 3",
                           img ? img->channels : 0);
     if (rs_image_check_size(img->width, img->height, path, err) != 0) return -1;
     size_t n = (size_t)img->width * (size_t)img->height * (size_t)img->channels;
@@ -469,8 +476,8 @@ int rs_image_write_png(const rs_image *img, const char *path, float scale, rs_er
     }
     free(tab);
     byte_buf b = {0};
-    int ok = stbi_write_png_to_func(byte_buf_append, &b, img->width, img->height, img->channels,
-                                    px, img->width * img->channels);
+    int ok = stbi_write_png_to_func(byte_buf_append, &b, img->width, img->height, img->channels, px,
+                                    img->width * img->channels);
     free(px);
     int status;
     if (!ok || b.failed)

@@ -9,7 +9,7 @@
 
 typedef struct rs_image {
     int width, height, channels;
-    float *data;               /* width * height * channels values */
+    float *data; /* width * height * channels values */
 } rs_image;
 
 /* New image, zero-filled; NULL on overflow or out of memory. Caller frees with rs_image_free. */
@@ -33,8 +33,8 @@ rs_image *rs_image_read_mem(const void *data, size_t size, const char *name, rs_
  * names: one per channel (e.g. {"R","G","B"} or {"Y"}); half: store as 16-bit float
  * (finite values beyond +-65504 become Inf: keep float for skies and radiance with the sun).
  * note: optional text stored as the string attribute "rhoscan" (provenance), may be NULL. */
-int rs_image_write_exr(const rs_image *img, const char *path, const char *const *names,
-                       int half, const char *note, rs_err *err);
+int rs_image_write_exr(const rs_image *img, const char *path, const char *const *names, int half, const char *note,
+                       rs_err *err);
 
 /* Writes an 8-bit sRGB PNG preview of linear values: clamp(scale * value) then sRGB-encode.
  * 1 channel -> grey, 3 -> RGB. Atomic. */

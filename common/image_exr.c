@@ -28,12 +28,11 @@ static void exr_on_error(exr_const_context_t ctxt, exr_result_t code, const char
     void *ud = NULL;
     if (exr_get_user_data(ctxt, &ud) != EXR_ERR_SUCCESS || !ud) return;
     exr_io *io = ud;
-    if (!io->msg[0])
-        snprintf(io->msg, sizeof io->msg, "%s", msg ? msg : exr_get_default_error_message(code));
+    if (!io->msg[0]) snprintf(io->msg, sizeof io->msg, "%s", msg ? msg : exr_get_default_error_message(code));
 }
 
-static int64_t exr_mem_read(exr_const_context_t ctxt, void *ud, void *buf, uint64_t sz,
-                            uint64_t offset, exr_stream_error_func_ptr_t error_cb)
+static int64_t exr_mem_read(exr_const_context_t ctxt, void *ud, void *buf, uint64_t sz, uint64_t offset,
+                            exr_stream_error_func_ptr_t error_cb)
 {
     const exr_io *io = ud;
     if (offset >= io->in_size) return 0;
@@ -49,8 +48,8 @@ static int64_t exr_mem_size(exr_const_context_t ctxt, void *ud)
 }
 
 /* pwrite semantics: the library seeks back to fill in the chunk offset table. */
-static int64_t exr_mem_write(exr_const_context_t ctxt, void *ud, const void *buf, uint64_t sz,
-                             uint64_t offset, exr_stream_error_func_ptr_t error_cb)
+static int64_t exr_mem_write(exr_const_context_t ctxt, void *ud, const void *buf, uint64_t sz, uint64_t offset,
+                             exr_stream_error_func_ptr_t error_cb)
 {
     exr_io *io = ud;
     if (offset > (uint64_t)(SIZE_MAX / 2) || sz > (uint64_t)(SIZE_MAX / 2) - offset) return -1;
@@ -69,8 +68,7 @@ static int64_t exr_mem_write(exr_const_context_t ctxt, void *ud, const void *buf
     return (int64_t)sz;
 }
 
-static int exr_fail(const exr_io *io, exr_result_t rv, const char *name, const char *what,
-                    rs_err *err)
+static int exr_fail(const exr_io *io, exr_result_t rv, const char *name, const char *what, rs_err *err)
 {
     const char *why = io->msg[0] ? io->msg : exr_get_default_error_message(rv);
     return rs_err_set(err, RS_ERR_INPUT, name, 0, "OpenEXR: %s: %s", what, why);
@@ -78,8 +76,7 @@ static int exr_fail(const exr_io *io, exr_result_t rv, const char *name, const c
 
 /* Chooses the channels to read, by name: R,G,B (others such as A ignored), else the only
  * channel, else Y (with at most an A beside it). */
-static int exr_pick_channels(const exr_attr_chlist_t *chl, const char *sel[3], int *nsel,
-                             const char *name, rs_err *err)
+static int exr_pick_channels(const exr_attr_chlist_t *chl, const char *sel[3], int *nsel, const char *name, rs_err *err)
 {
     int r = -1, g = -1, b = -1, y = -1, a = -1;
     for (int i = 0; i < chl->num_channels; i++) {
@@ -92,11 +89,16 @@ static int exr_pick_channels(const exr_attr_chlist_t *chl, const char *sel[3], i
                               e->name.str ? e->name.str : "?", e->x_sampling, e->y_sampling);
         const char *s = e->name.str;
         if (!s) continue;
-        if (strcmp(s, "R") == 0) r = i;
-        else if (strcmp(s, "G") == 0) g = i;
-        else if (strcmp(s, "B") == 0) b = i;
-        else if (strcmp(s, "Y") == 0) y = i;
-        else if (strcmp(s, "A") == 0) a = i;
+        if (strcmp(s, "R") == 0)
+            r = i;
+        else if (strcmp(s, "G") == 0)
+            g = i;
+        else if (strcmp(s, "B") == 0)
+            b = i;
+        else if (strcmp(s, "Y") == 0)
+            y = i;
+        else if (strcmp(s, "A") == 0)
+            a = i;
     }
     int idx[3], n = 0;
     if (r >= 0 && g >= 0 && b >= 0) {
@@ -112,8 +114,7 @@ static int exr_pick_channels(const exr_attr_chlist_t *chl, const char *sel[3], i
             len += (size_t)snprintf(list + len, sizeof list - len, "%s%s", i ? "," : "",
                                     chl->entries[i].name.str ? chl->entries[i].name.str : "?");
         return rs_err_set(err, RS_ERR_INPUT, name, 0,
-                          "EXR channels {%s}: expected R,G,B (A ignored), Y, or a single channel",
-                          list);
+                          "EXR channels {%s}: expected R,G,B (A ignored), Y, or a single channel", list);
     }
     for (int k = 0; k < n; k++) sel[k] = chl->entries[idx[k]].name.str;
     *nsel = n;
@@ -127,24 +128,23 @@ typedef struct exr_reader {
     const char *name;
     const char *sel[3];
     int nsel;
-    exr_attr_box2i_t dw, disp;  /* data and display windows (inclusive) */
-    rs_image *img;              /* covers the display window */
-    float *tmp;                 /* one decoded chunk, planar per selected channel */
+    exr_attr_box2i_t dw, disp; /* data and display windows (inclusive) */
+    rs_image *img;             /* covers the display window */
+    float *tmp;                /* one decoded chunk, planar per selected channel */
     size_t tmp_cap;
 } exr_reader;
 
 /* Decodes one chunk whose top-left pixel is at (x0, y0) in file coordinates, and copies the
  * part of it inside the display window into the image. */
-static int exr_decode_chunk(exr_reader *rd, const exr_chunk_info_t *ci, int64_t x0, int64_t y0,
-                            rs_err *err)
+static int exr_decode_chunk(exr_reader *rd, const exr_chunk_info_t *ci, int64_t x0, int64_t y0, rs_err *err)
 {
     int64_t w = ci->width, h = ci->height;
-    if (w <= 0 || h <= 0 || x0 < rd->dw.min.x || y0 < rd->dw.min.y ||
-        x0 + w - 1 > rd->dw.max.x || y0 + h - 1 > rd->dw.max.y)
+    if (w <= 0 || h <= 0 || x0 < rd->dw.min.x || y0 < rd->dw.min.y || x0 + w - 1 > rd->dw.max.x ||
+        y0 + h - 1 > rd->dw.max.y)
         return rs_err_set(err, RS_ERR_INPUT, rd->name, 0,
                           "EXR chunk at (%lld, %lld) of %lld x %lld pixels lies outside the "
-                          "data window", (long long)x0, (long long)y0, (long long)w,
-                          (long long)h);
+                          "data window",
+                          (long long)x0, (long long)y0, (long long)w, (long long)h);
     exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
     exr_result_t rv = exr_decoding_initialize(rd->ctx, 0, ci, &dec);
     if (rv != EXR_ERR_SUCCESS) {
@@ -154,7 +154,7 @@ static int exr_decode_chunk(exr_reader *rd, const exr_chunk_info_t *ci, int64_t 
     /* Every channel gets a plane, the unwanted ones (alpha, extra passes) too: OpenEXR 3.1's
      * generic unpacker reads out of bounds when some decode_to_ptr are NULL (it crashed on
      * Blender's half RGBA files). Selected channels take planes 0..nsel-1. */
-    if (dec.channel_count > 64) {   /* every channel gets a plane: bound what a header can ask */
+    if (dec.channel_count > 64) { /* every channel gets a plane: bound what a header can ask */
         exr_decoding_destroy(rd->ctx, &dec);
         return rs_err_set(err, RS_ERR_INPUT, rd->name, 0, "EXR with %d channels: expected at most 64",
                           (int)dec.channel_count);
@@ -177,11 +177,13 @@ static int exr_decode_chunk(exr_reader *rd, const exr_chunk_info_t *ci, int64_t 
         int slot = -1;
         for (int k = 0; k < rd->nsel; k++)
             if (strcmp(ch->channel_name, rd->sel[k]) == 0 && ch->width == w && ch->height == h) slot = k;
-        if (slot >= 0) found++;
-        else if (ch->width != w || ch->height != h) {   /* subsampled, unwanted: skip safely */
+        if (slot >= 0)
+            found++;
+        else if (ch->width != w || ch->height != h) { /* subsampled, unwanted: skip safely */
             ch->decode_to_ptr = NULL;
             continue;
-        } else slot = spare++;
+        } else
+            slot = spare++;
         ch->decode_to_ptr = (uint8_t *)(rd->tmp + (size_t)slot * plane);
         ch->user_pixel_stride = (int32_t)sizeof(float);
         ch->user_line_stride = (int32_t)(sizeof(float) * (size_t)w);
@@ -190,8 +192,7 @@ static int exr_decode_chunk(exr_reader *rd, const exr_chunk_info_t *ci, int64_t 
     }
     if (found != rd->nsel) {
         exr_decoding_destroy(rd->ctx, &dec);
-        return rs_err_set(err, RS_ERR_INPUT, rd->name, 0,
-                          "EXR chunk at y = %lld holds %d of the %d channels expected",
+        return rs_err_set(err, RS_ERR_INPUT, rd->name, 0, "EXR chunk at y = %lld holds %d of the %d channels expected",
                           (long long)y0, found, rd->nsel);
     }
     rv = exr_decoding_choose_default_routines(rd->ctx, 0, &dec);
@@ -199,16 +200,16 @@ static int exr_decode_chunk(exr_reader *rd, const exr_chunk_info_t *ci, int64_t 
     exr_decoding_destroy(rd->ctx, &dec);
     if (rv == EXR_ERR_FEATURE_NOT_IMPLEMENTED) {
         /* OpenEXR 3.1's C library has no DWAA/DWAB decoder (Blender's bundled skies use it). */
-        static const char *const names[] = {"NONE", "RLE", "ZIPS", "ZIP", "PIZ", "PXR24",
-                                            "B44", "B44A", "DWAA", "DWAB"};
+        static const char *const names[] = {"NONE",  "RLE", "ZIPS", "ZIP",  "PIZ",
+                                            "PXR24", "B44", "B44A", "DWAA", "DWAB"};
         exr_compression_t comp = EXR_COMPRESSION_LAST_TYPE;
         exr_get_compression(rd->ctx, 0, &comp);
         int known = comp >= 0 && comp < EXR_COMPRESSION_LAST_TYPE;
         return rs_err_set(err, RS_ERR_INPUT, rd->name, 0,
                           "EXR compression %s cannot be decoded by this OpenEXR C library (%s): "
                           "expected NONE, RLE, ZIPS, ZIP, PIZ, PXR24, B44 or B44A; re-save the "
-                          "image with ZIP compression", known ? names[comp] : "?",
-                          rd->io.msg[0] ? rd->io.msg : "the library has no decoder for it");
+                          "image with ZIP compression",
+                          known ? names[comp] : "?", rd->io.msg[0] ? rd->io.msg : "the library has no decoder for it");
     }
     if (rv != EXR_ERR_SUCCESS) return exr_fail(&rd->io, rv, rd->name, "cannot decode pixels", err);
 
@@ -220,8 +221,7 @@ static int exr_decode_chunk(exr_reader *rd, const exr_chunk_info_t *ci, int64_t 
             int64_t x = x0 + c;
             if (x < rd->disp.min.x || x > rd->disp.max.x) continue;
             float *px = rs_image_px(rd->img, (int)(x - rd->disp.min.x), (int)(y - rd->disp.min.y));
-            for (int k = 0; k < rd->nsel; k++)
-                px[k] = rd->tmp[(size_t)k * plane + (size_t)(r * w + c)];
+            for (int k = 0; k < rd->nsel; k++) px[k] = rd->tmp[(size_t)k * plane + (size_t)(r * w + c)];
         }
     }
     return 0;
@@ -237,7 +237,7 @@ static int exr_read_scanlines_parallel(exr_reader *rd, int32_t lines)
     int failed = 0;
 #pragma omp parallel reduction(| : failed)
     {
-        exr_reader mine = *rd;         /* the shared context and image; a buffer of its own */
+        exr_reader mine = *rd; /* the shared context and image; a buffer of its own */
         mine.tmp = NULL;
         mine.tmp_cap = 0;
 #pragma omp for schedule(dynamic, 8)
@@ -257,18 +257,16 @@ static int exr_read_scanlines(exr_reader *rd, rs_err *err)
 {
     int32_t lines = 0;
     exr_result_t rv = exr_get_scanlines_per_chunk(rd->ctx, 0, &lines);
-    if (rv != EXR_ERR_SUCCESS || lines <= 0)
-        return exr_fail(&rd->io, rv, rd->name, "no scanlines per chunk", err);
+    if (rv != EXR_ERR_SUCCESS || lines <= 0) return exr_fail(&rd->io, rv, rd->name, "no scanlines per chunk", err);
     int64_t rows = (int64_t)rd->dw.max.y - rd->dw.min.y + 1;
     if (rows / lines >= 16) {
         if (exr_read_scanlines_parallel(rd, lines) == 0) return 0;
-        rd->io.msg[0] = 0;             /* the serial pass below says what went wrong */
+        rd->io.msg[0] = 0; /* the serial pass below says what went wrong */
     }
     for (int64_t y = rd->dw.min.y; y <= rd->dw.max.y; y += lines) {
         exr_chunk_info_t ci;
         rv = exr_read_scanline_chunk_info(rd->ctx, 0, (int)y, &ci);
-        if (rv != EXR_ERR_SUCCESS)
-            return exr_fail(&rd->io, rv, rd->name, "cannot locate a block of scanlines", err);
+        if (rv != EXR_ERR_SUCCESS) return exr_fail(&rd->io, rv, rd->name, "cannot locate a block of scanlines", err);
         if (exr_decode_chunk(rd, &ci, rd->dw.min.x, ci.start_y, err) != 0) return -1;
     }
     return 0;
@@ -283,17 +281,14 @@ static int exr_read_tiles(exr_reader *rd, rs_err *err)
     if (rv != EXR_ERR_SUCCESS) return exr_fail(&rd->io, rv, rd->name, "bad tile description", err);
     if (tw <= 0 || th <= 0 || lw <= 0 || lh <= 0)
         return rs_err_set(err, RS_ERR_INPUT, rd->name, 0,
-                          "EXR tiles of %d x %d on a level of %d x %d: expected positive sizes",
-                          tw, th, lw, lh);
+                          "EXR tiles of %d x %d on a level of %d x %d: expected positive sizes", tw, th, lw, lh);
     int64_t ntx = ((int64_t)lw + tw - 1) / tw, nty = ((int64_t)lh + th - 1) / th;
     for (int64_t ty = 0; ty < nty; ty++) {
         for (int64_t tx = 0; tx < ntx; tx++) {
             exr_chunk_info_t ci;
             rv = exr_read_tile_chunk_info(rd->ctx, 0, (int)tx, (int)ty, 0, 0, &ci);
-            if (rv != EXR_ERR_SUCCESS)
-                return exr_fail(&rd->io, rv, rd->name, "cannot locate a tile", err);
-            if (exr_decode_chunk(rd, &ci, rd->dw.min.x + tx * tw, rd->dw.min.y + ty * th, err))
-                return -1;
+            if (rv != EXR_ERR_SUCCESS) return exr_fail(&rd->io, rv, rd->name, "cannot locate a tile", err);
+            if (exr_decode_chunk(rd, &ci, rd->dw.min.x + tx * tw, rd->dw.min.y + ty * th, err)) return -1;
         }
     }
     return 0;
@@ -333,7 +328,8 @@ rs_image *rs_image_exr_read_mem(const void *data, size_t size, const char *name,
         goto out;
     }
     if (storage != EXR_STORAGE_SCANLINE && storage != EXR_STORAGE_TILED) {
-        rs_err_set(err, RS_ERR_INPUT, name, 0, "deep EXR data: expected a flat scanline or "
+        rs_err_set(err, RS_ERR_INPUT, name, 0,
+                   "deep EXR data: expected a flat scanline or "
                    "tiled image");
         goto out;
     }
@@ -342,15 +338,13 @@ rs_image *rs_image_exr_read_mem(const void *data, size_t size, const char *name,
     long long dw_h = (long long)rd.dw.max.y - rd.dw.min.y + 1;
     long long w = (long long)rd.disp.max.x - rd.disp.min.x + 1;
     long long h = (long long)rd.disp.max.y - rd.disp.min.y + 1;
-    if (rs_image_check_size(dw_w, dw_h, name, err) != 0 ||
-        rs_image_check_size(w, h, name, err) != 0)
-        goto out;
-    if (rd.dw.max.x < rd.disp.min.x || rd.dw.min.x > rd.disp.max.x ||
-        rd.dw.max.y < rd.disp.min.y || rd.dw.min.y > rd.disp.max.y) {
+    if (rs_image_check_size(dw_w, dw_h, name, err) != 0 || rs_image_check_size(w, h, name, err) != 0) goto out;
+    if (rd.dw.max.x < rd.disp.min.x || rd.dw.min.x > rd.disp.max.x || rd.dw.max.y < rd.disp.min.y ||
+        rd.dw.min.y > rd.disp.max.y) {
         rs_err_set(err, RS_ERR_INPUT, name, 0,
                    "EXR data window (%d,%d)-(%d,%d) lies outside the display window "
-                   "(%d,%d)-(%d,%d): expected them to overlap", rd.dw.min.x, rd.dw.min.y,
-                   rd.dw.max.x, rd.dw.max.y, rd.disp.min.x, rd.disp.min.y, rd.disp.max.x,
+                   "(%d,%d)-(%d,%d): expected them to overlap",
+                   rd.dw.min.x, rd.dw.min.y, rd.dw.max.x, rd.dw.max.y, rd.disp.min.x, rd.disp.min.y, rd.disp.max.x,
                    rd.disp.max.y);
         goto out;
     }
@@ -361,8 +355,8 @@ rs_image *rs_image_exr_read_mem(const void *data, size_t size, const char *name,
         (comp == EXR_COMPRESSION_DWAA || comp == EXR_COMPRESSION_DWAB)) {
         /* OpenEXR 3.1's C library cannot decode DWA; its C++ library can (exr_dwa.h). */
         char msg[256];
-        if (rs_exr_cxx_read(data, size, rd.sel, rd.nsel, rd.disp.min.x, rd.disp.min.y, (int)w, (int)h,
-                            rd.img->data, msg, sizeof msg) != 0) {
+        if (rs_exr_cxx_read(data, size, rd.sel, rd.nsel, rd.disp.min.x, rd.disp.min.y, (int)w, (int)h, rd.img->data,
+                            msg, sizeof msg) != 0) {
             rs_err_set(err, RS_ERR_INPUT, name, 0, "DWA-compressed EXR could not be decoded: %s", msg);
             goto out;
         }
@@ -370,8 +364,7 @@ rs_image *rs_image_exr_read_mem(const void *data, size_t size, const char *name,
         rd.img = NULL;
         goto out;
     }
-    int bad = storage == EXR_STORAGE_TILED ? exr_read_tiles(&rd, err)
-                                           : exr_read_scanlines(&rd, err);
+    int bad = storage == EXR_STORAGE_TILED ? exr_read_tiles(&rd, err) : exr_read_scanlines(&rd, err);
     if (bad) goto out;
     result = rd.img;
     rd.img = NULL;
@@ -382,16 +375,15 @@ out:
     return result;
 }
 
-int rs_image_write_exr(const rs_image *img, const char *path, const char *const *names,
-                       int half, const char *note, rs_err *err)
+int rs_image_write_exr(const rs_image *img, const char *path, const char *const *names, int half, const char *note,
+                       rs_err *err)
 {
     if (!img || !img->data || img->channels <= 0 || !names)
         return rs_err_set(err, RS_ERR_INTERNAL, path, 0, "rs_image_write_exr: no image or names");
     if (rs_image_check_size(img->width, img->height, path, err) != 0) return -1;
     for (int c = 0; c < img->channels; c++)
         if (!names[c] || !names[c][0])
-            return rs_err_set(err, RS_ERR_INTERNAL, path, 0,
-                              "rs_image_write_exr: channel %d has no name", c);
+            return rs_err_set(err, RS_ERR_INTERNAL, path, 0, "rs_image_write_exr: channel %d has no name", c);
 
     exr_io io;
     memset(&io, 0, sizeof io);
@@ -407,14 +399,13 @@ int rs_image_write_exr(const rs_image *img, const char *path, const char *const 
     exr_result_t rv = exr_start_write(&ctx, path, EXR_WRITE_FILE_DIRECTLY, &init);
     if (rv == EXR_ERR_SUCCESS) rv = exr_add_part(ctx, "rhoscan", EXR_STORAGE_SCANLINE, &part);
     if (rv == EXR_ERR_SUCCESS)
-        rv = exr_initialize_required_attr_simple(ctx, part, img->width, img->height,
-                                                  EXR_COMPRESSION_ZIP);
+        rv = exr_initialize_required_attr_simple(ctx, part, img->width, img->height, EXR_COMPRESSION_ZIP);
     /* zlib's fastest level: the default (6) spent half the render stage in deflate at 2048 x 1024
      * (perf) for files about a tenth smaller. */
     if (rv == EXR_ERR_SUCCESS) rv = exr_set_zip_compression_level(ctx, part, 1);
     for (int c = 0; c < img->channels && rv == EXR_ERR_SUCCESS; c++)
-        rv = exr_add_channel(ctx, part, names[c], half ? EXR_PIXEL_HALF : EXR_PIXEL_FLOAT,
-                             EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
+        rv = exr_add_channel(ctx, part, names[c], half ? EXR_PIXEL_HALF : EXR_PIXEL_FLOAT, EXR_PERCEPTUALLY_LOGARITHMIC,
+                             1, 1);
     if (rv == EXR_ERR_SUCCESS && note) rv = exr_attr_set_string(ctx, part, "rhoscan", note);
     if (rv == EXR_ERR_SUCCESS) rv = exr_write_header(ctx);
     int32_t lines = 0;
@@ -426,8 +417,7 @@ int rs_image_write_exr(const rs_image *img, const char *path, const char *const 
         exr_chunk_info_t ci;
         rv = exr_write_scanline_chunk_info(ctx, part, y, &ci);
         if (rv != EXR_ERR_SUCCESS) goto fail;
-        rv = enc_started ? exr_encoding_update(ctx, part, &ci, &enc)
-                         : exr_encoding_initialize(ctx, part, &ci, &enc);
+        rv = enc_started ? exr_encoding_update(ctx, part, &ci, &enc) : exr_encoding_initialize(ctx, part, &ci, &enc);
         if (rv != EXR_ERR_SUCCESS) goto fail;
         /* The file orders channels alphabetically: match them to ours by name. */
         for (int e = 0; e < enc.channel_count; e++) {
@@ -438,8 +428,8 @@ int rs_image_write_exr(const rs_image *img, const char *path, const char *const 
                 rv = EXR_ERR_INVALID_ARGUMENT;
                 goto fail;
             }
-            ch->encode_from_ptr = (const uint8_t *)(img->data + (size_t)y * (size_t)img->width *
-                                                   (size_t)img->channels + (size_t)src);
+            ch->encode_from_ptr =
+                (const uint8_t *)(img->data + (size_t)y * (size_t)img->width * (size_t)img->channels + (size_t)src);
             ch->user_pixel_stride = (int32_t)(sizeof(float) * (size_t)img->channels);
             ch->user_line_stride = (int32_t)row_bytes;
             ch->user_bytes_per_element = (int16_t)sizeof(float);

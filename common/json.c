@@ -11,11 +11,11 @@ typedef enum { J_NULL, J_NUM, J_INT, J_STR, J_BOOL, J_RAW, J_OBJ, J_ARR } j_kind
 
 struct rs_json {
     j_kind kind;
-    char *key;                 /* member name inside an object */
+    char *key; /* member name inside an object */
     double num;
     long long inum;
-    char *str;                 /* J_STR, J_RAW */
-    rs_json *first, *last;     /* children of J_OBJ / J_ARR */
+    char *str;             /* J_STR, J_RAW */
+    rs_json *first, *last; /* children of J_OBJ / J_ARR */
     rs_json *next;
 };
 
@@ -26,8 +26,14 @@ static rs_json *j_new(j_kind kind)
     return j;
 }
 
-rs_json *rs_json_object(void) { return j_new(J_OBJ); }
-rs_json *rs_json_array(void) { return j_new(J_ARR); }
+rs_json *rs_json_object(void)
+{
+    return j_new(J_OBJ);
+}
+rs_json *rs_json_array(void)
+{
+    return j_new(J_ARR);
+}
 
 void rs_json_free(rs_json *j)
 {
@@ -43,8 +49,10 @@ void rs_json_free(rs_json *j)
 
 static void j_append(rs_json *parent, rs_json *child)
 {
-    if (parent->last) parent->last->next = child;
-    else parent->first = child;
+    if (parent->last)
+        parent->last->next = child;
+    else
+        parent->first = child;
     parent->last = child;
 }
 
@@ -119,8 +127,14 @@ rs_json *rs_json_set_raw(rs_json *obj, const char *key, const char *json_text)
     return c;
 }
 
-rs_json *rs_json_set_obj(rs_json *obj, const char *key) { return j_set(obj, key, J_OBJ); }
-rs_json *rs_json_set_arr(rs_json *obj, const char *key) { return j_set(obj, key, J_ARR); }
+rs_json *rs_json_set_obj(rs_json *obj, const char *key)
+{
+    return j_set(obj, key, J_OBJ);
+}
+rs_json *rs_json_set_arr(rs_json *obj, const char *key)
+{
+    return j_set(obj, key, J_ARR);
+}
 
 rs_json *rs_json_push_num(rs_json *arr, double v)
 {
@@ -136,9 +150,16 @@ rs_json *rs_json_push_str(rs_json *arr, const char *s)
     return c;
 }
 
-rs_json *rs_json_push_obj(rs_json *arr) { return j_push(arr, J_OBJ); }
+rs_json *rs_json_push_obj(rs_json *arr)
+{
+    return j_push(arr, J_OBJ);
+}
 
-typedef struct { char *buf; size_t len, cap; int oom; } j_buf;
+typedef struct {
+    char *buf;
+    size_t len, cap;
+    int oom;
+} j_buf;
 
 static void jb_put(j_buf *b, const char *s, size_t n)
 {
@@ -159,7 +180,10 @@ static void jb_put(j_buf *b, const char *s, size_t n)
     b->buf[b->len] = 0;
 }
 
-static void jb_str(j_buf *b, const char *s) { jb_put(b, s, strlen(s)); }
+static void jb_str(j_buf *b, const char *s)
+{
+    jb_put(b, s, strlen(s));
+}
 
 static void jb_quoted(j_buf *b, const char *s)
 {
@@ -194,7 +218,8 @@ static void j_write(j_buf *b, const rs_json *j, int depth)
     switch (j->kind) {
     case J_NULL: jb_str(b, "null"); break;
     case J_NUM:
-        if (!isfinite(j->num)) jb_str(b, "null");
+        if (!isfinite(j->num))
+            jb_str(b, "null");
         else {
             snprintf(num, sizeof num, "%.10g", j->num);
             jb_str(b, num);

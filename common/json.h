@@ -18,8 +18,8 @@ rs_json *rs_json_set_int(rs_json *obj, const char *key, long long v);
 rs_json *rs_json_set_str(rs_json *obj, const char *key, const char *s);
 rs_json *rs_json_set_bool(rs_json *obj, const char *key, int b);
 rs_json *rs_json_set_raw(rs_json *obj, const char *key, const char *json_text); /* trusted JSON text */
-rs_json *rs_json_set_obj(rs_json *obj, const char *key);   /* new empty object under key */
-rs_json *rs_json_set_arr(rs_json *obj, const char *key);   /* new empty array under key */
+rs_json *rs_json_set_obj(rs_json *obj, const char *key);                        /* new empty object under key */
+rs_json *rs_json_set_arr(rs_json *obj, const char *key);                        /* new empty array under key */
 /* Array appenders. */
 rs_json *rs_json_push_num(rs_json *arr, double v);
 rs_json *rs_json_push_str(rs_json *arr, const char *s);
@@ -30,6 +30,6 @@ rs_json *rs_json_get(const rs_json *obj, const char *key);
 
 /* Pretty text (two-space indent, trailing newline). Caller frees. */
 char *rs_json_text(const rs_json *j);
-int rs_json_write(const rs_json *j, const char *path, rs_err *err);   /* atomic */
+int rs_json_write(const rs_json *j, const char *path, rs_err *err); /* atomic */
 
 #endif

@@ -17,8 +17,14 @@ void rs_log_init(const char *program)
     snprintf(log_program, sizeof log_program, "%s", program);
 }
 
-void rs_log_set_level(rs_log_level level) { log_level = level; }
-const char *rs_log_program(void) { return log_program; }
+void rs_log_set_level(rs_log_level level)
+{
+    log_level = level;
+}
+const char *rs_log_program(void)
+{
+    return log_program;
+}
 
 static void log_v(rs_log_level level, const char *tag, const char *fmt, va_list ap)
 {
@@ -69,7 +75,7 @@ double rs_now(void)
 struct rs_progress {
     char what[128];
     size_t total, done;
-    int tty, last_step;      /* last printed tenth (plain) or bar width (tty) */
+    int tty, last_step; /* last printed tenth (plain) or bar width (tty) */
     double start;
 };
 

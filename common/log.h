@@ -8,7 +8,7 @@
 
 typedef enum { RS_LOG_QUIET = 0, RS_LOG_WARN = 1, RS_LOG_INFO = 2, RS_LOG_DEBUG = 3 } rs_log_level;
 
-void rs_log_init(const char *program);      /* program name for the prefix */
+void rs_log_init(const char *program); /* program name for the prefix */
 void rs_log_set_level(rs_log_level level);
 const char *rs_log_program(void);
 void rs_log_info(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
@@ -21,7 +21,7 @@ void rs_log_error(const rs_err *err);
 typedef struct rs_progress rs_progress;
 rs_progress *rs_progress_start(const char *what, size_t total);
 void rs_progress_add(rs_progress *p, size_t done);
-void rs_progress_end(rs_progress *p);   /* prints "what: done in X s", frees p */
+void rs_progress_end(rs_progress *p); /* prints "what: done in X s", frees p */
 
 /* Monotonic wall clock in seconds. */
 double rs_now(void);

@@ -79,8 +79,10 @@ rs_mesh *rs_mesh_from_ply(const rs_ply *ply, const char *name, rs_err *err)
         for (int j = 0; j < 3; j++) {
             /* Finite as a double is not enough: 1e300 overflows the float. */
             if (!isfinite(c[j]) || fabs(c[j]) > FLT_MAX) {
-                rs_err_set(err, RS_ERR_INPUT, name, 0, "vertex %zu: coordinates (%g, %g, %g); expected finite "
-                           "numbers within the float range", v, c[0], c[1], c[2]);
+                rs_err_set(err, RS_ERR_INPUT, name, 0,
+                           "vertex %zu: coordinates (%g, %g, %g); expected finite "
+                           "numbers within the float range",
+                           v, c[0], c[1], c[2]);
                 rs_mesh_free(m);
                 return NULL;
             }

@@ -13,8 +13,8 @@
 
 typedef struct rs_mesh {
     size_t nverts, nfaces;
-    float *verts;              /* 3 * nverts */
-    uint32_t *tris;            /* 3 * nfaces */
+    float *verts;   /* 3 * nverts */
+    uint32_t *tris; /* 3 * nfaces */
 } rs_mesh;
 
 rs_mesh *rs_mesh_new(size_t nverts, size_t nfaces);
@@ -33,7 +33,10 @@ rs_mesh *rs_mesh_read(const char *path, rs_ply **ply_out, rs_err *err);
 /* Per-face geometry: centroid, unit normal (from the winding; zero for degenerate faces),
  * area in m^2. */
 void rs_mesh_face(const rs_mesh *m, size_t f, rs_v3 *centroid, rs_v3 *normal, double *area);
-static inline rs_v3 rs_mesh_vert(const rs_mesh *m, uint32_t v) { return rs_v3_from_f(m->verts + 3 * (size_t)v); }
+static inline rs_v3 rs_mesh_vert(const rs_mesh *m, uint32_t v)
+{
+    return rs_v3_from_f(m->verts + 3 * (size_t)v);
+}
 
 /* Diagonal of the bounding box (m): scales ray offsets and tolerances. */
 double rs_mesh_extent(const rs_mesh *m);

@@ -3,7 +3,7 @@
 
 rs_v3 rs_pano_uv_to_dir(double u, double v)
 {
-    double sp, cp, st, ct;                         /* phi = pi (1 - 2 u), theta = pi v */
+    double sp, cp, st, ct; /* phi = pi (1 - 2 u), theta = pi v */
     rs_sincos_pi(1.0 - 2.0 * u, &sp, &cp);
     rs_sincos_pi(v, &st, &ct);
     return rs_v3_make(st * cp, st * sp, ct);
@@ -16,10 +16,10 @@ void rs_pano_dir_to_uv(rs_v3 d, double *u, double *v)
         *u = *v = 0.5;
         return;
     }
-    double phi = atan2(d.y, d.x);                  /* (-pi, pi] */
+    double phi = atan2(d.y, d.x); /* (-pi, pi] */
     double ct = d.z / len;
     ct = ct > 1 ? 1 : (ct < -1 ? -1 : ct);
-    *u = 0.5 * (1.0 - phi / M_PI);                 /* [0, 1) */
+    *u = 0.5 * (1.0 - phi / M_PI); /* [0, 1) */
     *v = acos(ct) / M_PI;
 }
 

@@ -11,8 +11,8 @@
 #include "vec.h"
 
 typedef struct rs_pose {
-    rs_v3 position;            /* camera centre, world frame, m */
-    double rot[9];             /* local -> world, row-major */
+    rs_v3 position; /* camera centre, world frame, m */
+    double rot[9];  /* local -> world, row-major */
 } rs_pose;
 
 /* Unit direction (local frame) of texture coordinates u, v in [0, 1]. */
@@ -25,8 +25,14 @@ rs_v3 rs_pano_pixel_dir(int width, int height, int c, int r);
 double rs_pano_pixel_solid_angle(int width, int height, int r);
 
 /* World <-> local directions and the pose of a capture. */
-static inline rs_v3 rs_pose_dir_to_world(const rs_pose *p, rs_v3 d_local) { return rs_m3_mul_v(p->rot, d_local); }
-static inline rs_v3 rs_pose_dir_to_local(const rs_pose *p, rs_v3 d_world) { return rs_m3_mul_vt(p->rot, d_world); }
+static inline rs_v3 rs_pose_dir_to_world(const rs_pose *p, rs_v3 d_local)
+{
+    return rs_m3_mul_v(p->rot, d_local);
+}
+static inline rs_v3 rs_pose_dir_to_local(const rs_pose *p, rs_v3 d_world)
+{
+    return rs_m3_mul_vt(p->rot, d_world);
+}
 
 /* Pixel index (c, r) holding the world direction d_world; wraps in azimuth, clamps at the poles. */
 void rs_pano_world_to_pixel(const rs_pose *p, int width, int height, rs_v3 d_world, int *c, int *r);

@@ -31,7 +31,10 @@
 namespace {
 
 // PCL prints warnings to the console; library code must not print: silence it once.
-void quiet() { pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS); }
+void quiet()
+{
+    pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);
+}
 
 pcl::PointCloud<pcl::PointXYZ>::Ptr to_pcl(const float *xyz, size_t n)
 {
@@ -106,14 +109,42 @@ int fail(rs_err *err, const char *what, const char *where)
 double field_value(const uint8_t *p, uint8_t type)
 {
     switch (type) {
-    case pcl::PCLPointField::INT8: { int8_t v; std::memcpy(&v, p, 1); return v; }
+    case pcl::PCLPointField::INT8: {
+        int8_t v;
+        std::memcpy(&v, p, 1);
+        return v;
+    }
     case pcl::PCLPointField::UINT8: return *p;
-    case pcl::PCLPointField::INT16: { int16_t v; std::memcpy(&v, p, 2); return v; }
-    case pcl::PCLPointField::UINT16: { uint16_t v; std::memcpy(&v, p, 2); return v; }
-    case pcl::PCLPointField::INT32: { int32_t v; std::memcpy(&v, p, 4); return v; }
-    case pcl::PCLPointField::UINT32: { uint32_t v; std::memcpy(&v, p, 4); return v; }
-    case pcl::PCLPointField::FLOAT32: { float v; std::memcpy(&v, p, 4); return v; }
-    case pcl::PCLPointField::FLOAT64: { double v; std::memcpy(&v, p, 8); return v; }
+    case pcl::PCLPointField::INT16: {
+        int16_t v;
+        std::memcpy(&v, p, 2);
+        return v;
+    }
+    case pcl::PCLPointField::UINT16: {
+        uint16_t v;
+        std::memcpy(&v, p, 2);
+        return v;
+    }
+    case pcl::PCLPointField::INT32: {
+        int32_t v;
+        std::memcpy(&v, p, 4);
+        return v;
+    }
+    case pcl::PCLPointField::UINT32: {
+        uint32_t v;
+        std::memcpy(&v, p, 4);
+        return v;
+    }
+    case pcl::PCLPointField::FLOAT32: {
+        float v;
+        std::memcpy(&v, p, 4);
+        return v;
+    }
+    case pcl::PCLPointField::FLOAT64: {
+        double v;
+        std::memcpy(&v, p, 8);
+        return v;
+    }
     default: return std::nan("");
     }
 }
@@ -130,7 +161,8 @@ rs_cloud *read_pcd(const char *path, rs_err *err)
     pcl::PCLPointCloud2 blob;
     pcl::PCDReader reader;
     if (reader.read(path, blob) < 0) {
-        rs_err_set(err, RS_ERR_INPUT, path, 0, "PCL's PCD reader refused the file; expected a PCD point cloud "
+        rs_err_set(err, RS_ERR_INPUT, path, 0,
+                   "PCL's PCD reader refused the file; expected a PCD point cloud "
                    "(header VERSION, FIELDS x y z ..., DATA ascii|binary|binary_compressed)");
         return nullptr;
     }
@@ -191,7 +223,7 @@ rs_cloud *read_pcd(const char *path, rs_err *err)
     return c;
 }
 
-}  // namespace
+}   // namespace
 
 extern "C" rs_cloud *rs_pcl_read_pcd(const char *path, rs_err *err)
 {
@@ -264,9 +296,10 @@ extern "C" int rs_pcl_voxel(const float *xyz, const float *intensity, const uint
         double cells = 1;
         for (int j = 0; j < 3; j++) cells *= std::floor((hi[j] - lo[j]) / leaf_m) + 1;
         if (n && cells > (double)std::numeric_limits<int32_t>::max())
-            return rs_err_set(err, RS_ERR_INPUT, NULL, 0, "voxel size %g m over a %.4g x %.4g x %.4g m cloud makes %.3g "
-                              "cells; PCL's VoxelGrid indexes at most 2^31: expected a larger voxel size", leaf_m,
-                              hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], cells);
+            return rs_err_set(err, RS_ERR_INPUT, NULL, 0,
+                              "voxel size %g m over a %.4g x %.4g x %.4g m cloud makes %.3g "
+                              "cells; PCL's VoxelGrid indexes at most 2^31: expected a larger voxel size",
+                              leaf_m, hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], cells);
         pcl::VoxelGrid<pcl::PointXYZRGBNormal> vg;
         vg.setInputCloud(c);
         vg.setLeafSize((float)leaf_m, (float)leaf_m, (float)leaf_m);
@@ -308,8 +341,8 @@ extern "C" int rs_pcl_voxel(const float *xyz, const float *intensity, const uint
     return -1;
 }
 
-extern "C" int rs_pcl_normals(const float *xyz, size_t n, int k, const float *viewpoints, int threads,
-                              float *normals, rs_err *err)
+extern "C" int rs_pcl_normals(const float *xyz, size_t n, int k, const float *viewpoints, int threads, float *normals,
+                              rs_err *err)
 {
     try {
         quiet();

@@ -4,7 +4,7 @@
 #define RS_PCL_BRIDGE_H
 
 #ifdef __cplusplus
-extern "C" {   /* around the includes too: err.h and cloud.h are C headers without guards */
+extern "C" { /* around the includes too: err.h and cloud.h are C headers without guards */
 #endif
 
 #include <stddef.h>
@@ -30,8 +30,8 @@ int rs_pcl_outliers(const float *xyz, size_t n, int k, double std_mul, uint8_t *
  * intensity (may be NULL) and rgb (may be NULL) averaged the same way. Writes the new count
  * to *nout and new arrays to *xyz_out, *intensity_out, *rgb_out (NULL where the input was).
  * Fails with a clear message when the extent / leaf_m grid has more than 2^31 cells. */
-int rs_pcl_voxel(const float *xyz, const float *intensity, const uint8_t *rgb, size_t n, double leaf_m,
-                 size_t *nout, float **xyz_out, float **intensity_out, uint8_t **rgb_out, rs_err *err);
+int rs_pcl_voxel(const float *xyz, const float *intensity, const uint8_t *rgb, size_t n, double leaf_m, size_t *nout,
+                 float **xyz_out, float **intensity_out, uint8_t **rgb_out, rs_err *err);
 
 /* Normals from the k nearest neighbours (NormalEstimationOMP, threads 0 = all cores), each
  * turned toward its point's viewpoint (3 floats per point: the scanner that saw it).
@@ -54,7 +54,7 @@ int rs_pcl_poisson(const float *xyz, const float *normals, size_t n, int depth, 
 /* Distance from each of m query points to the nearest of the n cloud points (kd-tree); with
  * skip_self the queries are cloud points and the second nearest (not the point itself) counts. */
 int rs_pcl_nearest(const float *xyz, size_t n, const float *query, size_t m, int skip_self, float *dist,
-                   uint32_t *index, rs_err *err);   /* index (the nearest point) may be NULL */
+                   uint32_t *index, rs_err *err); /* index (the nearest point) may be NULL */
 
 #ifdef __cplusplus
 }

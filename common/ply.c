@@ -15,14 +15,19 @@
 
 const size_t rs_ply_type_size[RS_PLY_NTYPES] = {1, 1, 2, 2, 4, 4, 4, 8};
 const char *const rs_ply_type_name[RS_PLY_NTYPES] = {"char", "uchar", "short", "ushort",
-                                                     "int", "uint", "float", "double"};
-const double rs_ply_type_min[RS_PLY_NTYPES] = {-128.0, 0.0, -32768.0, 0.0, -2147483648.0, 0.0,
-                                               -FLT_MAX, -DBL_MAX};
-const double rs_ply_type_max[RS_PLY_NTYPES] = {127.0, 255.0, 32767.0, 65535.0, 2147483647.0,
-                                               4294967295.0, FLT_MAX, DBL_MAX};
+                                                     "int",  "uint",  "float", "double"};
+const double rs_ply_type_min[RS_PLY_NTYPES] = {-128.0, 0.0, -32768.0, 0.0, -2147483648.0, 0.0, -FLT_MAX, -DBL_MAX};
+const double rs_ply_type_max[RS_PLY_NTYPES] = {127.0,        255.0,        32767.0, 65535.0,
+                                               2147483647.0, 4294967295.0, FLT_MAX, DBL_MAX};
 
-int rs_ply_type_valid(int type) { return type >= RS_PLY_INT8 && type <= RS_PLY_FLOAT64; }
-int rs_ply_type_is_int(rs_ply_type type) { return type <= RS_PLY_UINT32; }
+int rs_ply_type_valid(int type)
+{
+    return type >= RS_PLY_INT8 && type <= RS_PLY_FLOAT64;
+}
+int rs_ply_type_is_int(rs_ply_type type)
+{
+    return type <= RS_PLY_UINT32;
+}
 
 void *rs_ply_grow(void *arr, size_t n, size_t item_size)
 {
@@ -34,7 +39,10 @@ void *rs_ply_grow(void *arr, size_t n, size_t item_size)
 
 /* ---- model ---- */
 
-rs_ply *rs_ply_new(void) { return calloc(1, sizeof(rs_ply)); }
+rs_ply *rs_ply_new(void)
+{
+    return calloc(1, sizeof(rs_ply));
+}
 
 void rs_ply_free(rs_ply *ply)
 {
@@ -74,8 +82,7 @@ rs_ply_element *rs_ply_add_element(rs_ply *ply, const char *name, size_t count)
 /* A zeroed property slot at the end of el->props; the caller fills it and counts it. */
 static rs_ply_prop *new_prop(rs_ply_element *el, const char *name, rs_ply_type type)
 {
-    if (!el || !name_ok(name) || !rs_ply_type_valid((int)type) || rs_ply_find_prop(el, name))
-        return NULL;
+    if (!el || !name_ok(name) || !rs_ply_type_valid((int)type) || rs_ply_find_prop(el, name)) return NULL;
     rs_ply_prop *props = rs_ply_grow(el->props, (size_t)el->nprops, sizeof *props);
     if (!props) return NULL;
     el->props = props;
@@ -92,8 +99,7 @@ static double *alloc_values(size_t n)
     return calloc(n ? n : 1, sizeof(double));
 }
 
-rs_ply_prop *rs_ply_add_scalar(rs_ply_element *el, const char *name, rs_ply_type type,
-                               const double *values)
+rs_ply_prop *rs_ply_add_scalar(rs_ply_element *el, const char *name, rs_ply_type type, const double *values)
 {
     rs_ply_prop *p = new_prop(el, name, type);
     if (!p || !(p->data = alloc_values(el->count))) return NULL;
@@ -110,8 +116,7 @@ rs_ply_prop *rs_ply_declare_scalar(rs_ply_element *el, const char *name, rs_ply_
     return p;
 }
 
-rs_ply_prop *rs_ply_add_scalar_f(rs_ply_element *el, const char *name, rs_ply_type type,
-                                 const float *values)
+rs_ply_prop *rs_ply_add_scalar_f(rs_ply_element *el, const char *name, rs_ply_type type, const float *values)
 {
     rs_ply_prop *p = new_prop(el, name, type);
     if (!p || !(p->data = alloc_values(el->count))) return NULL;
@@ -121,8 +126,8 @@ rs_ply_prop *rs_ply_add_scalar_f(rs_ply_element *el, const char *name, rs_ply_ty
     return p;
 }
 
-rs_ply_prop *rs_ply_add_list_fixed(rs_ply_element *el, const char *name, rs_ply_type count_type,
-                                   rs_ply_type item_type, int n, const double *items)
+rs_ply_prop *rs_ply_add_list_fixed(rs_ply_element *el, const char *name, rs_ply_type count_type, rs_ply_type item_type,
+                                   int n, const double *items)
 {
     if (n < 0 || !rs_ply_type_valid((int)count_type) || !rs_ply_type_is_int(count_type) ||
         (double)n > rs_ply_type_max[count_type])
@@ -240,8 +245,10 @@ static double convert(double v, rs_ply_type t)
 {
     if (t == RS_PLY_FLOAT64) return v;
     if (isnan(v)) return rs_ply_type_is_int(t) ? 0.0 : v;
-    if (rs_ply_type_is_int(t)) v = round(v);
-    else if (isinf(v)) return v;
+    if (rs_ply_type_is_int(t))
+        v = round(v);
+    else if (isinf(v))
+        return v;
     if (v < rs_ply_type_min[t]) return rs_ply_type_min[t];
     if (v > rs_ply_type_max[t]) return rs_ply_type_max[t];
     return t == RS_PLY_FLOAT32 ? (double)(float)v : v;
@@ -255,9 +262,12 @@ static void put_ascii(out_buf *o, double v, rs_ply_type t, char sep)
     char *s = (char *)o->buf + o->len;
     int n;
     v = convert(v, t);
-    if (t == RS_PLY_FLOAT32) n = snprintf(s, VALUE_TEXT_MAX, "%.9g", v);
-    else if (t == RS_PLY_FLOAT64) n = snprintf(s, VALUE_TEXT_MAX, "%.17g", v);
-    else n = snprintf(s, VALUE_TEXT_MAX, "%lld", (long long)v);
+    if (t == RS_PLY_FLOAT32)
+        n = snprintf(s, VALUE_TEXT_MAX, "%.9g", v);
+    else if (t == RS_PLY_FLOAT64)
+        n = snprintf(s, VALUE_TEXT_MAX, "%.17g", v);
+    else
+        n = snprintf(s, VALUE_TEXT_MAX, "%lld", (long long)v);
     s[n] = sep;
     o->len += (size_t)n + 1;
 }
@@ -302,29 +312,29 @@ static int check_writable(const rs_ply *ply, const char *path, int streaming, rs
     for (int e = 0; e < ply->nelements; e++) {
         const rs_ply_element *el = &ply->elements[e];
         if (!name_writable(el->name))
-            return rs_err_set(err, RS_ERR_INTERNAL, path, 0,
-                              "element %d: name must be 1..63 characters without spaces", e);
+            return rs_err_set(err, RS_ERR_INTERNAL, path, 0, "element %d: name must be 1..63 characters without spaces",
+                              e);
         int streamed = streaming && is_streamed(el);
         for (int i = 0; i < el->nprops; i++) {
             const rs_ply_prop *p = &el->props[i];
             if (!name_writable(p->name) || !rs_ply_type_valid((int)p->type))
-                return rs_err_set(err, RS_ERR_INTERNAL, path, 0,
-                                  "element '%s' property %d: bad name or type", el->name, i);
+                return rs_err_set(err, RS_ERR_INTERNAL, path, 0, "element '%s' property %d: bad name or type", el->name,
+                                  i);
             if (streamed) {
                 if (p->data || p->is_list)
-                    return rs_err_set(err, RS_ERR_INTERNAL, path, 0, "element '%s' property '%s': a streamed "
-                                      "element takes declared scalar properties only", el->name, p->name);
+                    return rs_err_set(err, RS_ERR_INTERNAL, path, 0,
+                                      "element '%s' property '%s': a streamed "
+                                      "element takes declared scalar properties only",
+                                      el->name, p->name);
                 continue;
             }
             if (el->count && !p->data && (!p->is_list || !p->offsets))
-                return rs_err_set(err, RS_ERR_INTERNAL, path, 0,
-                                  "element '%s' property '%s': no data", el->name, p->name);
+                return rs_err_set(err, RS_ERR_INTERNAL, path, 0, "element '%s' property '%s': no data", el->name,
+                                  p->name);
             if (!p->is_list) continue;
-            if (!p->offsets || !rs_ply_type_valid((int)p->count_type) ||
-                !rs_ply_type_is_int(p->count_type))
+            if (!p->offsets || !rs_ply_type_valid((int)p->count_type) || !rs_ply_type_is_int(p->count_type))
                 return rs_err_set(err, RS_ERR_INTERNAL, path, 0,
-                                  "element '%s' list '%s': needs offsets and an integer count type",
-                                  el->name, p->name);
+                                  "element '%s' list '%s': needs offsets and an integer count type", el->name, p->name);
             for (size_t k = 0; k < el->count; k++) {
                 if (p->offsets[k + 1] < p->offsets[k] ||
                     (double)(p->offsets[k + 1] - p->offsets[k]) > rs_ply_type_max[p->count_type])
@@ -342,8 +352,7 @@ static int check_writable(const rs_ply *ply, const char *path, int streaming, rs
 static int write_header(out_buf *o, const rs_ply *ply, int binary)
 {
     char line[256];
-    if (out_str(o, binary ? "ply\nformat binary_little_endian 1.0\n" : "ply\nformat ascii 1.0\n"))
-        return -1;
+    if (out_str(o, binary ? "ply\nformat binary_little_endian 1.0\n" : "ply\nformat ascii 1.0\n")) return -1;
     for (int c = 0; c < ply->ncomments; c++) {
         if (out_str(o, "comment ")) return -1;
         /* A line break inside a comment would end the header line early. */
@@ -360,8 +369,8 @@ static int write_header(out_buf *o, const rs_ply *ply, int binary)
         for (int i = 0; i < el->nprops; i++) {
             const rs_ply_prop *p = &el->props[i];
             if (p->is_list)
-                snprintf(line, sizeof line, "property list %s %s %s\n",
-                         rs_ply_type_name[p->count_type], rs_ply_type_name[p->type], p->name);
+                snprintf(line, sizeof line, "property list %s %s %s\n", rs_ply_type_name[p->count_type],
+                         rs_ply_type_name[p->type], p->name);
             else
                 snprintf(line, sizeof line, "property %s %s\n", rs_ply_type_name[p->type], p->name);
             if (out_str(o, line)) return -1;
@@ -380,8 +389,10 @@ static int write_streamed(out_buf *o, const rs_ply_element *el, int binary, rs_p
         if ((rc = fn(ctx, el, k, v, o->err)) != 0) break;
         for (int i = 0; i < el->nprops && rc == 0; i++) {
             if ((rc = out_room(o, VALUE_TEXT_MAX)) != 0) break;
-            if (binary) put_binary(o, v[i], el->props[i].type);
-            else put_ascii(o, v[i], el->props[i].type, i + 1 < el->nprops ? ' ' : '\n');
+            if (binary)
+                put_binary(o, v[i], el->props[i].type);
+            else
+                put_ascii(o, v[i], el->props[i].type, i + 1 < el->nprops ? ' ' : '\n');
         }
     }
     free(v);
@@ -396,18 +407,24 @@ static int write_element(out_buf *o, const rs_ply_element *el, int binary)
             char sep = i + 1 < el->nprops ? ' ' : '\n';
             if (!p->is_list) {
                 if (out_room(o, VALUE_TEXT_MAX)) return -1;
-                if (binary) put_binary(o, p->data[k], p->type);
-                else put_ascii(o, p->data[k], p->type, sep);
+                if (binary)
+                    put_binary(o, p->data[k], p->type);
+                else
+                    put_ascii(o, p->data[k], p->type, sep);
                 continue;
             }
             size_t first = p->offsets[k], n = p->offsets[k + 1] - first;
             if (out_room(o, VALUE_TEXT_MAX)) return -1;
-            if (binary) put_binary(o, (double)n, p->count_type);
-            else put_ascii(o, (double)n, p->count_type, n ? ' ' : sep);
+            if (binary)
+                put_binary(o, (double)n, p->count_type);
+            else
+                put_ascii(o, (double)n, p->count_type, n ? ' ' : sep);
             for (size_t j = 0; j < n; j++) {
                 if (out_room(o, VALUE_TEXT_MAX)) return -1;
-                if (binary) put_binary(o, p->data[first + j], p->type);
-                else put_ascii(o, p->data[first + j], p->type, j + 1 < n ? ' ' : sep);
+                if (binary)
+                    put_binary(o, p->data[first + j], p->type);
+                else
+                    put_ascii(o, p->data[first + j], p->type, j + 1 < n ? ' ' : sep);
             }
         }
     }
@@ -416,8 +433,7 @@ static int write_element(out_buf *o, const rs_ply_element *el, int binary)
 
 static int write_ply(const rs_ply *ply, const char *path, int binary, rs_ply_record_fn fn, void *ctx, rs_err *err)
 {
-    if (!ply || !path)
-        return rs_err_set(err, RS_ERR_INTERNAL, path, 0, "rs_ply_write: no ply or path");
+    if (!ply || !path) return rs_err_set(err, RS_ERR_INTERNAL, path, 0, "rs_ply_write: no ply or path");
     if (check_writable(ply, path, fn != NULL, err)) return -1;
     out_buf o = {.err = err};
     if (!(o.buf = malloc(OUT_CAP)))
@@ -429,7 +445,7 @@ static int write_ply(const rs_ply *ply, const char *path, int binary, rs_ply_rec
     int rc = write_header(&o, ply, binary);
     for (int e = 0; rc == 0 && e < ply->nelements; e++)
         rc = fn && is_streamed(&ply->elements[e]) ? write_streamed(&o, &ply->elements[e], binary, fn, ctx)
-                                                   : write_element(&o, &ply->elements[e], binary);
+                                                  : write_element(&o, &ply->elements[e], binary);
     if (rc == 0) rc = out_flush(&o);
     if (rc == 0) rc = rs_atomic_commit(&o.f, err);
     if (rc != 0) rs_atomic_abort(&o.f);
@@ -442,8 +458,7 @@ int rs_ply_write(const rs_ply *ply, const char *path, int binary, rs_err *err)
     return write_ply(ply, path, binary, NULL, NULL, err);
 }
 
-int rs_ply_write_records(const rs_ply *ply, const char *path, int binary, rs_ply_record_fn fn, void *ctx,
-                         rs_err *err)
+int rs_ply_write_records(const rs_ply *ply, const char *path, int binary, rs_ply_record_fn fn, void *ctx, rs_err *err)
 {
     if (!fn) return rs_err_set(err, RS_ERR_INTERNAL, path, 0, "rs_ply_write_records: no record callback");
     return write_ply(ply, path, binary, fn, ctx, err);

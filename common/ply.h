@@ -8,17 +8,23 @@
 #include "err.h"
 
 typedef enum {
-    RS_PLY_INT8, RS_PLY_UINT8, RS_PLY_INT16, RS_PLY_UINT16,
-    RS_PLY_INT32, RS_PLY_UINT32, RS_PLY_FLOAT32, RS_PLY_FLOAT64
+    RS_PLY_INT8,
+    RS_PLY_UINT8,
+    RS_PLY_INT16,
+    RS_PLY_UINT16,
+    RS_PLY_INT32,
+    RS_PLY_UINT32,
+    RS_PLY_FLOAT32,
+    RS_PLY_FLOAT64
 } rs_ply_type;
 
 typedef struct rs_ply_prop {
     char name[64];
-    rs_ply_type type;          /* scalar type, or the type of a list's items */
+    rs_ply_type type; /* scalar type, or the type of a list's items */
     int is_list;
-    rs_ply_type count_type;    /* list only: type of the item count */
-    double *data;              /* scalar: one value per element; list: all items back to back */
-    size_t *offsets;           /* list only: element k's items are data[offsets[k] .. offsets[k+1]) */
+    rs_ply_type count_type; /* list only: type of the item count */
+    double *data;           /* scalar: one value per element; list: all items back to back */
+    size_t *offsets;        /* list only: element k's items are data[offsets[k] .. offsets[k+1]) */
 } rs_ply_prop;
 
 typedef struct rs_ply_element {
@@ -32,11 +38,11 @@ typedef struct rs_ply {
     int nelements;
     rs_ply_element *elements;
     int ncomments;
-    char **comments;           /* without the leading "comment " */
+    char **comments; /* without the leading "comment " */
 } rs_ply;
 
 rs_ply *rs_ply_new(void);
-void rs_ply_free(rs_ply *ply);                  /* NULL is fine */
+void rs_ply_free(rs_ply *ply); /* NULL is fine */
 
 /* Reads a file. Every failure names the file, the header line or the element index,
  * and what was expected: bad magic, unknown type, counts that disagree with the data,
@@ -57,8 +63,8 @@ rs_ply_prop *rs_ply_add_scalar(rs_ply_element *el, const char *name, rs_ply_type
 /* Same from floats. */
 rs_ply_prop *rs_ply_add_scalar_f(rs_ply_element *el, const char *name, rs_ply_type type, const float *values);
 /* Adds a list property of fixed length n per element (triangles: n = 3) from items[count * n]. */
-rs_ply_prop *rs_ply_add_list_fixed(rs_ply_element *el, const char *name, rs_ply_type count_type,
-                                   rs_ply_type item_type, int n, const double *items);
+rs_ply_prop *rs_ply_add_list_fixed(rs_ply_element *el, const char *name, rs_ply_type count_type, rs_ply_type item_type,
+                                   int n, const double *items);
 int rs_ply_add_comment(rs_ply *ply, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 
 /* Streaming, for elements too big to hold as doubles (the transport kernel: 10^7 to 10^8
@@ -69,8 +75,7 @@ typedef int (*rs_ply_record_fn)(void *ctx, const rs_ply_element *el, size_t k, d
 rs_ply_prop *rs_ply_declare_scalar(rs_ply_element *el, const char *name, rs_ply_type type);
 /* As rs_ply_write, but the records of every element whose properties were declared without data
  * come from fn, one at a time, in order; the bytes written are the same as rs_ply_write's. */
-int rs_ply_write_records(const rs_ply *ply, const char *path, int binary, rs_ply_record_fn fn, void *ctx,
-                         rs_err *err);
+int rs_ply_write_records(const rs_ply *ply, const char *path, int binary, rs_ply_record_fn fn, void *ctx, rs_err *err);
 /* Reads a file record by record, handing each to fn (values: one double per property, in order)
  * without keeping them: a binary file of scalar properties is read in blocks, never whole. Other
  * files (ascii, list properties) are read whole and then handed over, so any valid PLY works.

@@ -14,27 +14,28 @@
 
 /* Bounds that keep garbage headers from costing quadratic time; real files are far below. */
 #define MAX_ELEMENTS 1024
-#define MAX_PROPS 4096
-#define TOKEN_MAX 64
+#define MAX_PROPS    4096
+#define TOKEN_MAX    64
 
 enum { FMT_NONE, FMT_ASCII, FMT_BINARY_LE, FMT_BINARY_BE };
 
 typedef struct {
-    const char *name;            /* the file, for messages */
+    const char *name; /* the file, for messages */
     rs_err *err;
     const unsigned char *p, *end; /* data cursor */
     int format;
-    int swap;                    /* binary: the file's byte order is not the host's */
-    long line;                   /* ascii: the line of the cursor */
-    const char *rest;            /* header: the line after the one being parsed */
+    int swap;         /* binary: the file's byte order is not the host's */
+    long line;        /* ascii: the line of the cursor */
+    const char *rest; /* header: the line after the one being parsed */
 } reader;
 
-#define TYPE_NAMES "char, uchar, short, ushort, int, uint, float, double, int8, uint8, int16, " \
-                   "uint16, int32, uint32, float32 or float64"
+#define TYPE_NAMES                                                               \
+    "char, uchar, short, ushort, int, uint, float, double, int8, uint8, int16, " \
+    "uint16, int32, uint32, float32 or float64"
 
 static int parse_type(const char *s, rs_ply_type *type)
 {
-    static const char *const alt[RS_PLY_NTYPES] = {"int8", "uint8", "int16", "uint16",
+    static const char *const alt[RS_PLY_NTYPES] = {"int8",  "uint8",  "int16",   "uint16",
                                                    "int32", "uint32", "float32", "float64"};
     for (int t = 0; t < RS_PLY_NTYPES; t++)
         if (strcmp(s, rs_ply_type_name[t]) == 0 || strcmp(s, alt[t]) == 0) {
@@ -84,8 +85,10 @@ static int header_line(reader *r, rs_ply *ply, char *line, long lineno)
     const char *n = r->name;
     if (strncmp(line, "comment", 7) == 0 || strncmp(line, "obj_info", 8) == 0) {
         char *text = line + (line[0] == 'c' ? 7 : 8);
-        if (*text == ' ' || *text == '\t') text++;
-        else if (*text) goto keyword; /* "commentary ..." is not a comment */
+        if (*text == ' ' || *text == '\t')
+            text++;
+        else if (*text)
+            goto keyword; /* "commentary ..." is not a comment */
         if (rs_ply_add_comment(ply, "%s", text))
             return rs_err_set(r->err, RS_ERR_SYSTEM, n, lineno, "out of memory for comments");
         return 0;
@@ -100,41 +103,39 @@ keyword:;
     if (ntok == 0) return 0; /* blank line */
     rs_ply_element *el = ply->nelements ? &ply->elements[ply->nelements - 1] : NULL;
     if (strcmp(tok[0], "format") == 0) {
-        if (r->format != FMT_NONE)
-            return rs_err_set(r->err, RS_ERR_INPUT, n, lineno, "a second 'format' line");
+        if (r->format != FMT_NONE) return rs_err_set(r->err, RS_ERR_INPUT, n, lineno, "a second 'format' line");
         if (ntok != 3)
             return rs_err_set(r->err, RS_ERR_INPUT, n, lineno,
                               "expected 'format <ascii|binary_little_endian|binary_big_endian> 1.0'");
-        if (strcmp(tok[1], "ascii") == 0) r->format = FMT_ASCII;
-        else if (strcmp(tok[1], "binary_little_endian") == 0) r->format = FMT_BINARY_LE;
-        else if (strcmp(tok[1], "binary_big_endian") == 0) r->format = FMT_BINARY_BE;
+        if (strcmp(tok[1], "ascii") == 0)
+            r->format = FMT_ASCII;
+        else if (strcmp(tok[1], "binary_little_endian") == 0)
+            r->format = FMT_BINARY_LE;
+        else if (strcmp(tok[1], "binary_big_endian") == 0)
+            r->format = FMT_BINARY_BE;
         else
             return rs_err_set(r->err, RS_ERR_INPUT, n, lineno,
                               "unknown format '%s' (expected ascii, binary_little_endian or "
-                              "binary_big_endian)", tok[1]);
+                              "binary_big_endian)",
+                              tok[1]);
         char *endp;
         if (strtod(tok[2], &endp) != 1.0 || *endp)
-            return rs_err_set(r->err, RS_ERR_INPUT, n, lineno,
-                              "unsupported PLY version '%s' (expected 1.0)", tok[2]);
+            return rs_err_set(r->err, RS_ERR_INPUT, n, lineno, "unsupported PLY version '%s' (expected 1.0)", tok[2]);
         return 0;
     }
     if (strcmp(tok[0], "element") == 0) {
         size_t count;
-        if (ntok != 3)
-            return rs_err_set(r->err, RS_ERR_INPUT, n, lineno, "expected 'element <name> <count>'");
+        if (ntok != 3) return rs_err_set(r->err, RS_ERR_INPUT, n, lineno, "expected 'element <name> <count>'");
         if (strlen(tok[1]) >= sizeof el->name)
-            return rs_err_set(r->err, RS_ERR_INPUT, n, lineno,
-                              "element name '%.20s...' is longer than 63 characters", tok[1]);
+            return rs_err_set(r->err, RS_ERR_INPUT, n, lineno, "element name '%.20s...' is longer than 63 characters",
+                              tok[1]);
         if (parse_count(tok[2], &count))
             return rs_err_set(r->err, RS_ERR_INPUT, n, lineno,
-                              "element '%s': count '%.30s' is not a non-negative integer",
-                              tok[1], tok[2]);
+                              "element '%s': count '%.30s' is not a non-negative integer", tok[1], tok[2]);
         if (rs_ply_find_element(ply, tok[1]))
-            return rs_err_set(r->err, RS_ERR_INPUT, n, lineno, "element '%s' declared twice",
-                              tok[1]);
+            return rs_err_set(r->err, RS_ERR_INPUT, n, lineno, "element '%s' declared twice", tok[1]);
         if (ply->nelements >= MAX_ELEMENTS)
-            return rs_err_set(r->err, RS_ERR_INPUT, n, lineno, "more than %d elements",
-                              MAX_ELEMENTS);
+            return rs_err_set(r->err, RS_ERR_INPUT, n, lineno, "more than %d elements", MAX_ELEMENTS);
         if (!rs_ply_add_element(ply, tok[1], count))
             return rs_err_set(r->err, RS_ERR_SYSTEM, n, lineno, "out of memory for elements");
         return 0;
@@ -142,9 +143,7 @@ keyword:;
     if (strcmp(tok[0], "property") == 0) {
         int is_list = ntok >= 2 && strcmp(tok[1], "list") == 0;
         rs_ply_type type, count_type = RS_PLY_UINT8;
-        if (!el)
-            return rs_err_set(r->err, RS_ERR_INPUT, n, lineno,
-                              "'property' before any 'element' line");
+        if (!el) return rs_err_set(r->err, RS_ERR_INPUT, n, lineno, "'property' before any 'element' line");
         if (ntok != (is_list ? 5 : 3))
             return rs_err_set(r->err, RS_ERR_INPUT, n, lineno,
                               "expected 'property <type> <name>' or "
@@ -153,20 +152,20 @@ keyword:;
         if (is_list && (parse_type(tok[2], &count_type) || !rs_ply_type_is_int(count_type)))
             return rs_err_set(r->err, RS_ERR_INPUT, n, lineno,
                               "list '%s': count type '%s' is not an integer type (expected uchar, "
-                              "ushort, uint, char, short, int or their intN names)", pname, tok[2]);
+                              "ushort, uint, char, short, int or their intN names)",
+                              pname, tok[2]);
         if (parse_type(tname, &type))
             return rs_err_set(r->err, RS_ERR_INPUT, n, lineno,
-                              "property '%s': unknown type '%s' (expected " TYPE_NAMES ")",
-                              pname, tname);
+                              "property '%s': unknown type '%s' (expected " TYPE_NAMES ")", pname, tname);
         if (strlen(pname) >= sizeof el->name)
-            return rs_err_set(r->err, RS_ERR_INPUT, n, lineno,
-                              "property name '%.20s...' is longer than 63 characters", pname);
+            return rs_err_set(r->err, RS_ERR_INPUT, n, lineno, "property name '%.20s...' is longer than 63 characters",
+                              pname);
         if (rs_ply_find_prop(el, pname))
-            return rs_err_set(r->err, RS_ERR_INPUT, n, lineno,
-                              "element '%s': property '%s' declared twice", el->name, pname);
+            return rs_err_set(r->err, RS_ERR_INPUT, n, lineno, "element '%s': property '%s' declared twice", el->name,
+                              pname);
         if (el->nprops >= MAX_PROPS)
-            return rs_err_set(r->err, RS_ERR_INPUT, n, lineno,
-                              "element '%s': more than %d properties", el->name, MAX_PROPS);
+            return rs_err_set(r->err, RS_ERR_INPUT, n, lineno, "element '%s': more than %d properties", el->name,
+                              MAX_PROPS);
         rs_ply_prop *props = rs_ply_grow(el->props, (size_t)el->nprops, sizeof *props);
         if (!props) return rs_err_set(r->err, RS_ERR_SYSTEM, n, lineno, "out of memory");
         el->props = props;
@@ -182,10 +181,12 @@ keyword:;
     if (!has_end_header(r->rest, (const char *)r->end))
         return rs_err_set(r->err, RS_ERR_INPUT, n, lineno,
                           "the header has no 'end_header' line (found '%s' where a header line "
-                          "was expected)", printable(tok[0], strlen(tok[0]), shown, 33));
+                          "was expected)",
+                          printable(tok[0], strlen(tok[0]), shown, 33));
     return rs_err_set(r->err, RS_ERR_INPUT, n, lineno,
                       "unknown header line '%s' (expected format, comment, obj_info, element, "
-                      "property or end_header)", printable(tok[0], strlen(tok[0]), shown, 33));
+                      "property or end_header)",
+                      printable(tok[0], strlen(tok[0]), shown, 33));
 }
 
 /* Parses the header and leaves r->p at the first data byte. */
@@ -203,8 +204,7 @@ static int read_header(reader *r, rs_ply *ply)
         }
         if (p >= end) {
             rs_err_set(r->err, RS_ERR_INPUT, r->name, lineno - 1,
-                       "the header has no 'end_header' line (the file ends at header line %ld)",
-                       lineno - 1);
+                       "the header has no 'end_header' line (the file ends at header line %ld)", lineno - 1);
             goto out;
         }
         const char *nl = memchr(p, '\n', (size_t)(end - p));
@@ -238,8 +238,7 @@ static int read_header(reader *r, rs_ply *ply)
         while (trimmed && (line[trimmed - 1] == ' ' || line[trimmed - 1] == '\t')) trimmed--;
         if (trimmed == 10 && memcmp(line, "end_header", 10) == 0) {
             if (r->format == FMT_NONE) {
-                rs_err_set(r->err, RS_ERR_INPUT, r->name, lineno,
-                           "no 'format' line before end_header");
+                rs_err_set(r->err, RS_ERR_INPUT, r->name, lineno, "no 'format' line before end_header");
                 goto out;
             }
             r->p = (const unsigned char *)p;
@@ -271,14 +270,42 @@ static double load_binary(const unsigned char *p, rs_ply_type t, int swap)
     else
         memcpy(b, p, n);
     switch (t) {
-    case RS_PLY_INT8: { int8_t v; memcpy(&v, b, 1); return v; }
+    case RS_PLY_INT8: {
+        int8_t v;
+        memcpy(&v, b, 1);
+        return v;
+    }
     case RS_PLY_UINT8: return b[0];
-    case RS_PLY_INT16: { int16_t v; memcpy(&v, b, 2); return v; }
-    case RS_PLY_UINT16: { uint16_t v; memcpy(&v, b, 2); return v; }
-    case RS_PLY_INT32: { int32_t v; memcpy(&v, b, 4); return v; }
-    case RS_PLY_UINT32: { uint32_t v; memcpy(&v, b, 4); return v; }
-    case RS_PLY_FLOAT32: { float v; memcpy(&v, b, 4); return v; }
-    case RS_PLY_FLOAT64: { double v; memcpy(&v, b, 8); return v; }
+    case RS_PLY_INT16: {
+        int16_t v;
+        memcpy(&v, b, 2);
+        return v;
+    }
+    case RS_PLY_UINT16: {
+        uint16_t v;
+        memcpy(&v, b, 2);
+        return v;
+    }
+    case RS_PLY_INT32: {
+        int32_t v;
+        memcpy(&v, b, 4);
+        return v;
+    }
+    case RS_PLY_UINT32: {
+        uint32_t v;
+        memcpy(&v, b, 4);
+        return v;
+    }
+    case RS_PLY_FLOAT32: {
+        float v;
+        memcpy(&v, b, 4);
+        return v;
+    }
+    case RS_PLY_FLOAT64: {
+        double v;
+        memcpy(&v, b, 8);
+        return v;
+    }
     }
     return 0.0;
 }
@@ -287,21 +314,20 @@ static int truncated(reader *r, const rs_ply_element *el, size_t k, const rs_ply
 {
     return rs_err_set(r->err, RS_ERR_INPUT, r->name, r->format == FMT_ASCII ? r->line : 0,
                       "element '%s' %zu, property '%s': data ends after %zu of %zu '%s' elements "
-                      "(truncated file?)", el->name, k, p->name, k, el->count, el->name);
+                      "(truncated file?)",
+                      el->name, k, p->name, k, el->count, el->name);
 }
 
 /* Next whitespace-separated token into tok (NUL-terminated); 0 when the data has run out. */
 static int next_token(reader *r, char *tok, size_t *len)
 {
     const unsigned char *p = r->p, *end = r->end;
-    while (p < end && (*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r' || *p == '\v' ||
-                       *p == '\f')) {
+    while (p < end && (*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r' || *p == '\v' || *p == '\f')) {
         if (*p == '\n') r->line++;
         p++;
     }
     size_t n = 0;
-    while (p < end && !(*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r' || *p == '\v' ||
-                        *p == '\f')) {
+    while (p < end && !(*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r' || *p == '\v' || *p == '\f')) {
         if (n + 1 < TOKEN_MAX) tok[n] = (char)*p;
         n++;
         p++;
@@ -314,8 +340,8 @@ static int next_token(reader *r, char *tok, size_t *len)
 
 /* Reads one value of type t: from the binary data, or the next ascii token checked to be a
  * number that fits t. Returns 0, 1 when the data has run out, -1 on a bad token. */
-static int read_value(reader *r, rs_ply_type t, double *v, const rs_ply_element *el, size_t k,
-                      const rs_ply_prop *p, const char *what)
+static int read_value(reader *r, rs_ply_type t, double *v, const rs_ply_element *el, size_t k, const rs_ply_prop *p,
+                      const char *what)
 {
     if (r->format != FMT_ASCII) {
         if ((size_t)(r->end - r->p) < rs_ply_type_size[t]) return 1;
@@ -330,19 +356,18 @@ static int read_value(reader *r, rs_ply_type t, double *v, const rs_ply_element 
     /* strtof for float properties, so that ascii and binary files give the same values. */
     *v = t == RS_PLY_FLOAT32 ? (double)strtof(tok, &endp) : strtod(tok, &endp);
     int ok = len < TOKEN_MAX && endp != tok && *endp == '\0';
-    if (ok && rs_ply_type_is_int(t))
-        ok = *v == floor(*v) && *v >= rs_ply_type_min[t] && *v <= rs_ply_type_max[t];
+    if (ok && rs_ply_type_is_int(t)) ok = *v == floor(*v) && *v >= rs_ply_type_min[t] && *v <= rs_ply_type_max[t];
     if (ok) return 0;
     if (rs_ply_type_is_int(t))
         rs_err_set(r->err, RS_ERR_INPUT, r->name, r->line,
                    "element '%s' %zu, property '%s': %sexpected an integer in %.0f..%.0f (%s), "
-                   "found '%s'", el->name, k, p->name, what, rs_ply_type_min[t],
-                   rs_ply_type_max[t], rs_ply_type_name[t], printable(tok, strlen(tok), shown, 33));
+                   "found '%s'",
+                   el->name, k, p->name, what, rs_ply_type_min[t], rs_ply_type_max[t], rs_ply_type_name[t],
+                   printable(tok, strlen(tok), shown, 33));
     else
         rs_err_set(r->err, RS_ERR_INPUT, r->name, r->line,
-                   "element '%s' %zu, property '%s': %sexpected a number (%s), found '%s'",
-                   el->name, k, p->name, what, rs_ply_type_name[t],
-                   printable(tok, strlen(tok), shown, 33));
+                   "element '%s' %zu, property '%s': %sexpected a number (%s), found '%s'", el->name, k, p->name, what,
+                   rs_ply_type_name[t], printable(tok, strlen(tok), shown, 33));
     return -1;
 }
 
@@ -399,7 +424,8 @@ static int read_element(reader *r, rs_ply_element *el)
             if (v < 0) {
                 rs_err_set(r->err, RS_ERR_INPUT, r->name, r->line * (r->format == FMT_ASCII),
                            "element '%s' %zu, list '%s': negative item count %.0f (expected 0 or "
-                           "more)", el->name, k, p->name, v);
+                           "more)",
+                           el->name, k, p->name, v);
                 goto out;
             }
             size_t n = (size_t)v, at = p->offsets[k];
@@ -430,8 +456,7 @@ static int read_element(reader *r, rs_ply_element *el)
     rc = 0;
     goto out;
 oom:
-    rs_err_set(r->err, RS_ERR_SYSTEM, r->name, 0, "element '%s': out of memory for %zu records",
-               el->name, cap);
+    rs_err_set(r->err, RS_ERR_SYSTEM, r->name, 0, "element '%s': out of memory for %zu records", el->name, cap);
 out:
     free(list_cap);
     return rc;
@@ -472,7 +497,7 @@ rs_ply *rs_ply_read(const char *path, rs_err *err)
 
 /* ---- record by record (rs_ply_read_records) ---- */
 
-#define HEAD_MAX ((size_t)1 << 20)    /* a header longer than this is read the whole-file way */
+#define HEAD_MAX    ((size_t)1 << 20) /* a header longer than this is read the whole-file way */
 #define BLOCK_BYTES ((size_t)1 << 20)
 
 static int has_lists(const rs_ply_element *el)
@@ -507,8 +532,10 @@ static int records_whole(const char *path, rs_ply_record_fn fn, void *ctx, rs_pl
             el->props[i].data = NULL;
         }
     }
-    if (rc == 0 && header) *header = ply;
-    else rs_ply_free(ply);
+    if (rc == 0 && header)
+        *header = ply;
+    else
+        rs_ply_free(ply);
     return rc;
 }
 
@@ -518,7 +545,7 @@ static int records_binary(reader *r, FILE *fp, rs_ply_element *el, size_t *left,
     size_t rec = 0;
     for (int i = 0; i < el->nprops; i++) rec += rs_ply_type_size[el->props[i].type];
     if (rec == 0 || el->count == 0) return 0;
-    if (el->count > *left / rec) {         /* the same message as the whole-file reader's */
+    if (el->count > *left / rec) { /* the same message as the whole-file reader's */
         size_t k = *left / rec, rem = *left - k * rec, i = 0, at = 0;
         while (at + rs_ply_type_size[el->props[i].type] <= rem) at += rs_ply_type_size[el->props[i++].type];
         return truncated(r, el, k, &el->props[i]);
@@ -591,7 +618,9 @@ int rs_ply_read_records(const char *path, rs_ply_record_fn fn, void *ctx, rs_ply
     int rc = 0;
     for (int e = 0; e < ply->nelements && rc == 0; e++) rc = records_binary(&r, fp, &ply->elements[e], &left, fn, ctx);
     fclose(fp);
-    if (rc == 0 && header) *header = ply;
-    else rs_ply_free(ply);
+    if (rc == 0 && header)
+        *header = ply;
+    else
+        rs_ply_free(ply);
     return rc;
 }

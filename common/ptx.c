@@ -12,16 +12,19 @@
 /* A cursor over the text, one line at a time. Blank lines are skipped wherever they occur. */
 typedef struct ptx_text {
     const char *p, *end;
-    long line;                 /* number of the line last returned by next_line */
-    long next;                 /* number of the line starting at p */
+    long line; /* number of the line last returned by next_line */
+    long next; /* number of the line starting at p */
     const char *name;
-    const char *ls, *le;       /* the line last returned (without its end of line) */
+    const char *ls, *le; /* the line last returned (without its end of line) */
 } ptx_text;
 
 /* At most 7 numbers on a point line; longer lines are an error, counted up to 16 tokens. */
 #define PTX_MAX_TOKENS 16
 
-static int is_space(char ch) { return ch == ' ' || ch == '\t' || ch == '\r' || ch == '\v' || ch == '\f'; }
+static int is_space(char ch)
+{
+    return ch == ' ' || ch == '\t' || ch == '\r' || ch == '\v' || ch == '\f';
+}
 
 /* Advances to the next non-blank line; returns 0 at the end of the text. */
 static int next_line(ptx_text *t)
@@ -39,13 +42,13 @@ static int next_line(ptx_text *t)
                 return 1;
             }
     }
-    t->line = t->next;         /* errors at the end point just past the last line */
+    t->line = t->next; /* errors at the end point just past the last line */
     return 0;
 }
 
 /* Why a token was refused (filled by parse_numbers, reported by bad_token). */
 typedef struct ptx_bad {
-    int index;                 /* 1-based token number */
+    int index; /* 1-based token number */
     size_t len;
     char text[64];
     int not_finite;
@@ -75,7 +78,7 @@ static int parse_numbers(const ptx_text *t, double *out, int max, ptx_bad *bad)
             if (len >= sizeof buf || stop != buf + len || !isfinite(v)) {
                 bad->index = n + 1;
                 bad->len = len;
-                for (size_t i = 0; i < keep; i++)   /* printable in messages, even for binary junk */
+                for (size_t i = 0; i < keep; i++) /* printable in messages, even for binary junk */
                     bad->text[i] = ts[i] > 32 && ts[i] < 127 ? ts[i] : '?';
                 bad->text[keep] = 0;
                 bad->not_finite = len < sizeof buf && stop == buf + len;
@@ -93,8 +96,8 @@ static int bad_token(const ptx_text *t, const ptx_bad *bad, const char *label, r
     if (bad->len >= sizeof bad->text)
         return rs_err_set(err, RS_ERR_INPUT, t->name, t->line, "%s: token %d is %zu characters long; expected a number",
                           label, bad->index, bad->len);
-    return rs_err_set(err, RS_ERR_INPUT, t->name, t->line, "%s: token %d \"%s\" is %s; expected a finite number",
-                      label, bad->index, bad->text, bad->not_finite ? "not finite" : "not a number");
+    return rs_err_set(err, RS_ERR_INPUT, t->name, t->line, "%s: token %d \"%s\" is %s; expected a finite number", label,
+                      bad->index, bad->text, bad->not_finite ? "not finite" : "not a number");
 }
 
 /* Reads one header line of exactly n numbers. */
@@ -103,14 +106,14 @@ static int header_numbers(ptx_text *t, double *out, int n, int scan, const char 
     char label[160];
     snprintf(label, sizeof label, "scan %d header, %s", scan, what);
     if (!next_line(t))
-        return rs_err_set(err, RS_ERR_INPUT, t->name, t->line,
-                          "%s: the file ends; expected %d number%s", label, n, n == 1 ? "" : "s");
+        return rs_err_set(err, RS_ERR_INPUT, t->name, t->line, "%s: the file ends; expected %d number%s", label, n,
+                          n == 1 ? "" : "s");
     ptx_bad bad;
     int got = parse_numbers(t, out, n, &bad);
     if (got < 0) return bad_token(t, &bad, label, err);
     if (got != n)
-        return rs_err_set(err, RS_ERR_INPUT, t->name, t->line, "%s: found %d%s tokens; expected %d",
-                          label, got, got >= PTX_MAX_TOKENS ? " or more" : "", n);
+        return rs_err_set(err, RS_ERR_INPUT, t->name, t->line, "%s: found %d%s tokens; expected %d", label, got,
+                          got >= PTX_MAX_TOKENS ? " or more" : "", n);
     return 0;
 }
 
@@ -136,12 +139,11 @@ static int cloud_reserve(rs_cloud *c, size_t n, int want_rgb, const char *name, 
     if (in) c->intensity = in;
     uint8_t *valid = realloc(c->valid, total);
     if (valid) c->valid = valid;
-    if (!xyz || !in || !valid)
-        return rs_err_set(err, RS_ERR_SYSTEM, name, 0, "out of memory for %zu points", total);
+    if (!xyz || !in || !valid) return rs_err_set(err, RS_ERR_SYSTEM, name, 0, "out of memory for %zu points", total);
     if (want_rgb || c->rgb) {
         uint8_t *rgb = realloc(c->rgb, total * 3);
         if (!rgb) return rs_err_set(err, RS_ERR_SYSTEM, name, 0, "out of memory for %zu colours", total);
-        if (!c->rgb) memset(rgb, 0, c->npoints * 3);   /* earlier scans had no colour */
+        if (!c->rgb) memset(rgb, 0, c->npoints * 3); /* earlier scans had no colour */
         c->rgb = rgb;
     }
     return 0;
@@ -156,7 +158,11 @@ static int read_scan(ptx_text *t, rs_cloud *c, int scan, rs_err *err)
     if (header_count(t, scan, "number of rows", &rows, err) != 0) return -1;
     if (header_numbers(t, pos, 3, scan, "scanner position", err) != 0) return -1;
     for (int i = 0; i < 3; i++)
-        if (header_numbers(t, axes + 3 * i, 3, scan, i == 0 ? "scanner x axis" : i == 1 ? "scanner y axis" : "scanner z axis", err) != 0)
+        if (header_numbers(t, axes + 3 * i, 3, scan,
+                           i == 0       ? "scanner x axis"
+                               : i == 1 ? "scanner y axis"
+                                        : "scanner z axis",
+                           err) != 0)
             return -1;
     long matrix_line = 0;
     for (int i = 0; i < 4; i++) {
@@ -167,15 +173,16 @@ static int read_scan(ptx_text *t, rs_cloud *c, int scan, rs_err *err)
     }
     /* Row-vector form: x' = x*T[0] + y*T[4] + z*T[8] + T[12]. A singular linear part would
      * flatten the scan; a scale is allowed (PDAL's multiple-and-transform.ptx has one). */
-    double det = T[0] * (T[5] * T[10] - T[6] * T[9]) - T[1] * (T[4] * T[10] - T[6] * T[8]) +
-                 T[2] * (T[4] * T[9] - T[5] * T[8]);
+    double det =
+        T[0] * (T[5] * T[10] - T[6] * T[9]) - T[1] * (T[4] * T[10] - T[6] * T[8]) + T[2] * (T[4] * T[9] - T[5] * T[8]);
     double scale = 0;
     for (int i = 0; i < 12; i++)
         if (i % 4 != 3) scale = fmax(scale, fabs(T[i]));
     if (!(fabs(det) > 1e-12 * scale * scale * scale))
         return rs_err_set(err, RS_ERR_INPUT, t->name, matrix_line,
                           "scan %d: the 4x4 transform is singular (determinant %.3g); expected a rotation, "
-                          "possibly scaled, and a translation", scan, det);
+                          "possibly scaled, and a translation",
+                          scan, det);
 
     /* Each point line holds at least "0 0 0" plus an end of line: this bounds the counts by
      * the bytes left, before anything is allocated (no overflow, no huge allocation). */
@@ -197,14 +204,15 @@ static int read_scan(ptx_text *t, rs_cloud *c, int scan, rs_err *err)
         if (!next_line(t))
             return rs_err_set(err, RS_ERR_INPUT, t->name, t->line,
                               "scan %d: the file ends after %zu of %zu points (%d columns x %d rows); "
-                              "expected a line \"x y z intensity [r g b]\"", scan, k, npts, cols, rows);
+                              "expected a line \"x y z intensity [r g b]\"",
+                              scan, k, npts, cols, rows);
         int n = parse_numbers(t, v, 7, &bad);
         int no_return = n >= 3 && v[0] == 0 && v[1] == 0 && v[2] == 0;
         /* "x y z intensity" or "x y z intensity r g b"; a bare "0 0 0" is a no-return point. */
         int ok = n == 4 || n == 7 || (n == 3 && no_return);
         if (!ok || (n == 7 && (v[4] < 0 || v[4] > 255 || v[5] < 0 || v[5] > 255 || v[6] < 0 || v[6] > 255)))
-            snprintf(label, sizeof label, "scan %d point %zu (column %zu, row %zu)", scan, k + 1,
-                     k / (size_t)rows, k % (size_t)rows);
+            snprintf(label, sizeof label, "scan %d point %zu (column %zu, row %zu)", scan, k + 1, k / (size_t)rows,
+                     k % (size_t)rows);
         if (n < 0) return bad_token(t, &bad, label, err);
         if (!ok)
             return rs_err_set(err, RS_ERR_INPUT, t->name, t->line,
@@ -214,8 +222,8 @@ static int read_scan(ptx_text *t, rs_cloud *c, int scan, rs_err *err)
         if (n == 7) {
             for (int j = 4; j < 7; j++)
                 if (v[j] < 0 || v[j] > 255)
-                    return rs_err_set(err, RS_ERR_INPUT, t->name, t->line,
-                                      "%s: colour value %g; expected 0 to 255", label, v[j]);
+                    return rs_err_set(err, RS_ERR_INPUT, t->name, t->line, "%s: colour value %g; expected 0 to 255",
+                                      label, v[j]);
             if (!have_rgb) {
                 if (cloud_reserve(c, npts, 1, t->name, err) != 0) return -1;
                 memset(c->rgb + 3 * first, 0, 3 * k);
@@ -256,7 +264,7 @@ rs_cloud *rs_ptx_read_mem(const char *data, size_t size, const char *name, rs_er
         return NULL;
     }
     while (next_line(&t)) {
-        t.p = t.ls;            /* read_scan reads the column count itself */
+        t.p = t.ls; /* read_scan reads the column count itself */
         t.next = t.line;
         if (read_scan(&t, c, c->nscans + 1, err) != 0) {
             rs_cloud_free(c);

@@ -13,7 +13,7 @@ rs_v3 rs_cosine_hemisphere(rs_v3 n, double x, double y)
         dx = a * c;
         dy = a * s;
     } else {
-        rs_sincos_pi(0.25 * (a / b), &s, &c);     /* cos(pi/2 - v) = sin v, sin(pi/2 - v) = cos v */
+        rs_sincos_pi(0.25 * (a / b), &s, &c); /* cos(pi/2 - v) = sin v, sin(pi/2 - v) = cos v */
         dx = b * s;
         dy = b * c;
     }
@@ -34,6 +34,5 @@ rs_v3 rs_triangle_point(rs_v3 a, rs_v3 b, rs_v3 c, double x, double y)
         b0 = x - b1;
     }
     double b2 = 1 - b0 - b1;
-    return rs_v3_make(b0 * a.x + b1 * b.x + b2 * c.x, b0 * a.y + b1 * b.y + b2 * c.y,
-                      b0 * a.z + b1 * b.z + b2 * c.z);
+    return rs_v3_make(b0 * a.x + b1 * b.x + b2 * c.x, b0 * a.y + b1 * b.y + b2 * c.y, b0 * a.z + b1 * b.z + b2 * c.z);
 }

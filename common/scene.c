@@ -14,7 +14,7 @@ struct rs_scene {
     RTCDevice device;
     RTCScene scene;
     const rs_mesh *mesh;
-    float *normals;            /* 3 per face */
+    float *normals; /* 3 per face */
     double extent;
     rs_err build_err;
     int failed;
@@ -69,10 +69,10 @@ rs_scene *rs_scene_new(const rs_mesh *mesh, rs_err *err)
     RTCGeometry geom = rtcNewGeometry(s->device, RTC_GEOMETRY_TYPE_TRIANGLE);
     /* Shared buffers: Embree reads the mesh's own arrays (needs 16 bytes of padding past the
      * last vertex for SSE loads, hence the copy into a padded buffer it owns). */
-    float *vb = rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                        3 * sizeof(float), mesh->nverts);
-    unsigned *ib = rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                           3 * sizeof(unsigned), mesh->nfaces);
+    float *vb =
+        rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), mesh->nverts);
+    unsigned *ib =
+        rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), mesh->nfaces);
     if (!vb || !ib) {
         rtcReleaseGeometry(geom);
         goto embree_fail;
@@ -81,7 +81,7 @@ rs_scene *rs_scene_new(const rs_mesh *mesh, rs_err *err)
     memcpy(ib, mesh->tris, mesh->nfaces * 3 * sizeof(unsigned));
     rtcCommitGeometry(geom);
     rtcAttachGeometry(s->scene, geom);
-    rtcReleaseGeometry(geom);   /* the scene holds its own reference */
+    rtcReleaseGeometry(geom); /* the scene holds its own reference */
     rtcCommitScene(s->scene);
     if (s->failed) goto embree_fail;
     return s;
@@ -105,7 +105,10 @@ void rs_scene_free(rs_scene *s)
     free(s);
 }
 
-const rs_mesh *rs_scene_mesh(const rs_scene *s) { return s->mesh; }
+const rs_mesh *rs_scene_mesh(const rs_scene *s)
+{
+    return s->mesh;
+}
 
 rs_v3 rs_scene_normal(const rs_scene *s, uint32_t f)
 {
@@ -120,8 +123,8 @@ double rs_scene_offset(const rs_scene *s, rs_v3 p)
 
 static int ray_ok(const rs_ray *r)
 {
-    return rs_v3_finite(r->org) && rs_v3_finite(r->dir) && isfinite(r->tnear) && r->tnear >= 0 &&
-           !isnan(r->tfar) && r->tfar > r->tnear && rs_v3_dot(r->dir, r->dir) > 0;
+    return rs_v3_finite(r->org) && rs_v3_finite(r->dir) && isfinite(r->tnear) && r->tnear >= 0 && !isnan(r->tfar) &&
+        r->tfar > r->tnear && rs_v3_dot(r->dir, r->dir) > 0;
 }
 
 static void fill_ray(struct RTCRay *er, const rs_ray *r)
@@ -135,14 +138,15 @@ static void fill_ray(struct RTCRay *er, const rs_ray *r)
     er->tnear = (float)r->tnear;
     er->tfar = r->tfar > FLT_MAX ? INFINITY : (float)r->tfar;
     er->time = 0;
-    er->mask = 0xFFFFFFFFU;    /* Debian's Embree has ray masks on: mask 0 hits nothing */
+    er->mask = 0xFFFFFFFFU; /* Debian's Embree has ray masks on: mask 0 hits nothing */
     er->id = 0;
     er->flags = 0;
 }
 
 enum { BATCH = 256 };
 
-static void intersect(const rs_scene *s, const rs_ray *rays, rs_hit *hits, size_t n, enum RTCIntersectContextFlags flags)
+static void intersect(const rs_scene *s, const rs_ray *rays, rs_hit *hits, size_t n,
+                      enum RTCIntersectContextFlags flags)
 {
     struct RTCRayHit rh[BATCH];
     size_t map[BATCH];
@@ -203,6 +207,6 @@ void rs_scene_occluded(const rs_scene *s, const rs_ray *rays, uint8_t *occluded,
         rtcInitIntersectContext(&ctx);
         ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
         rtcOccluded1M(s->scene, &ctx, r, (unsigned)m, sizeof(struct RTCRay));
-        for (size_t q = 0; q < m; q++) occluded[map[q]] = r[q].tfar < 0;   /* -inf when occluded */
+        for (size_t q = 0; q < m; q++) occluded[map[q]] = r[q].tfar < 0; /* -inf when occluded */
     }
 }

@@ -14,15 +14,15 @@
 typedef struct rs_scene rs_scene;
 
 typedef struct rs_ray {
-    rs_v3 org, dir;            /* dir need not be unit; t is in units of |dir| */
+    rs_v3 org, dir; /* dir need not be unit; t is in units of |dir| */
     double tnear, tfar;
 } rs_ray;
 
 typedef struct rs_hit {
-    uint32_t face;             /* RS_NO_HIT when the ray escapes */
-    float t;                   /* hit distance in units of |dir| */
-    float u, v;                /* barycentrics of vertices 1 and 2 */
-    uint8_t backface;          /* the ray hit the side opposite to the face's normal */
+    uint32_t face;    /* RS_NO_HIT when the ray escapes */
+    float t;          /* hit distance in units of |dir| */
+    float u, v;       /* barycentrics of vertices 1 and 2 */
+    uint8_t backface; /* the ray hit the side opposite to the face's normal */
 } rs_hit;
 
 /* Builds the BVH. The mesh is borrowed: it must outlive the scene. */

@@ -92,13 +92,13 @@ static void each_word(const char *list, void (*fn)(const char *, void *), void *
 typedef struct {
     const rs_config *cfg;
     uint64_t hash;
-    rs_json *inputs;           /* optional: file -> hex hash */
+    rs_json *inputs; /* optional: file -> hex hash */
 } fp_state;
 
 static void fp_file(fp_state *s, const char *path)
 {
     uint64_t h = 0;
-    if (rs_hash_file(path, &h, NULL) != 0) h = 0;   /* missing: the stage itself will say so */
+    if (rs_hash_file(path, &h, NULL) != 0) h = 0; /* missing: the stage itself will say so */
     s->hash = rs_hash_bytes(path, strlen(path), s->hash);
     s->hash = rs_hash_bytes(&h, sizeof h, s->hash);
     if (s->inputs) {
@@ -197,9 +197,12 @@ int rs_stage_up_to_date(const rs_stage_def *def, const rs_config *cfg, char *why
     char *now = state_text(def, cfg, fp);
     int same_fp = now && strncmp(old, now, strlen("fingerprint ") + 16) == 0;
     int same = now && strcmp(old, now) == 0;
-    if (!same_fp) snprintf(why, n, "its inputs or config sections [%s] changed", def->sections);
-    else if (!same) snprintf(why, n, "its outputs were changed or removed since the last run");
-    else snprintf(why, n, "inputs and config sections [%s] unchanged since the last run", def->sections);
+    if (!same_fp)
+        snprintf(why, n, "its inputs or config sections [%s] changed", def->sections);
+    else if (!same)
+        snprintf(why, n, "its outputs were changed or removed since the last run");
+    else
+        snprintf(why, n, "inputs and config sections [%s] unchanged since the last run", def->sections);
     free(old);
     free(now);
     return same;
@@ -246,7 +249,7 @@ int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_err *err)
     }
     rs_json_set_num(rep.metrics, "wall_time_s", wall);
     double peak = peak_rss_mb();
-    if (!isnan(peak)) rs_json_set_num(rep.metrics, "peak_rss_mb", peak);  /* the process's, so far */
+    if (!isnan(peak)) rs_json_set_num(rep.metrics, "peak_rss_mb", peak); /* the process's, so far */
     char hex[32];
     snprintf(hex, sizeof hex, "%016" PRIx64, fp);
     rs_json_set_str(rep.metrics, "fingerprint", hex);
@@ -308,11 +311,16 @@ int rs_stage_main(const rs_stage_def *def, int argc, char **argv)
     const char *config = NULL;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
-        if (strcmp(a, "--set") == 0 && i + 1 < argc) sets[nsets++] = argv[++i];
-        else if (strncmp(a, "--set=", 6) == 0) sets[nsets++] = a + 6;
-        else if (strcmp(a, "--print-config") == 0) print_config = 1;
-        else if (strcmp(a, "--quiet") == 0) rs_log_set_level(RS_LOG_WARN);
-        else if (strcmp(a, "--verbose") == 0) rs_log_set_level(RS_LOG_DEBUG);
+        if (strcmp(a, "--set") == 0 && i + 1 < argc)
+            sets[nsets++] = argv[++i];
+        else if (strncmp(a, "--set=", 6) == 0)
+            sets[nsets++] = a + 6;
+        else if (strcmp(a, "--print-config") == 0)
+            print_config = 1;
+        else if (strcmp(a, "--quiet") == 0)
+            rs_log_set_level(RS_LOG_WARN);
+        else if (strcmp(a, "--verbose") == 0)
+            rs_log_set_level(RS_LOG_DEBUG);
         else if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
             stage_usage(stage, stdout);
             free(sets);
@@ -322,7 +330,8 @@ int rs_stage_main(const rs_stage_def *def, int argc, char **argv)
             stage_usage(stage, stderr);
             free(sets);
             return 1;
-        } else config = a;
+        } else
+            config = a;
     }
     if (!config) {
         stage_usage(stage, stderr);

@@ -12,14 +12,13 @@
 #include "json.h"
 
 typedef struct rs_report {
-    rs_json *metrics;          /* the stage's <stage>.json object; add fields freely */
-    rs_json *skipped;          /* array of {"what", "why"} */
-    rs_json *timings;          /* object: step -> seconds */
+    rs_json *metrics; /* the stage's <stage>.json object; add fields freely */
+    rs_json *skipped; /* array of {"what", "why"} */
+    rs_json *timings; /* object: step -> seconds */
 } rs_report;
 
 /* Records that something was skipped and why (also logged). */
-void rs_report_skip(rs_report *rep, const char *what, const char *why_fmt, ...)
-    __attribute__((format(printf, 3, 4)));
+void rs_report_skip(rs_report *rep, const char *what, const char *why_fmt, ...) __attribute__((format(printf, 3, 4)));
 void rs_report_time(rs_report *rep, const char *step, double seconds);
 /* Logs every skip recorded by this process ("stage: what: why"), then forgets them. */
 void rs_report_skips_summary(void);
@@ -27,11 +26,11 @@ void rs_report_skips_summary(void);
 typedef int (*rs_stage_fn)(const rs_config *cfg, rs_report *rep, rs_err *err);
 
 typedef struct rs_stage_def {
-    const char *name;          /* "mesh" */
+    const char *name; /* "mesh" */
     rs_stage_fn run;
-    const char *sections;      /* config sections it reads, space-separated */
-    const char *inputs;        /* work-folder files it reads, space-separated */
-    const char *outputs;       /* work-folder files it writes, space-separated */
+    const char *sections; /* config sections it reads, space-separated */
+    const char *inputs;   /* work-folder files it reads, space-separated */
+    const char *outputs;  /* work-folder files it writes, space-separated */
     const char *help;
 } rs_stage_def;
 

@@ -12,7 +12,7 @@
 typedef struct {
     rs_transport *t;
     const char *path;
-    int row, col, k, ku;       /* property indices in the element */
+    int row, col, k, ku; /* property indices in the element */
     double last_row;
 } read_ctx;
 
@@ -26,8 +26,11 @@ static int find_props(read_ctx *c, const rs_ply_element *el)
     c->row = c->col = c->k = c->ku = -1;
     for (int i = 0; i < el->nprops; i++) {
         const char *n = el->props[i].name;
-        int *slot = !strcmp(n, "row") ? &c->row : !strcmp(n, "col") ? &c->col : !strcmp(n, "k") ? &c->k
-                  : !strcmp(n, "k_unseen") ? &c->ku : NULL;
+        int *slot = !strcmp(n, "row") ? &c->row
+            : !strcmp(n, "col")       ? &c->col
+            : !strcmp(n, "k")         ? &c->k
+            : !strcmp(n, "k_unseen")  ? &c->ku
+                                      : NULL;
         if (slot && !el->props[i].is_list) *slot = i;
     }
     return c->row >= 0 && c->col >= 0 && c->k >= 0 && c->ku >= 0 ? 0 : -1;
@@ -51,7 +54,8 @@ static int read_entry(void *ctx, const rs_ply_element *el, size_t e, double *v, 
     if (!(r >= 0 && r < (double)nfaces && col >= 0 && col < (double)nfaces) || r < c->last_row)
         return rs_err_set(err, RS_ERR_INPUT, c->path, 0,
                           "entry %zu: row %.0f, col %.0f: expected indices below %zu with rows in order "
-                          "(rerun irradiance)", e, r, col, nfaces);
+                          "(rerun irradiance)",
+                          e, r, col, nfaces);
     if (!(isfinite(k) && k >= 0 && isfinite(ku) && ku >= 0))
         return rs_err_set(err, RS_ERR_INPUT, c->path, 0, "entry %zu: weights must be finite and >= 0", e);
     c->last_row = r;
@@ -80,8 +84,9 @@ rs_transport *rs_transport_read(const char *path, size_t nfaces, rs_err *err)
         expected_props(path, err);
         goto fail;
     }
-    if (!t->col && (!(t->col = malloc(sizeof *t->col)) || !(t->k = malloc(sizeof *t->k)) ||
-                    !(t->k_unseen = malloc(sizeof *t->k_unseen)))) {
+    if (!t->col &&
+        (!(t->col = malloc(sizeof *t->col)) || !(t->k = malloc(sizeof *t->k)) ||
+         !(t->k_unseen = malloc(sizeof *t->k_unseen)))) {
         rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
         goto fail;
     }
@@ -106,8 +111,8 @@ void rs_transport_free(rs_transport *t)
 
 /* Jacobi iteration: every sweep uses the previous sweep's L, so the result does not depend on
  * the order (or thread count) in which facets are updated. */
-int rs_transport_solve(const rs_transport *K, const double *rho, const double *esky, double *L,
-                         double *G, double tol, int max_iter, double *residual)
+int rs_transport_solve(const rs_transport *K, const double *rho, const double *esky, double *L, double *G, double tol,
+                       int max_iter, double *residual)
 {
     size_t nf = K->nfaces;
     double *next = malloc(3 * nf * sizeof *next);
@@ -137,4 +142,3 @@ int rs_transport_solve(const rs_transport *K, const double *rho, const double *e
     free(next);
     return it > max_iter ? max_iter : it;
 }
-

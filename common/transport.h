@@ -10,7 +10,7 @@
 
 typedef struct rs_transport {
     size_t nfaces, nentries;
-    size_t *row_start;         /* nfaces + 1 */
+    size_t *row_start; /* nfaces + 1 */
     uint32_t *col;
     float *k, *k_unseen;
 } rs_transport;
@@ -23,7 +23,7 @@ void rs_transport_free(rs_transport *t);
  * by Jacobi iteration until the largest change relative to the largest radiance falls below tol.
  * Converges geometrically since row sums of K are <= pi and rho < 1. Writes L and G = K L;
  * returns the iterations used (-1: out of memory), *residual the last relative change. */
-int rs_transport_solve(const rs_transport *K, const double *rho, const double *esky, double *L, double *G,
-                       double tol, int max_iter, double *residual);
+int rs_transport_solve(const rs_transport *K, const double *rho, const double *esky, double *L, double *G, double tol,
+                       int max_iter, double *residual);
 
 #endif

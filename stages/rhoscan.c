@@ -42,7 +42,7 @@ static int merge_metrics(const rs_config *cfg, rs_json *run, rs_err *err)
     }
     char *run_text = rs_json_text(run);
     if (run_text) {
-        run_text[strlen(run_text) - 1] = 0;     /* drop the newline */
+        run_text[strlen(run_text) - 1] = 0; /* drop the newline */
         rs_json_set_raw(all, "run", run_text);
     }
     free(run_text);
@@ -96,8 +96,8 @@ static int run_pipeline(const rs_config *cfg, const char *from, const char *only
         rs_report_skips_summary();
         rc = merge_metrics(cfg, run, err);
         if (rc == 0)
-            rs_log_info("done in %.1f s: %d stage%s run, the rest up to date (see metrics.json)",
-                        rs_now() - t0, nran, nran == 1 ? "" : "s");
+            rs_log_info("done in %.1f s: %d stage%s run, the rest up to date (see metrics.json)", rs_now() - t0, nran,
+                        nran == 1 ? "" : "s");
     }
     rs_json_free(run);
     return rc;
@@ -120,19 +120,27 @@ int main(int argc, char **argv)
     int nsets = 0, force = 0;
     for (int i = 2; i < argc; i++) {
         const char *a = argv[i];
-        if (strcmp(a, "--set") == 0 && i + 1 < argc) sets[nsets++] = argv[++i];
-        else if (strncmp(a, "--set=", 6) == 0) sets[nsets++] = a + 6;
-        else if (strcmp(a, "--from") == 0 && i + 1 < argc) from = argv[++i];
-        else if (strcmp(a, "--only") == 0 && i + 1 < argc) only = argv[++i];
-        else if (strcmp(a, "--force") == 0) force = 1;
-        else if (strcmp(a, "--quiet") == 0) rs_log_set_level(RS_LOG_WARN);
-        else if (strcmp(a, "--verbose") == 0) rs_log_set_level(RS_LOG_DEBUG);
+        if (strcmp(a, "--set") == 0 && i + 1 < argc)
+            sets[nsets++] = argv[++i];
+        else if (strncmp(a, "--set=", 6) == 0)
+            sets[nsets++] = a + 6;
+        else if (strcmp(a, "--from") == 0 && i + 1 < argc)
+            from = argv[++i];
+        else if (strcmp(a, "--only") == 0 && i + 1 < argc)
+            only = argv[++i];
+        else if (strcmp(a, "--force") == 0)
+            force = 1;
+        else if (strcmp(a, "--quiet") == 0)
+            rs_log_set_level(RS_LOG_WARN);
+        else if (strcmp(a, "--verbose") == 0)
+            rs_log_set_level(RS_LOG_DEBUG);
         else if (a[0] == '-' || config) {
             fprintf(stderr, "rhoscan: unexpected argument '%s'\n", a);
             usage(stderr);
             free(sets);
             return 1;
-        } else config = a;
+        } else
+            config = a;
     }
     const char *stage_arg = from ? from : only;
     if (!config || (stage_arg && !rs_stage_find(stage_arg)) || (from && only)) {

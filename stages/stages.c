@@ -5,14 +5,8 @@
 #include <string.h>
 
 const rs_stage_def rs_stage_table[] = {
-    RS_STAGE_DEF_INGEST,
-    RS_STAGE_DEF_MESH,
-    RS_STAGE_DEF_CALIB,
-    RS_STAGE_DEF_OBSERVE,
-    RS_STAGE_DEF_IRRADIANCE,
-    RS_STAGE_DEF_REFLECTANCE,
-    RS_STAGE_DEF_RENDER,
-    {NULL, NULL, NULL, NULL, NULL, NULL}};
+    RS_STAGE_DEF_INGEST,     RS_STAGE_DEF_MESH,        RS_STAGE_DEF_CALIB,  RS_STAGE_DEF_OBSERVE,
+    RS_STAGE_DEF_IRRADIANCE, RS_STAGE_DEF_REFLECTANCE, RS_STAGE_DEF_RENDER, {NULL, NULL, NULL, NULL, NULL, NULL}};
 
 const rs_stage_def *rs_stage_find(const char *name)
 {

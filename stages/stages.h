@@ -5,43 +5,55 @@
 
 #include "stage.h"
 
-int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err);       /* -> cloud.ply */
-int rs_mesh_run(const rs_config *cfg, rs_report *rep, rs_err *err);         /* -> mesh.ply */
+int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err);      /* -> cloud.ply */
+int rs_mesh_run(const rs_config *cfg, rs_report *rep, rs_err *err);        /* -> mesh.ply */
 int rs_calib_run(const rs_config *cfg, rs_report *rep, rs_err *err);       /* -> pano_stitched.exr, capture_pose.txt */
-int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err);      /* -> observe.ply, facet_id.exr */
-int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err);   /* -> irradiance.ply, transport.ply */
-int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err);  /* -> albedo.ply */
-int rs_render_run(const rs_config *cfg, rs_report *rep, rs_err *err);       /* -> images, render.json */
+int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err);     /* -> observe.ply, facet_id.exr */
+int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err);  /* -> irradiance.ply, transport.ply */
+int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err); /* -> albedo.ply */
+int rs_render_run(const rs_config *cfg, rs_report *rep, rs_err *err);      /* -> images, render.json */
 
 /* Each stage's definition (stage.h: rs_stage_def). A stage program builds its own from these
  * and links only its own stage: the table below (stages.c) references every stage, so a
  * program that used it would load PCL, VTK and OpenCV at start (~0.3 s) whether it needs them
  * or not. */
-#define RS_STAGE_DEF_INGEST \
-    {"ingest", rs_ingest_run, "ingest mesh", "", "cloud.ply", \
-     "read laser scans (PTX, PLY) into one point cloud"}
-#define RS_STAGE_DEF_MESH \
-    {"mesh", rs_mesh_run, "mesh capture rig", "cloud.ply", "mesh.ply", \
-     "triangulate the scan grids and simplify to the facet size (or take [mesh] input_mesh)"}
-#define RS_STAGE_DEF_CALIB \
-    {"calib", rs_calib_run, "calib rig capture colmap", "mesh.ply", "pano_stitched.exr capture_pose.txt", \
-     "stitch the rig's frames into the capture's panorama; solve the capture's pose from pairs"}
-#define RS_STAGE_DEF_OBSERVE \
-    {"observe", rs_observe_run, "observe capture rig", "mesh.ply pano_stitched.exr capture_pose.txt", \
-     "observe.ply facet_id.exr", \
-     "which facet each panorama pixel sees, and each facet's observed radiance"}
-#define RS_STAGE_DEF_IRRADIANCE \
-    {"irradiance", rs_irradiance_run, "irradiance capture sky rig", \
-     "mesh.ply observe.ply facet_id.exr pano_stitched.exr capture_pose.txt", \
-     "irradiance.ply transport.ply", "sky irradiance and interreflection gather per facet"}
-#define RS_STAGE_DEF_REFLECTANCE \
-    {"reflectance", rs_reflectance_run, "reflectance calib", \
-     "mesh.ply observe.ply irradiance.ply transport.ply facet_id.exr", \
-     "albedo.ply", "albedo per facet: interreflection, direct or paper"}
-#define RS_STAGE_DEF_RENDER \
-    {"render", rs_render_run, "render capture rig", \
-     "albedo.ply transport.ply facet_id.exr pano_stitched.exr capture_pose.txt", \
-     "irradiance.exr albedo.exr synth.exr diff.exr irradiance.png albedo.png synth.png diff.png observed.png", \
-     "re-render the panorama from the albedo and compare with the observation"}
+#define RS_STAGE_DEF_INGEST                                                                                         \
+    {                                                                                                               \
+        "ingest", rs_ingest_run, "ingest mesh", "", "cloud.ply", "read laser scans (PTX, PLY) into one point cloud" \
+    }
+#define RS_STAGE_DEF_MESH                                                                           \
+    {                                                                                               \
+        "mesh", rs_mesh_run, "mesh capture rig", "cloud.ply", "mesh.ply",                           \
+            "triangulate the scan grids and simplify to the facet size (or take [mesh] input_mesh)" \
+    }
+#define RS_STAGE_DEF_CALIB                                                                                   \
+    {                                                                                                        \
+        "calib", rs_calib_run, "calib rig capture colmap", "mesh.ply", "pano_stitched.exr capture_pose.txt", \
+            "stitch the rig's frames into the capture's panorama; solve the capture's pose from pairs"       \
+    }
+#define RS_STAGE_DEF_OBSERVE                                                                                       \
+    {                                                                                                              \
+        "observe", rs_observe_run, "observe capture rig", "mesh.ply pano_stitched.exr capture_pose.txt",           \
+            "observe.ply facet_id.exr", "which facet each panorama pixel sees, and each facet's observed radiance" \
+    }
+#define RS_STAGE_DEF_IRRADIANCE                                                                                     \
+    {                                                                                                               \
+        "irradiance", rs_irradiance_run, "irradiance capture sky rig",                                              \
+            "mesh.ply observe.ply facet_id.exr pano_stitched.exr capture_pose.txt", "irradiance.ply transport.ply", \
+            "sky irradiance and interreflection gather per facet"                                                   \
+    }
+#define RS_STAGE_DEF_REFLECTANCE                                                            \
+    {                                                                                       \
+        "reflectance", rs_reflectance_run, "reflectance calib",                             \
+            "mesh.ply observe.ply irradiance.ply transport.ply facet_id.exr", "albedo.ply", \
+            "albedo per facet: interreflection, direct or paper"                            \
+    }
+#define RS_STAGE_DEF_RENDER                                                                                           \
+    {                                                                                                                 \
+        "render", rs_render_run, "render capture rig",                                                                \
+            "albedo.ply transport.ply facet_id.exr pano_stitched.exr capture_pose.txt",                               \
+            "irradiance.exr albedo.exr synth.exr diff.exr irradiance.png albedo.png synth.png diff.png observed.png", \
+            "re-render the panorama from the albedo and compare with the observation"                                 \
+    }
 
 #endif

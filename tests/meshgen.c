@@ -39,17 +39,21 @@ void rs_meshgen_box(rs_meshgen *g, rs_v3 lo, rs_v3 hi, int n, int inward)
     rs_v3 d = rs_v3_sub(hi, lo);
     rs_v3 ex = {d.x, 0, 0}, ey = {0, d.y, 0}, ez = {0, 0, d.z};
     /* Outward faces: e1 x e2 points out. Inward: swap e1 and e2. */
-    struct { rs_v3 o, a, b; } f[6] = {
-        {lo, ey, ex},                            /* bottom, -z */
-        {rs_v3_add(lo, ez), ex, ey},             /* top, +z */
-        {lo, ex, ez},                            /* front, -y */
-        {rs_v3_add(lo, ey), ez, ex},             /* back, +y */
-        {lo, ez, ey},                            /* left, -x */
-        {rs_v3_add(lo, ex), ey, ez},             /* right, +x */
+    struct {
+        rs_v3 o, a, b;
+    } f[6] = {
+        {lo, ey, ex},                /* bottom, -z */
+        {rs_v3_add(lo, ez), ex, ey}, /* top, +z */
+        {lo, ex, ez},                /* front, -y */
+        {rs_v3_add(lo, ey), ez, ex}, /* back, +y */
+        {lo, ez, ey},                /* left, -x */
+        {rs_v3_add(lo, ex), ey, ez}, /* right, +x */
     };
     for (int k = 0; k < 6; k++) {
-        if (inward) rs_meshgen_rect(g, f[k].o, f[k].b, f[k].a, n, n);
-        else rs_meshgen_rect(g, f[k].o, f[k].a, f[k].b, n, n);
+        if (inward)
+            rs_meshgen_rect(g, f[k].o, f[k].b, f[k].a, n, n);
+        else
+            rs_meshgen_rect(g, f[k].o, f[k].a, f[k].b, n, n);
     }
 }
 

@@ -97,8 +97,10 @@ int rs_test_run(const char *cmd, char **output)
     }
     if (buf) buf[len] = 0;
     int status = pclose(p);
-    if (output) *output = buf;
-    else free(buf);
+    if (output)
+        *output = buf;
+    else
+        free(buf);
     if (status == -1) return -1;
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
@@ -150,7 +152,7 @@ void rs_test_rhoscan(const char *dir, const char *sets)
     char cmd[8192], *out = NULL;
     snprintf(cmd, sizeof cmd, "cd '%s' && '%s/rhoscan' run --force %s scene.ini", dir, rs_test_bin_dir(), sets);
     int rc = rs_test_run(cmd, &out);
-    if (rc != 0) {                             /* the end says why (print_message keeps 1 KB) */
+    if (rc != 0) { /* the end says why (print_message keeps 1 KB) */
         size_t n = out ? strlen(out) : 0;
         print_message("exit %d: ...%s\n", rc, out ? out + (n > 900 ? n - 900 : 0) : "");
     }

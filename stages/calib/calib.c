@@ -82,9 +82,11 @@ static int register_capture(const rs_config *cfg, int width, int height, rs_repo
         rs_json_set_num(o, "residual_deg", resid[i]);
         rs_json_set_bool(o, "inlier", inlier[i]);
         if (!inlier[i])
-            rs_report_skip(rep, "correspondence", "%s:%ld: pixel (%g, %g) is %.3f deg from where the pose puts "
-                           "(%g, %g, %g): rejected as an outlier", pairs_path, pairs[i].line, pairs[i].col,
-                           pairs[i].row, resid[i], pairs[i].world.x, pairs[i].world.y, pairs[i].world.z);
+            rs_report_skip(rep, "correspondence",
+                           "%s:%ld: pixel (%g, %g) is %.3f deg from where the pose puts "
+                           "(%g, %g, %g): rejected as an outlier",
+                           pairs_path, pairs[i].line, pairs[i].col, pairs[i].row, resid[i], pairs[i].world.x,
+                           pairs[i].world.y, pairs[i].world.z);
     }
     rs_log_info("calib: pose from %d of %d pairs, residual rms %.4f deg, max %.4f deg; centre (%.4f, %.4f, %.4f)",
                 res.inliers, n, res.rms_deg, res.max_deg, res.pose.position.x, res.pose.position.y,
@@ -154,7 +156,8 @@ static int exposure_times(const rs_config *cfg, double *times, int max, rs_err *
             if (!*p) break;
             return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
                               "[rig] exposure_times_s = \"%s\": expected exposure times in seconds, > 0, separated "
-                              "by spaces", text);
+                              "by spaces",
+                              text);
         }
         if (!(t > 0) || n == max)
             return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
@@ -188,9 +191,10 @@ static rs_image *merge_brackets(const rs_config *cfg, const rs_rig_camera *c, in
             goto out;
         }
         if (bits != 8 || ch != 3 || w != c->width || h != c->height) {
-            rs_err_set(err, RS_ERR_INPUT, path, 0, "bracket is %d x %d, %d channel%s, %s: expected %d x %d 8-bit RGB "
-                       "(camera %d, %s)", w, h, ch, ch == 1 ? "" : "s", bits ? "integer" : "float", c->width,
-                       c->height, cam, c->name);
+            rs_err_set(err, RS_ERR_INPUT, path, 0,
+                       "bracket is %d x %d, %d channel%s, %s: expected %d x %d 8-bit RGB "
+                       "(camera %d, %s)",
+                       w, h, ch, ch == 1 ? "" : "s", bits ? "integer" : "float", c->width, c->height, cam, c->name);
             rs_cv_free(data);
             goto out;
         }
@@ -217,10 +221,11 @@ static rs_image *merge_brackets(const rs_config *cfg, const rs_rig_camera *c, in
             rs_json_set_num(o, "sun_elevation_deg_rig", asin(fmax(-1, fmin(1, dr.z))) * 180 / M_PI);
             rs_json_set_num(o, "sun_azimuth_deg_rig", atan2(dr.y, dr.x) * 180 / M_PI);
         }
-        rs_report_skip(rep, "sun radiance", "camera %s: the sun is clipped in every exposure (%zu pixels "
+        rs_report_skip(rep, "sun radiance",
+                       "camera %s: the sun is clipped in every exposure (%zu pixels "
                        "around (%.1f, %.1f)): its radiance there is a lower bound; [sky] sun_irradiance (e.g. "
-                       "from a pyrheliometer) makes the sun an explicit source", c->name, hr.sun_px, hr.sun_x,
-                       hr.sun_y);
+                       "from a pyrheliometer) makes the sun an explicit source",
+                       c->name, hr.sun_px, hr.sun_x, hr.sun_y);
     }
 out:
     for (int e = 0; e < n; e++) rs_image_free(shots[e]);
@@ -250,8 +255,8 @@ static int stitch_rig(const rs_config *cfg, const char *out_path, int pose_solve
     if (nexp == 0 && nframes != rig.count) {
         rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
                    "[rig] frames lists %d image%s but %s has %d camera%s: expected one frame per camera, in "
-                   "the order of the rig file", nframes, nframes == 1 ? "" : "s", rig_path, rig.count,
-                   rig.count == 1 ? "" : "s");
+                   "the order of the rig file",
+                   nframes, nframes == 1 ? "" : "s", rig_path, rig.count, rig.count == 1 ? "" : "s");
         goto out;
     }
     if (nexp > 0 && nframes != rig.count * nexp) {
@@ -269,8 +274,9 @@ static int stitch_rig(const rs_config *cfg, const char *out_path, int pose_solve
     if (have_response) rs_json_set_str(hdr_json, "response_file", path);
     for (int i = 0; i < rig.count; i++) {
         rs_config_path_at(cfg, "rig", "frames", nexp ? i * nexp : i, path, sizeof path);
-        frames[i] = nexp ? merge_brackets(cfg, &rig.cams[i], i, times, nexp,
-                                            have_response ? response : NULL, rep, hdr_json, err) : read_frame(path, err);
+        frames[i] = nexp
+            ? merge_brackets(cfg, &rig.cams[i], i, times, nexp, have_response ? response : NULL, rep, hdr_json, err)
+            : read_frame(path, err);
         if (!frames[i]) goto out;
         if (frames[i]->width != rig.cams[i].width || frames[i]->height != rig.cams[i].height) {
             rs_err_set(err, RS_ERR_INPUT, path, 0, "frame is %d x %d but camera %d (%s) of %s is %d x %d",
@@ -287,9 +293,12 @@ static int stitch_rig(const rs_config *cfg, const char *out_path, int pose_solve
     rs_stitch_stats stats;
     if (rs_stitch(&rig, frames, &opts, &pano, gains, &stats, err) != 0) goto out;
     static const char *const names[] = {"R", "G", "B"};
-    if (rs_image_write_exr(pano, out_path, names, 0, use_model ? "rhoscan calib: stitched from [rig] frames "
-                           "(parallax corrected with the model's depth)" : "rhoscan calib: stitched from [rig] "
-                           "frames (infinite depth)", err) != 0)
+    if (rs_image_write_exr(pano, out_path, names, 0,
+                           use_model ? "rhoscan calib: stitched from [rig] frames "
+                                       "(parallax corrected with the model's depth)"
+                                     : "rhoscan calib: stitched from [rig] "
+                                       "frames (infinite depth)",
+                           err) != 0)
         goto out;
     rs_json *st = rs_json_set_obj(rep->metrics, "stitch");
     rs_json_set_str(st, "rig_file", rig_path);
@@ -313,8 +322,10 @@ static int stitch_rig(const rs_config *cfg, const char *out_path, int pose_solve
                 100 * stats.coverage);
     /* Parallax not corrected: say how large the ignored offsets are and why. */
     if (max_offset > 0 && !use_model)
-        rs_report_skip(rep, "parallax correction", "cameras sit up to %.3f m from the rig centre; stitching assumes "
-                       "infinite depth (%s), so near objects may show seams", max_offset, model.why);
+        rs_report_skip(rep, "parallax correction",
+                       "cameras sit up to %.3f m from the rig centre; stitching assumes "
+                       "infinite depth (%s), so near objects may show seams",
+                       max_offset, model.why);
     rc = 0;
 out:
     for (int i = 0; frames && i < rig.count; i++) rs_image_free(frames[i]);
@@ -377,7 +388,8 @@ int rs_calib_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     }
     if (!have_rig && !have_pairs && !rs_config_has(cfg, "colmap", "model") &&
         !rs_config_has(cfg, "capture", "refine_edges"))
-        rs_report_skip(rep, "calib", "no [rig] file, no [capture] correspondences and no [colmap] model: nothing to "
+        rs_report_skip(rep, "calib",
+                       "no [rig] file, no [capture] correspondences and no [colmap] model: nothing to "
                        "calibrate");
     return 0;
 }

@@ -20,11 +20,15 @@ static int posed_captures(const rs_config *cfg, const char **posed, int *nposed,
     for (int i = 0; i < n; i++) {
         if (!rs_config_has(cfg, sections[i], "colmap_panorama")) continue;
         if (!rs_config_has(cfg, "colmap", "model"))
-            return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0, "[%s] colmap_panorama is set but [colmap] "
-                              "model is not: expected the folder of a COLMAP text model", sections[i]);
+            return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                              "[%s] colmap_panorama is set but [colmap] "
+                              "model is not: expected the folder of a COLMAP text model",
+                              sections[i]);
         if (rs_config_has(cfg, sections[i], "correspondences"))
-            return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0, "[%s] has both correspondences and "
-                              "colmap_panorama: expected one way to solve its pose", sections[i]);
+            return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                              "[%s] has both correspondences and "
+                              "colmap_panorama: expected one way to solve its pose",
+                              sections[i]);
         posed[(*nposed)++] = sections[i];
     }
     return 0;
@@ -45,8 +49,8 @@ static void push_m3(rs_json *o, const char *key, const double *m)
 }
 
 /* The similarity from the control points, each point's residual in the report. */
-static int align(const rs_config *cfg, const rs_colmap_model *m, const rs_colmap_view *views, int nviews,
-                 rs_json *cj, rs_colmap_similarity *sim, rs_err *err)
+static int align(const rs_config *cfg, const rs_colmap_model *m, const rs_colmap_view *views, int nviews, rs_json *cj,
+                 rs_colmap_similarity *sim, rs_err *err)
 {
     static const char *const kinds[] = {"image", "point", "panorama"};
     char path[4096];
@@ -86,10 +90,12 @@ static int align(const rs_config *cfg, const rs_colmap_model *m, const rs_colmap
         if (resid[i] > resid[worst]) worst = i;
     }
     rs_log_info("calib: COLMAP model aligned by %d control points: scale %.6g m per unit, residual rms %.4f m, "
-                "max %.4f m (%s line %ld)", n, sim->scale, sim->rms_m, sim->max_m, path, cps[worst].line);
+                "max %.4f m (%s line %ld)",
+                n, sim->scale, sim->rms_m, sim->max_m, path, cps[worst].line);
     double limit = rs_config_real(cfg, "colmap", "max_rms_m");
     if (sim->rms_m > limit) {
-        rs_err_set(err, RS_ERR_INPUT, path, cps[worst].line, "the control points fit the COLMAP model with an RMS "
+        rs_err_set(err, RS_ERR_INPUT, path, cps[worst].line,
+                   "the control points fit the COLMAP model with an RMS "
                    "residual of %.4f m: expected at most [colmap] max_rms_m = %g m; the worst is %s %s, %.4f m off",
                    sim->rms_m, limit, kinds[cps[worst].kind], cps[worst].name, resid[worst]);
         goto out;
@@ -110,11 +116,14 @@ int rs_calib_colmap_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     if (posed_captures(cfg, posed, &nposed, err) != 0) return -1;
     if (!rs_config_has(cfg, "colmap", "model")) return 0;
     if (!rs_config_has(cfg, "colmap", "control_points"))
-        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0, "[colmap] model is set but control_points is "
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                          "[colmap] model is set but control_points is "
                           "not: expected a file of at least 3 control points to place the model in the scan's frame");
     if (nposed && !rs_config_has(cfg, "colmap", "views"))
-        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0, "[%s] colmap_panorama is set but [colmap] views "
-                          "is not: expected the views file (tools/colmap/cut_views.py writes views.txt)", posed[0]);
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                          "[%s] colmap_panorama is set but [colmap] views "
+                          "is not: expected the views file (tools/colmap/cut_views.py writes views.txt)",
+                          posed[0]);
     char dir[4096], vpath[4096], out[4096];
     rs_config_path(cfg, "colmap", "model", dir, sizeof dir);
     rs_colmap_model m;
@@ -150,15 +159,18 @@ int rs_calib_colmap_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         push_v3(o, "position", pp.pose.position);
         push_m3(o, "rotation", pp.pose.rot);
         if (pp.views < pp.views_listed)
-            rs_report_skip(rep, "COLMAP views", "[%s]: %d of the %d views of panorama %s are not in the model (the "
-                           "mapper did not register them)", posed[i], pp.views_listed - pp.views, pp.views_listed,
-                           label);
+            rs_report_skip(rep, "COLMAP views",
+                           "[%s]: %d of the %d views of panorama %s are not in the model (the "
+                           "mapper did not register them)",
+                           posed[i], pp.views_listed - pp.views, pp.views_listed, label);
         rs_log_info("calib: [%s] posed by COLMAP from %d views of %s: centre (%.4f, %.4f, %.4f), views agree within "
-                    "%.3f deg and %.4f m", posed[i], pp.views, label, pp.pose.position.x, pp.pose.position.y,
-                    pp.pose.position.z, pp.spread_deg, pp.spread_m);
+                    "%.3f deg and %.4f m",
+                    posed[i], pp.views, label, pp.pose.position.x, pp.pose.position.y, pp.pose.position.z,
+                    pp.spread_deg, pp.spread_m);
     }
     if (nposed == 0)
-        rs_report_skip(rep, "COLMAP poses", "no [capture] section sets colmap_panorama: the model was aligned but "
+        rs_report_skip(rep, "COLMAP poses",
+                       "no [capture] section sets colmap_panorama: the model was aligned but "
                        "poses nothing");
     rc = 0;
 out:

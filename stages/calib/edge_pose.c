@@ -30,7 +30,8 @@ static int start_pose(const rs_config *cfg, rs_pose *pose, rs_err *err)
         return rs_calib_pose_read(path, "capture", pose, err);
     double pos[3];
     if (rs_config_reals(cfg, "capture", "position", pos) != 0)
-        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0, "[capture] refine_edges = true but [capture] "
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                          "[capture] refine_edges = true but [capture] "
                           "position is not set and no pose was solved: expected a rough centre (m, world frame) to "
                           "start from, or [capture] correspondences");
     pose->position = rs_v3_make(pos[0], pos[1], pos[2]);
@@ -45,8 +46,10 @@ int rs_calib_edge_pose_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     for (int i = 0; i < nsec && i < 64; i++)
         if (strcmp(names[i], "capture") != 0 && rs_config_has(cfg, names[i], "refine_edges") &&
             rs_config_bool(cfg, names[i], "refine_edges"))
-            return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0, "[%s] refine_edges = true: only [capture] "
-                              "can be refined by edges so far", names[i]);
+            return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                              "[%s] refine_edges = true: only [capture] "
+                              "can be refined by edges so far",
+                              names[i]);
     /* No default: an unset key leaves the section's text, and so the fingerprints, as they were. */
     if (!rs_config_has(cfg, "capture", "refine_edges") || !rs_config_bool(cfg, "capture", "refine_edges")) return 0;
     char mesh_path[4096], pano_path[4096], pose_path[4096];
@@ -58,12 +61,14 @@ int rs_calib_edge_pose_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     if (start_pose(cfg, &start, err) != 0) return -1;
     rs_work_path(cfg, "mesh.ply", mesh_path, sizeof mesh_path);
     if (!rs_file_exists(mesh_path))
-        return rs_err_set(err, RS_ERR_INPUT, mesh_path, 0, "[capture] refine_edges = true needs the model: run the "
+        return rs_err_set(err, RS_ERR_INPUT, mesh_path, 0,
+                          "[capture] refine_edges = true needs the model: run the "
                           "mesh stage first (rhoscan run, or rhoscan-mesh CONFIG)");
     int stitched = rs_calib_panorama_path(cfg, "capture", pano_path, sizeof pano_path, err);
     if (stitched < 0) return -1;
     if (!stitched && !rs_config_path(cfg, "capture", "panorama", pano_path, sizeof pano_path))
-        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0, "[capture] refine_edges = true but there is no "
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                          "[capture] refine_edges = true but there is no "
                           "panorama: expected [capture] panorama or [rig] file and frames");
     double t0 = rs_now();
     if (!(mesh = rs_mesh_read(mesh_path, NULL, err))) goto out;
@@ -99,8 +104,9 @@ int rs_calib_edge_pose_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_num(o, "shift_m", res.shift_m);
     rs_calib_pose_json(o, &res.pose);
     rs_log_info("calib: edges refined the pose by %.3f deg and %.3f m in %d iterations (%.1f s): median chamfer "
-                "%.2f -> %.2f px at %d px wide, %ld model edge pixels", res.turn_deg, res.shift_m, res.iterations,
-                seconds, res.median_px_before, res.median_px_after, res.finest_width, res.model_edges);
+                "%.2f -> %.2f px at %d px wide, %ld model edge pixels",
+                res.turn_deg, res.shift_m, res.iterations, seconds, res.median_px_before, res.median_px_after,
+                res.finest_width, res.model_edges);
     rc = 0;
 out:
     rs_image_free(pano);

@@ -10,9 +10,9 @@
 
 typedef struct rs_parallax_model {
     rs_mesh *mesh;
-    rs_scene *scene;           /* NULL when the model is not used */
-    rs_pose pose;              /* rig -> world */
-    char why[256];             /* when not used: why not, for the report */
+    rs_scene *scene; /* NULL when the model is not used */
+    rs_pose pose;    /* rig -> world */
+    char why[256];   /* when not used: why not, for the report */
 } rs_parallax_model;
 
 /* 1 when [rig] parallax is on and the work folder has mesh.ply: the stitch can use the model

@@ -21,8 +21,9 @@ static rs_cloud *read_any(const rs_config *cfg, const char *path, const char **k
         *kind = "PCD";
         return rs_pcl_read_pcd(path, err);
     }
-    if (dot && (strcasecmp(dot, ".xyz") == 0 || strcasecmp(dot, ".txt") == 0 || strcasecmp(dot, ".csv") == 0 ||
-                strcasecmp(dot, ".pts") == 0)) {
+    if (dot &&
+        (strcasecmp(dot, ".xyz") == 0 || strcasecmp(dot, ".txt") == 0 || strcasecmp(dot, ".csv") == 0 ||
+         strcasecmp(dot, ".pts") == 0)) {
         *kind = "text";
         return rs_cloud_read_text(path, rs_config_string(cfg, "ingest", "columns"), err);
     }
@@ -94,7 +95,8 @@ static int clean(const rs_config *cfg, rs_cloud *c, rs_report *rep, rs_err *err)
         rs_log_info("statistical outlier removal (%ld neighbours, %g sigma): %zu of %zu unorganized points removed", k,
                     rs_config_real(cfg, "ingest", "outlier_std"), removed, n + removed);
     } else {
-        rs_report_skip(rep, "outlier removal", k > 0 ? "too few unorganized points" : "[ingest] outlier_neighbours = 0");
+        rs_report_skip(rep, "outlier removal",
+                       k > 0 ? "too few unorganized points" : "[ingest] outlier_neighbours = 0");
     }
     rs_json_set_int(rep->metrics, "outliers_removed", (long long)removed);
 
@@ -193,7 +195,8 @@ int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     /* Before anything turns coordinates into floats (PCL here, the mesh later). */
     if (rs_cloud_recentre(all, rs_config_real(cfg, "ingest", "recentre_above")))
         rs_log_info("georeferenced coordinates: recentred by (%.0f, %.0f, %.0f) m, kept as rhoscan_origin in "
-                    "cloud.ply and mesh.ply", all->origin[0], all->origin[1], all->origin[2]);
+                    "cloud.ply and mesh.ply",
+                    all->origin[0], all->origin[1], all->origin[2]);
     rs_json *origin = rs_json_set_arr(rep->metrics, "origin_m");
     for (int j = 0; j < 3; j++) rs_json_push_num(origin, all->origin[j]);
 
@@ -204,8 +207,10 @@ int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_int(rep->metrics, "scans", all->nscans);
     rs_json_set_int(rep->metrics, "unorganized", (long long)rs_cloud_unorganized(all));
     if (valid_in == 0) {
-        rs_err_set(err, RS_ERR_INPUT, NULL, 0, "the scans hold no point with a return (all %zu are 0 0 0); "
-                   "expected a scan of the scene", all->npoints);
+        rs_err_set(err, RS_ERR_INPUT, NULL, 0,
+                   "the scans hold no point with a return (all %zu are 0 0 0); "
+                   "expected a scan of the scene",
+                   all->npoints);
         goto out;
     }
     if (rs_cloud_unorganized(all) > 0 && clean(cfg, all, rep, err) != 0) goto out;

@@ -13,29 +13,29 @@
 
 typedef struct {
     uint32_t face;
-    uint8_t unseen;            /* the radiance at the hit point was not read from the panorama */
+    uint8_t unseen; /* the radiance at the hit point was not read from the panorama */
 } hit_ref;
 
 /* The search guide a scratch uses for one distribution (skyenv.h: rs_skyenv_guide_build): the
  * map's own when it has one, else one built here on first use (maps made by hand in tests). */
 enum { GUIDE_BUCKETS = RS_SKYENV_GUIDE_BUCKETS };
 typedef struct {
-    const double *cdf;         /* the distribution it serves (NULL: none yet) */
+    const double *cdf; /* the distribution it serves (NULL: none yet) */
     const uint32_t *guide;
     uint32_t own[GUIDE_BUCKETS + 1];
 } sky_guide;
 
 struct rs_gather_scratch {
-    sky_guide sky, sun;        /* chosen on first use: a scratch serves one sky map for its life */
-    const rs_mesh *box_mesh;   /* the mesh whose bounding box lo/hi holds (NULL: not computed) */
+    sky_guide sky, sun;      /* chosen on first use: a scratch serves one sky map for its life */
+    const rs_mesh *box_mesh; /* the mesh whose bounding box lo/hi holds (NULL: not computed) */
     float lo[3], hi[3];
     rs_ray *rays;
     rs_hit *hits;
     hit_ref *refs;
-    size_t nrefs_cap;          /* entries refs holds: an adaptive facet's hits grow it */
-    uint32_t *pixels;          /* sky pixel of each map-sampled ray */
-    size_t *ray_pixel;         /* per cosine ray: the sky map's or the panorama's pixel it reads */
-    double *samp;              /* 5 per ray: the Sobol coordinates of a map-sampled ray */
+    size_t nrefs_cap;              /* entries refs holds: an adaptive facet's hits grow it */
+    uint32_t *pixels;              /* sky pixel of each map-sampled ray */
+    size_t *ray_pixel;             /* per cosine ray: the sky map's or the panorama's pixel it reads */
+    double *samp;                  /* 5 per ray: the Sobol coordinates of a map-sampled ray */
     uint32_t *range_lo, *range_hi; /* per ray: the guide's search range */
     uint8_t *occl;
 };
@@ -55,7 +55,8 @@ rs_gather_scratch *rs_gather_scratch_new(size_t n)
     s->range_lo = malloc(n * sizeof *s->range_lo);
     s->range_hi = malloc(n * sizeof *s->range_hi);
     s->occl = malloc(n);
-    if (!s->rays || !s->hits || !s->refs || !s->pixels || !s->ray_pixel || !s->samp || !s->range_lo || !s->range_hi || !s->occl) {
+    if (!s->rays || !s->hits || !s->refs || !s->pixels || !s->ray_pixel || !s->samp || !s->range_lo || !s->range_hi ||
+        !s->occl) {
         rs_gather_scratch_free(s);
         return NULL;
     }
@@ -102,8 +103,10 @@ static size_t guide_pick(sky_guide *g, const double *cdf, const uint32_t *shared
     size_t lo = guide[b], hi = guide[b + 1];
     while (lo < hi) {
         size_t mid = lo + (hi - lo) / 2;
-        if (cdf[mid + 1] > target) hi = mid;
-        else lo = mid + 1;
+        if (cdf[mid + 1] > target)
+            hi = mid;
+        else
+            lo = mid + 1;
     }
     /* Only a clamped end can land on a pixel without power (elsewhere pixel lo - 1 failed the
      * test, so cdf[lo] <= target < cdf[lo + 1]): walk back as the binary search does. */
@@ -140,7 +143,8 @@ static int sees_nothing(const rs_gather_ctx *g, rs_gather_scratch *s, rs_v3 n, r
     }
     double eps = 0.5 * rs_scene_offset(g->scene, rs_v3_make(0, 0, 0)), top = -INFINITY;
     for (int k = 0; k < 8; k++) {
-        rs_v3 corner = rs_v3_make(k & 1 ? s->hi[0] : s->lo[0], k & 2 ? s->hi[1] : s->lo[1], k & 4 ? s->hi[2] : s->lo[2]);
+        rs_v3 corner =
+            rs_v3_make(k & 1 ? s->hi[0] : s->lo[0], k & 2 ? s->hi[1] : s->lo[1], k & 4 ? s->hi[2] : s->lo[2]);
         top = fmax(top, rs_v3_dot(n, rs_v3_sub(corner, a)));
     }
     return top <= eps;
@@ -170,15 +174,17 @@ static void guide_pick_batch(rs_gather_scratch *s, const rs_skyenv *env, int sun
         size_t lo = s->range_lo[i], hi = s->range_hi[i];
         while (lo < hi) {
             size_t mid = lo + (hi - lo) / 2;
-            if (cdf[mid + 1] > target) hi = mid;
-            else lo = mid + 1;
+            if (cdf[mid + 1] > target)
+                hi = mid;
+            else
+                lo = mid + 1;
         }
-        if (lo >= npx) {                           /* as in guide_pick */
+        if (lo >= npx) { /* as in guide_pick */
             lo = npx - 1;
             while (lo > 0 && cdf[lo + 1] == cdf[lo]) lo--;
         }
         s->pixels[i] = (uint32_t)lo;
-        __builtin_prefetch(env->radiance + 3 * lo);   /* read after the shadow rays */
+        __builtin_prefetch(env->radiance + 3 * lo); /* read after the shadow rays */
         __builtin_prefetch(&env->filled[lo]);
     }
 }
@@ -196,8 +202,7 @@ static size_t seen_pixel(const rs_gather_ctx *g, rs_v3 x)
     const rs_capture *cap = g->cap;
     if (!cap) return SIZE_MAX;
     int c, r;
-    rs_pano_world_to_pixel(&cap->pose, cap->pano->width, cap->pano->height,
-                           rs_v3_sub(x, cap->pose.position), &c, &r);
+    rs_pano_world_to_pixel(&cap->pose, cap->pano->width, cap->pano->height, rs_v3_sub(x, cap->pose.position), &c, &r);
     return (size_t)r * cap->pano->width + c;
 }
 
@@ -233,9 +238,9 @@ typedef struct {
     rs_v3 n, a, b, c;
     uint32_t seed;
     int nrefs;
-    double inv_dist_sum;       /* cosine rays: sum of 1 / hit distance */
-    double y_sum[2], y_sq[2];  /* map rays (pass 0 sky, 1 sun): each ray's estimate of the whole */
-    int done[2];               /* map rays so far, per pass */
+    double inv_dist_sum;      /* cosine rays: sum of 1 / hit distance */
+    double y_sum[2], y_sq[2]; /* map rays (pass 0 sky, 1 sun): each ray's estimate of the whole */
+    int done[2];              /* map rays so far, per pass */
 } facet_state;
 
 /* Room for `more` further refs in the scratch (an adaptive facet's hits outgrow samples). */
@@ -256,8 +261,8 @@ static int refs_reserve(rs_gather_scratch *s, size_t more)
  * for the base counts (samples, sky_samples, sun_samples): a round that doubles every count
  * leaves the MIS weights as they are, and rs_gather_facet divides the sums by the factor at the
  * end. Round 0 (c0 = m0 = 0, mul = 1) is the whole gather when target_error is 0. */
-static int gather_round(const rs_gather_ctx *g, rs_gather_scratch *s, facet_state *st, int c0, int nc, int m0,
-                        int mul, rs_facet_gather *out)
+static int gather_round(const rs_gather_ctx *g, rs_gather_scratch *s, facet_state *st, int c0, int nc, int m0, int mul,
+                        rs_facet_gather *out)
 {
     rs_ray *rays = s->rays;
     rs_hit *hits = s->hits;
@@ -271,7 +276,7 @@ static int gather_round(const rs_gather_ctx *g, rs_gather_scratch *s, facet_stat
      * 1997, balance heuristic): the cosine-weighted rays above and Ne rays drawn from the map's
      * distribution. Cosine rays that land in the sun set count nothing: the sun rays have it. */
     int Nc = N, Ne = env && env->cdf ? g->sky_samples : 0, Ns = env && env->sun_cdf ? g->sun_samples : 0;
-    for (int k0 = c0; k0 < c0 + nc; k0 += N) {      /* the scratch holds N rays */
+    for (int k0 = c0; k0 < c0 + nc; k0 += N) { /* the scratch holds N rays */
         int B = c0 + nc - k0 < N ? c0 + nc - k0 : N;
         for (int i = 0; i < B; i++) {
             uint32_t k = (uint32_t)(k0 + i);
@@ -284,7 +289,7 @@ static int gather_round(const rs_gather_ctx *g, rs_gather_scratch *s, facet_stat
             rays[i].tnear = 0;
             rays[i].tfar = INFINITY;
         }
-        if (out->sees_nothing)                   /* the answer Embree would give, without asking */
+        if (out->sees_nothing) /* the answer Embree would give, without asking */
             for (int i = 0; i < B; i++) hits[i].face = RS_NO_HIT;
         else
             rs_scene_intersect(g->scene, rays, hits, (size_t)B);
@@ -317,9 +322,9 @@ static int gather_round(const rs_gather_ctx *g, rs_gather_scratch *s, facet_stat
             if (hits[i].face == RS_NO_HIT) {
                 if (!env) continue;
                 size_t pix = pixel[i];
-                if (env->sun[pix] && Ns) continue;    /* the sun rays have it (none: count it here) */
+                if (env->sun[pix] && Ns) continue; /* the sun rays have it (none: count it here) */
                 double pdf_c = rs_v3_dot(rays[i].dir, n) / M_PI, pdf_e = Ne ? rs_skyenv_pdf(env, pix) : 0;
-                double wgt = Nc * pdf_c / (Nc * pdf_c + Ne * pdf_e) * M_PI / Nc;  /* L cos / pdf_c = pi L */
+                double wgt = Nc * pdf_c / (Nc * pdf_c + Ne * pdf_e) * M_PI / Nc; /* L cos / pdf_c = pi L */
                 add_sky(env, pix, wgt, out);
                 double y = Nc * wgt * rs_skyenv_luminance(env->radiance + 3 * pix);
                 out->cos_sum += y;
@@ -355,43 +360,47 @@ static int gather_round(const rs_gather_ctx *g, rs_gather_scratch *s, facet_stat
         rs_facet_gather *dst = adaptive ? &acc : out;
         double div = adaptive ? 1 : Ns, sum = 0, sum_sq = 0;
         while (done < goal) {
-            int B = goal - done < M ? goal - done : M;     /* the scratch holds M rays */
+            int B = goal - done < M ? goal - done : M; /* the scratch holds M rays */
             double *sp = s->samp;
             for (int i = 0; i < B; i++) {
                 uint32_t k = (uint32_t)(done + i);
                 double unused;
-                rs_sobol2_owen(k, rs_hash_combine(seed, 3 + 3 * pass), &sp[5 * i], &sp[5 * i + 1]);  /* pixel, jitter u */
-                rs_sobol2_owen(k, rs_hash_combine(seed, 4 + 3 * pass), &sp[5 * i + 2], &unused);     /* jitter v */
+                rs_sobol2_owen(k, rs_hash_combine(seed, 3 + 3 * pass), &sp[5 * i],
+                               &sp[5 * i + 1]);                                                  /* pixel, jitter u */
+                rs_sobol2_owen(k, rs_hash_combine(seed, 4 + 3 * pass), &sp[5 * i + 2], &unused); /* jitter v */
                 rs_sobol2_owen(k, rs_hash_combine(seed, 5 + 3 * pass), &sp[5 * i + 3], &sp[5 * i + 4]); /* point */
             }
             guide_pick_batch(s, env, pass, sp, 5, B);
             for (int i = 0; i < B; i++) {
                 size_t pix = s->pixels[i];
                 int col = (int)(pix % (size_t)env->width), row = (int)(pix / (size_t)env->width);
-                rs_v3 d = rs_pose_dir_to_world(&env->pose, rs_pano_uv_to_dir((col + sp[5 * i + 1]) / env->width,
-                                                                             (row + sp[5 * i + 2]) / env->height));
+                rs_v3 d = rs_pose_dir_to_world(
+                    &env->pose,
+                    rs_pano_uv_to_dir((col + sp[5 * i + 1]) / env->width, (row + sp[5 * i + 2]) / env->height));
                 rs_v3 p = rs_triangle_point(a, b, c, sp[5 * i + 3], sp[5 * i + 4]);
                 rays[i].org = rs_v3_add(p, rs_v3_scale(n, rs_scene_offset(g->scene, p)));
                 rays[i].dir = d;
                 rays[i].tnear = 0;
-                rays[i].tfar = rs_v3_dot(d, n) > 0 ? INFINITY : 0;   /* below the horizon: no ray */
+                rays[i].tfar = rs_v3_dot(d, n) > 0 ? INFINITY : 0; /* below the horizon: no ray */
             }
-            if (B > 0 && out->sees_nothing) memset(occl, 0, (size_t)B);
-            else if (B) rs_scene_occluded(g->scene, rays, occl, (size_t)B);
+            if (B > 0 && out->sees_nothing)
+                memset(occl, 0, (size_t)B);
+            else if (B)
+                rs_scene_occluded(g->scene, rays, occl, (size_t)B);
             for (int i = 0; i < B; i++) {
                 double cosn = rs_v3_dot(rays[i].dir, n);
                 if (cosn <= 0 || occl[i]) continue;
                 size_t pix = s->pixels[i];
                 double lum = rs_skyenv_luminance(env->radiance + 3 * pix), wgt;
-                if (pass)                                    /* L cos / pdf / Ns, pdf = lum / power */
+                if (pass) /* L cos / pdf / Ns, pdf = lum / power */
                     wgt = cosn * env->sun_power / (lum * div);
-                else                                         /* balance heuristic, already / Ne */
+                else /* balance heuristic, already / Ne */
                     wgt = cosn / (Nc * cosn / M_PI + Ne * rs_skyenv_pdf(env, pix));
                 add_sky(env, pix, wgt, dst);
-                double y = (pass ? div : Ne) * wgt * lum;   /* this ray alone: its estimate of the whole */
+                double y = (pass ? div : Ne) * wgt * lum; /* this ray alone: its estimate of the whole */
                 st->y_sum[pass] += y;
                 st->y_sq[pass] += y * y;
-                sum += cosn * env->sun_power;                /* the ray's luminance contribution */
+                sum += cosn * env->sun_power; /* the ray's luminance contribution */
                 sum_sq += (cosn * env->sun_power) * (cosn * env->sun_power);
             }
             done += B;
@@ -451,7 +460,7 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
     memset(out, 0, sizeof *out);
     const rs_mesh *m = rs_scene_mesh(g->scene);
     rs_v3 n = rs_scene_normal(g->scene, f);
-    if (rs_v3_len(n) == 0) return 0;          /* degenerate: no irradiance, not estimable */
+    if (rs_v3_len(n) == 0) return 0; /* degenerate: no irradiance, not estimable */
     rs_v3 a = rs_mesh_vert(m, m->tris[3 * f]), b = rs_mesh_vert(m, m->tris[3 * f + 1]),
           c = rs_mesh_vert(m, m->tris[3 * f + 2]);
     /* Only sky above the plane and a smooth sky: its harmonic projection, no ray (skysh.h). */
@@ -469,7 +478,7 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
         if (gather_round(g, s, &st, N << rounds, N << rounds, 1 << rounds, 1 << rounds, out) != 0) return -1;
         rounds++;
     }
-    if (rounds) {                             /* every sum was weighted for the base counts */
+    if (rounds) { /* every sum was weighted for the base counts */
         double inv = 1.0 / (1 << rounds);
         for (int ch = 0; ch < 3; ch++) {
             out->esky[ch] *= inv;
@@ -479,10 +488,10 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
         out->filled_lum *= inv;
         out->fill_sigma_lum *= inv;
     }
-    double w = M_PI / ((double)N * (1 << rounds));  /* cosine-weighted: E = pi * mean radiance */
+    double w = M_PI / ((double)N * (1 << rounds)); /* cosine-weighted: E = pi * mean radiance */
     for (int ch = 0; ch < 3; ch++) out->gseen[ch] *= w;
     out->inv_dist = st.inv_dist_sum / ((double)N * (1 << rounds));
-    for (int pass = 0; pass < 2; pass++)      /* rays that brought nothing count as 0 */
+    for (int pass = 0; pass < 2; pass++) /* rays that brought nothing count as 0 */
         if (st.done[pass]) {
             double mean = st.y_sum[pass] / st.done[pass];
             out->map_var += fmax(0, st.y_sq[pass] / st.done[pass] - mean * mean) / st.done[pass];
@@ -512,7 +521,6 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
     return 0;
 }
 
-
 double rs_gather_mc_sigma(const rs_facet_gather *fg, const double *radiance, const uint8_t *observed)
 {
     if (!fg->rays || !fg->samples) return 0;
@@ -530,8 +538,7 @@ double rs_gather_mc_sigma(const rs_facet_gather *fg, const double *radiance, con
     return sqrt(var_cos + fg->map_var);
 }
 
-void rs_gather_inter_observed(const rs_facet_gather *fg, const double *radiance, const uint8_t *observed,
-                              double g[3])
+void rs_gather_inter_observed(const rs_facet_gather *fg, const double *radiance, const uint8_t *observed, double g[3])
 {
     for (int ch = 0; ch < 3; ch++) g[ch] = fg->gseen[ch];
     for (uint32_t q = 0; q < fg->nentries; q++) {

@@ -65,8 +65,8 @@ static uint32_t *morton_order(const rs_mesh *m, size_t nf)
 
 /* Gathers the listed facets in parallel into fg[list[k]], or into fg[k] when by_position; -1 when
  * a thread ran out of memory. */
-static int gather_list(const rs_gather_ctx *g, const uint32_t *list, size_t n, rs_facet_gather *fg,
-                       int by_position, struct rs_progress *prog)
+static int gather_list(const rs_gather_ctx *g, const uint32_t *list, size_t n, rs_facet_gather *fg, int by_position,
+                       struct rs_progress *prog)
 {
     size_t scratch = (size_t)g->samples;
     if ((size_t)g->sky_samples > scratch) scratch = (size_t)g->sky_samples;
@@ -116,7 +116,7 @@ int rs_gather_run(const rs_gather_ctx *g, size_t nf, const uint8_t *needed, rs_f
     memset(stats, 0, sizeof *stats);
     memset(fg, 0, nf * sizeof *fg);
     uint32_t *order = morton_order(rs_scene_mesh(g->scene), nf), *list = malloc((nf ? nf : 1) * sizeof *list);
-    uint8_t *state = calloc(nf ? nf : 1, 1);        /* 0 not reached, 1 queued, 2 gathered */
+    uint8_t *state = calloc(nf ? nf : 1, 1); /* 0 not reached, 1 queued, 2 gathered */
     int rc = -1;
     if (!order || !list || !state) goto out;
     for (size_t f = 0; f < nf; f++) state[f] = !needed || needed[f];
@@ -144,7 +144,7 @@ int rs_gather_run(const rs_gather_ctx *g, size_t nf, const uint8_t *needed, rs_f
         stats->waves++;
         stats->gathered += n;
         for (size_t k = 0; k < n; k++) state[list[k]] = 2;
-        for (size_t k = 0; k < n; k++)                 /* what these facets' rays reached comes next */
+        for (size_t k = 0; k < n; k++) /* what these facets' rays reached comes next */
             for (uint32_t q = 0; q < fg[list[k]].nentries; q++)
                 if (!state[fg[list[k]].entries[q].col]) state[fg[list[k]].entries[q].col] = 1;
     }
@@ -195,7 +195,7 @@ int rs_gather_mc_calibration(const rs_gather_ctx *g, size_t nf, const rs_facet_g
     for (size_t f = 0, k = 0; f < nf; f++)
         if (fg[f].rays > 0 && !fg[f].relay && k++ % stride == 0) list[m++] = (uint32_t)f;
     rs_gather_ctx g2 = *g;
-    g2.seed = g->seed ^ 0x5bd1e995u;                /* an independent scrambling */
+    g2.seed = g->seed ^ 0x5bd1e995u; /* an independent scrambling */
     int rc = gather_list(&g2, list, m, again, 1, NULL);
     double sum = 0;
     size_t cnt = 0;
@@ -205,7 +205,7 @@ int rs_gather_mc_calibration(const rs_gather_ctx *g, size_t nf, const rs_facet_g
         double sb = rs_gather_mc_sigma(b, radiance, observed);
         double d = facet_lum(a, radiance, observed) - facet_lum(b, radiance, observed);
         if (rc == 0 && sa + sb > 0) {
-            sum += d * d / (sa * sa + sb * sb);   /* var(E - E') = sa^2 + sb^2 */
+            sum += d * d / (sa * sa + sb * sb); /* var(E - E') = sa^2 + sb^2 */
             cnt++;
         }
         free(again[k].entries);

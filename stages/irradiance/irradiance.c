@@ -27,16 +27,14 @@
 #include "sunsource.h"
 #include "stages.h"
 
-static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_facet_gather *fg,
-                         const double *radiance, const uint8_t *observed, double fill_rate, double mc_factor,
-                         rs_report *rep, rs_err *err)
+static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_facet_gather *fg, const double *radiance,
+                         const uint8_t *observed, double fill_rate, double mc_factor, rs_report *rep, rs_err *err)
 {
     size_t nf = mesh->nfaces, ne = 0;
     double *esky = malloc(3 * nf * sizeof *esky), *g = malloc(3 * nf * sizeof *g),
            *gseen = malloc(3 * nf * sizeof *gseen), *filled = malloc(nf * sizeof *filled),
-           *sigma = malloc(nf * sizeof *sigma), *mc = malloc(nf * sizeof *mc),
-           *esun = malloc(3 * nf * sizeof *esun), *inv_dist = malloc(nf * sizeof *inv_dist),
-           *gathered = malloc(nf * sizeof *gathered);
+           *sigma = malloc(nf * sizeof *sigma), *mc = malloc(nf * sizeof *mc), *esun = malloc(3 * nf * sizeof *esun),
+           *inv_dist = malloc(nf * sizeof *inv_dist), *gathered = malloc(nf * sizeof *gathered);
     rs_ply *ply = rs_ply_new();
     int rc = -1;
     char path[4096];
@@ -54,11 +52,11 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
         gathered[f] = fg[f].rays > 0 || fg[f].sky_sh;
         rs_gather_inter_observed(&fg[f], radiance, observed, g + 3 * f);
         filled[f] = fg[f].esky_lum > 0 ? fg[f].filled_lum / fg[f].esky_lum : 0;
-        sigma[f] = fg[f].fill_sigma_lum;       /* rs_facet_gather: summed, not in quadrature */
+        sigma[f] = fg[f].fill_sigma_lum; /* rs_facet_gather: summed, not in quadrature */
         /* Monte Carlo noise of E_sky + G (rays toward unobserved facets count 0 here), the
          * independent-sample formula scaled by what a second seed showed (rs_gather_mc_calibration). */
         mc[f] = mc_factor * rs_gather_mc_sigma(&fg[f], radiance, observed);
-        if (fg[f].sky_sh) mc[f] = fg[f].sh_sigma;   /* no rays: the projection's measured error bound */
+        if (fg[f].sky_sh) mc[f] = fg[f].sh_sigma; /* no rays: the projection's measured error bound */
     }
     rs_ply_element *faces = rs_mesh_to_ply(mesh, ply);
     if (!faces || rs_faceprop_add_rgb(faces, "irradiance_sky", esky) != 0 ||
@@ -73,21 +71,27 @@ static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_fac
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory building irradiance.ply");
         goto out;
     }
-    rs_ply_add_comment(ply, "rhoscan %s irradiance: E_sky and G (W m^-2 per unit radiance scale); "
-                            "irradiance_inter counts observed facets only", RHOSCAN_VERSION);
-    rs_ply_add_comment(ply, "sky_filled: luminance share of E_sky from filled-in directions; irradiance_sky_sigma: "
-                            "standard uncertainty of E_sky's luminance = the sum over filled directions of their "
-                            "light x %.4g sqrt(their angle in radians to the nearest measured sky) (at most 1)",
+    rs_ply_add_comment(ply,
+                       "rhoscan %s irradiance: E_sky and G (W m^-2 per unit radiance scale); "
+                       "irradiance_inter counts observed facets only",
+                       RHOSCAN_VERSION);
+    rs_ply_add_comment(ply,
+                       "sky_filled: luminance share of E_sky from filled-in directions; irradiance_sky_sigma: "
+                       "standard uncertainty of E_sky's luminance = the sum over filled directions of their "
+                       "light x %.4g sqrt(their angle in radians to the nearest measured sky) (at most 1)",
                        fill_rate);
-    rs_ply_add_comment(ply, "irradiance_mc_sigma: standard error of the luminance of E_sky + G from the gather's "
-                            "own sample spread times %.4g, the ratio of the actual spread between two seeds to it on "
-                            "sampled facets (Monte Carlo noise; rays toward unobserved facets count 0)", mc_factor);
-    rs_ply_add_comment(ply, "irradiance_sun: the part of irradiance_sky from the sun set's pixels and an explicit "
-                            "sun; hit_distance_inv: mean of 1 / distance (1/m) over the cosine rays, escapes 0 (Ward's "
-                            "harmonic mean distance is its reciprocal); gathered: 0 for facets left out of the gather");
+    rs_ply_add_comment(ply,
+                       "irradiance_mc_sigma: standard error of the luminance of E_sky + G from the gather's "
+                       "own sample spread times %.4g, the ratio of the actual spread between two seeds to it on "
+                       "sampled facets (Monte Carlo noise; rays toward unobserved facets count 0)",
+                       mc_factor);
+    rs_ply_add_comment(ply,
+                       "irradiance_sun: the part of irradiance_sky from the sun set's pixels and an explicit "
+                       "sun; hit_distance_inv: mean of 1 / distance (1/m) over the cosine rays, escapes 0 (Ward's "
+                       "harmonic mean distance is its reciprocal); gathered: 0 for facets left out of the gather");
     if (rs_ply_write(ply, rs_work_path(cfg, "irradiance.ply", path, sizeof path), 1, err) != 0) goto out;
 
-    rs_ply_free(ply);          /* before the kernel's file, streamed from the rows (kernel_out.c) */
+    rs_ply_free(ply); /* before the kernel's file, streamed from the rows (kernel_out.c) */
     ply = NULL;
     if (rs_kernel_write(rs_work_path(cfg, "transport.ply", path, sizeof path), fg, nf, &ne, err) != 0) goto out;
     rs_json_set_int(rep->metrics, "kernel_entries", (long long)ne);
@@ -119,8 +123,10 @@ static int sky_fill_options(const rs_config *cfg, rs_skyfill_opts *o, rs_err *er
     o->cross_validate = 1;
     int has_az = rs_config_has(cfg, "sky", "sun_azimuth_deg"), has_el = rs_config_has(cfg, "sky", "sun_elevation_deg");
     if (has_az != has_el)
-        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0, "[sky] sun_%s_deg is set without sun_%s_deg: "
-                          "expected both or neither", has_az ? "azimuth" : "elevation", has_az ? "elevation" : "azimuth");
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                          "[sky] sun_%s_deg is set without sun_%s_deg: "
+                          "expected both or neither",
+                          has_az ? "azimuth" : "elevation", has_az ? "elevation" : "azimuth");
     if (has_az) {
         double az = rs_config_real(cfg, "sky", "sun_azimuth_deg") * M_PI / 180;
         double el = rs_config_real(cfg, "sky", "sun_elevation_deg") * M_PI / 180;
@@ -131,15 +137,16 @@ static int sky_fill_options(const rs_config *cfg, rs_skyfill_opts *o, rs_err *er
     const char *when = rs_config_string(cfg, "sky", "datetime");
     if (!when) return 0;
     if (!rs_config_has(cfg, "sky", "latitude_deg") || !rs_config_has(cfg, "sky", "longitude_deg"))
-        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0, "[sky] datetime is set without latitude_deg "
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                          "[sky] datetime is set without latitude_deg "
                           "and longitude_deg: expected the site's position for the solar position");
     double jd, az, el;
     if (rs_solar_parse_datetime(when, &jd, err) != 0) {
         snprintf(err->file, sizeof err->file, "%s", rs_config_file(cfg));
         return -1;
     }
-    rs_solar_position(jd, rs_config_real(cfg, "sky", "latitude_deg"), rs_config_real(cfg, "sky", "longitude_deg"),
-                      &az, &el);
+    rs_solar_position(jd, rs_config_real(cfg, "sky", "latitude_deg"), rs_config_real(cfg, "sky", "longitude_deg"), &az,
+                      &el);
     o->sun_given = 1;
     o->sun_dir = rs_solar_world_dir(az, el, rs_config_real(cfg, "sky", "north_deg"));
     rs_log_info("irradiance: sun at azimuth %.2f, elevation %.2f degrees (NOAA solar position for %s)", az, el, when);
@@ -148,17 +155,19 @@ static int sky_fill_options(const rs_config *cfg, rs_skyfill_opts *o, rs_err *er
 
 /* The explicit sun's term, its DNI first estimated from the shadows when no one gave it. */
 static int add_explicit_sun(const rs_config *cfg, rs_report *rep, rs_sunsource *sun, const rs_scene *scene,
-                            const rs_capture *cap, rs_facet_gather *fg, const double *radiance,
-                            const uint8_t *observed, rs_err *err)
+                            const rs_capture *cap, rs_facet_gather *fg, const double *radiance, const uint8_t *observed,
+                            rs_err *err)
 {
     const rs_mesh *mesh = rs_scene_mesh(scene);
     size_t nf = mesh->nfaces;
     float *vis = malloc((nf ? nf : 1) * sizeof *vis);
     double t0 = rs_now();
-    if (!vis || rs_sunsource_visibility(sun, scene, (int)rs_config_int(cfg, "irradiance", "sun_samples"),
-                                        (uint32_t)rs_config_int(cfg, "irradiance", "seed"), nf, fg, vis) != 0 ||
-        (sun->from_shadows && rs_sunsource_from_shadows(sun, mesh, vis, fg, radiance, observed, cap->pose.position,
-                                                        cap->pano->height) != 0)) {
+    if (!vis ||
+        rs_sunsource_visibility(sun, scene, (int)rs_config_int(cfg, "irradiance", "sun_samples"),
+                                (uint32_t)rs_config_int(cfg, "irradiance", "seed"), nf, fg, vis) != 0 ||
+        (sun->from_shadows &&
+         rs_sunsource_from_shadows(sun, mesh, vis, fg, radiance, observed, cap->pose.position, cap->pano->height) !=
+             0)) {
         free(vis);
         return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory adding the explicit sun");
     }
@@ -167,17 +176,20 @@ static int add_explicit_sun(const rs_config *cfg, rs_report *rep, rs_sunsource *
         if (sun->shadow_rc == 0)
             rs_log_info("irradiance: sun from the shadows: DNI %.4g +- %.2g (statistical %.2g, from the sky fill "
                         "%.2g; colour %.3g %.3g %.3g) from %zu lit facets paired with shadowed ones within %.2f m on "
-                        "their plane (%zu blocks; margin %.2f m)", sun->dni, e->sigma_lum, e->sigma_stat_lum,
-                        e->sigma_sys_lum, sun->rgb[0], sun->rgb[1], sun->rgb[2], e->lit_used, 3 * sun->margin,
-                        e->blocks, sun->margin);
+                        "their plane (%zu blocks; margin %.2f m)",
+                        sun->dni, e->sigma_lum, e->sigma_stat_lum, e->sigma_sys_lum, sun->rgb[0], sun->rgb[1],
+                        sun->rgb[2], e->lit_used, 3 * sun->margin, e->blocks, sun->margin);
         else if (sun->shadow_rc == 2)
-            rs_report_skip(rep, "sun from the shadows", "the searched sun's DNI %.3g is within 5 standard errors "
-                           "(%.2g) of 0: no sun added", e->dni_lum, e->sigma_stat_lum);
+            rs_report_skip(rep, "sun from the shadows",
+                           "the searched sun's DNI %.3g is within 5 standard errors "
+                           "(%.2g) of 0: no sun added",
+                           e->dni_lum, e->sigma_stat_lum);
         else
-            rs_report_skip(rep, "sun from the shadows", "only %zu observed facets in full sun found one in full "
+            rs_report_skip(rep, "sun from the shadows",
+                           "only %zu observed facets in full sun found one in full "
                            "shadow within %.2f m on their plane (%zu lit, %zu shadowed beyond a %.2f m margin; %d "
-                           "needed): %s", e->lit_used, 3 * sun->margin, e->lit, e->shadowed, sun->margin,
-                           RS_SUNSHADOW_MIN_LIT,
+                           "needed): %s",
+                           e->lit_used, 3 * sun->margin, e->lit, e->shadowed, sun->margin, RS_SUNSHADOW_MIN_LIT,
                            sun->fell_back ? "the sun keeps the power the panorama held of it"
                                           : "the hidden sun adds nothing, give [sky] sun_irradiance");
     }
@@ -202,9 +214,10 @@ static int search_hidden_sun(rs_report *rep, rs_sunsource *sun, const rs_scene *
 {
     double glow = sky_glow(fill, method);
     if (glow >= 0 && glow < RS_SUNSEARCH_MIN_GLOW) {
-        rs_report_skip(rep, "sun from the shadows", "no bright sky pixel and no sun placed by the config, and the "
-                       "visible sky has no circumsolar glow (Perez c = %.2f < %g): overcast, no sun searched", glow,
-                       RS_SUNSEARCH_MIN_GLOW);
+        rs_report_skip(rep, "sun from the shadows",
+                       "no bright sky pixel and no sun placed by the config, and the "
+                       "visible sky has no circumsolar glow (Perez c = %.2f < %g): overcast, no sun searched",
+                       glow, RS_SUNSEARCH_MIN_GLOW);
         return 0;
     }
     double t0 = rs_now();
@@ -220,27 +233,30 @@ static int search_hidden_sun(rs_report *rep, rs_sunsource *sun, const rs_scene *
                     asin(fmin(1, sun->dir_world.z)) * 180 / M_PI, sun->found.score, sun->found.pairs,
                     sun->found.candidates, sun->found_off_deg);
     else if (sun->found.score >= RS_SUNSEARCH_MIN_SCORE)
-        rs_report_skip(rep, "sun from the shadows", "the shadows' best direction (median log contrast %.3f) is "
-                       "%.1f deg from where the visible sky puts the sun (at most %g): no sun added", sun->found.score,
-                       sun->found_off_deg, RS_SUNSOURCE_AGREE_DEG);
+        rs_report_skip(rep, "sun from the shadows",
+                       "the shadows' best direction (median log contrast %.3f) is "
+                       "%.1f deg from where the visible sky puts the sun (at most %g): no sun added",
+                       sun->found.score, sun->found_off_deg, RS_SUNSOURCE_AGREE_DEG);
     else
-        rs_report_skip(rep, "sun from the shadows", "no bright sky pixel and no sun placed by the config; no direction "
+        rs_report_skip(rep, "sun from the shadows",
+                       "no bright sky pixel and no sun placed by the config; no direction "
                        "the cameras did not see casts shadows that match the radiance (best median log contrast %.3f, "
-                       "%g needed): no sun added", sun->found.score, RS_SUNSEARCH_MIN_SCORE);
+                       "%g needed): no sun added",
+                       sun->found.score, RS_SUNSEARCH_MIN_SCORE);
     return 0;
 }
 
 static const char *sun_source_name(rs_sun_source s)
 {
-    return s == RS_SUN_CONFIG   ? "config"
-           : s == RS_SUN_PIXELS ? "sun pixels"
-           : s == RS_SUN_SEARCH ? "searched"
-                                : "shadows";
+    return s == RS_SUN_CONFIG ? "config"
+        : s == RS_SUN_PIXELS  ? "sun pixels"
+        : s == RS_SUN_SEARCH  ? "searched"
+                              : "shadows";
 }
 
 /* One gather of the facets over the sky map g->env, and the measure of its noise. */
 typedef struct gather_pass {
-    rs_skysh sh;               /* [irradiance] sh_max_error: harmonics for facets that see only sky */
+    rs_skysh sh; /* [irradiance] sh_max_error: harmonics for facets that see only sky */
     double sh_tol;
     size_t sh_candidates;
     rs_gather_stats gs;
@@ -259,7 +275,7 @@ static int gather_pass_run(const rs_config *cfg, rs_report *rep, rs_gather_ctx *
     p->sh_tol = rs_config_real(cfg, "irradiance", "sh_max_error");
     p->sh_candidates = g->skip_convex && p->sh_tol > 0 ? rs_skysh_candidates(g->scene) : 0;
     double t0;
-    if (p->sh_candidates) {      /* the test costs a pass over the map: only when a facet can use it */
+    if (p->sh_candidates) { /* the test costs a pass over the map: only when a facet can use it */
         t0 = rs_now();
         if (rs_skysh_build(g->env, p->sh_tol, 256, &p->sh, err) != 0) return -1;
         snprintf(key, sizeof key, "sky_sh%s", suffix);
@@ -324,8 +340,10 @@ static int ground_from_scan(const rs_config *cfg, rs_report *rep, const rs_gathe
             return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory estimating the ground's albedo");
         rs_report_time(rep, "ground_albedo", rs_now() - t0);
         if (!gr.facets) {
-            snprintf(few, sizeof few, "fewer than %d of the %zu observed upward facets at the scan's ground "
-                     "level see only observed ones", RS_SKYGROUND_MIN_FACETS, gr.candidates);
+            snprintf(few, sizeof few,
+                     "fewer than %d of the %zu observed upward facets at the scan's ground "
+                     "level see only observed ones",
+                     RS_SKYGROUND_MIN_FACETS, gr.candidates);
             why = few;
         }
     }
@@ -344,9 +362,9 @@ static int ground_from_scan(const rs_config *cfg, rs_report *rep, const rs_gathe
         for (int ch = 0; ch < 3; ch++) rs_json_push_num(sp, gr.spread[ch]);
         rs_log_info("irradiance: unseen ground below the horizon (%zu map pixels): albedo %.3g %.3g %.3g (+- %.2g "
                     "%.2g %.2g between facets) from %zu of the scan's %zu observed ground facets at z %.2f m (%zu "
-                    "left out: they see facets no camera saw)", fill->ground_model_pixels, albedo[0], albedo[1],
-                    albedo[2], gr.spread[0], gr.spread[1], gr.spread[2], gr.facets, gr.candidates, gr.level_z,
-                    gr.sees_unobserved);
+                    "left out: they see facets no camera saw)",
+                    fill->ground_model_pixels, albedo[0], albedo[1], albedo[2], gr.spread[0], gr.spread[1],
+                    gr.spread[2], gr.facets, gr.candidates, gr.level_z, gr.sees_unobserved);
     } else if (why) {
         long n = rs_skyenv_ground_from_bands(env, so->explicit_sun);
         if (n < 0) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky distribution");
@@ -371,7 +389,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     uint8_t *other_masks[RS_SKYENV_MAX_OTHERS];
     int nothers = 0;
     rs_skyenv env = {0};
-    rs_sunsource sun = {0};   /* [sky] sun_irradiance: the sun as an explicit source */
+    rs_sunsource sun = {0}; /* [sky] sun_irradiance: the sun as an explicit source */
     rs_skyenv_info info;
     uint8_t *sky_mask = NULL;
     rs_scene *scene = NULL;
@@ -400,8 +418,10 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     const char *id_path = rs_work_path(cfg, "facet_id.exr", path, sizeof path);
     if (!(ids = rs_image_read(id_path, err))) goto out;
     if (ids->width != cap.pano->width || ids->height != cap.pano->height || ids->channels != 1) {
-        rs_err_set(err, RS_ERR_INPUT, id_path, 0, "is %dx%d with %d channels: expected %dx%d, 1 channel "
-                   "(rerun observe)", ids->width, ids->height, ids->channels, cap.pano->width, cap.pano->height);
+        rs_err_set(err, RS_ERR_INPUT, id_path, 0,
+                   "is %dx%d with %d channels: expected %dx%d, 1 channel "
+                   "(rerun observe)",
+                   ids->width, ids->height, ids->channels, cap.pano->width, cap.pano->height);
         goto out;
     }
     int sun_samples = (int)rs_config_int(cfg, "irradiance", "sun_samples");
@@ -466,11 +486,13 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
                 env.bright_pixels);
     if (sky.pano)
         rs_log_info("irradiance: sky panorama %s gave %zu map pixels; exposure factor %.4g %.4g %.4g from %.3g sr "
-                    "of shared sky", sky.path, info.sky_pano_pixels, info.sky_pano_scale[0], info.sky_pano_scale[1],
+                    "of shared sky",
+                    sky.path, info.sky_pano_pixels, info.sky_pano_scale[0], info.sky_pano_scale[1],
                     info.sky_pano_scale[2], info.sky_overlap_sr);
     if (info.fill.cv_folds)
         rs_log_info("irradiance: held-out sky blocks (%d): relative error of their light filled by rows %.3f, by the "
-                    "model %.3f; sun %s", info.fill.cv_folds, info.fill.cv_rel_row, info.fill.cv_rel_model,
+                    "model %.3f; sun %s",
+                    info.fill.cv_folds, info.fill.cv_rel_row, info.fill.cv_rel_model,
                     sun_source_name(info.fill.sun_source));
     if (so.fill.method == RS_SKYFILL_MODEL && !info.fill.fit_samples)
         rs_log_warn("irradiance: too little visible sky to fit the sky model: filled by rows");
@@ -504,17 +526,18 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     }
     if (ground_from_scan(cfg, rep, &g, &env, &so, &info.fill, &sun, mesh, err) != 0) goto out;
     gather_pass gp;
-    double first_pass_rays = 0;   /* rays of a gather done again around a searched sun */
+    double first_pass_rays = 0; /* rays of a gather done again around a searched sun */
     if (gather_pass_run(cfg, rep, &g, ids, nf, fg, &gp, "", err) != 0) goto out;
-    if (sun.search && search_hidden_sun(rep, &sun, scene, &env, &info.fill, so.fill.method, &cap, fg, radiance,
-                                        observed, err) != 0)
+    if (sun.search &&
+        search_hidden_sun(rep, &sun, scene, &env, &info.fill, so.fill.method, &cap, fg, radiance, observed, err) != 0)
         goto out;
     /* The model fill placed its sun where the visible sky's glow put it, degrees from where the
      * shadows do: fitted again around the searched sun, the circumsolar sky and so the E that the
      * DNI estimate divides by move with it (street canyon: 12.6 % -> 10.8 % albedo error). */
     if (sun.searched && so.fill.method == RS_SKYFILL_MODEL && info.fill.fit_samples) {
         rs_log_info("irradiance: the sky model fitted again around the searched sun (%.1f deg from its first "
-                    "direction), and the facets gathered again", sun.found_off_deg);
+                    "direction), and the facets gathered again",
+                    sun.found_off_deg);
         so.fill.sun_given = 1;
         so.fill.sun_dir = sun.dir_world;
         rs_skyenv_release(&env);
@@ -536,14 +559,20 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     }
     if (sun.active && add_explicit_sun(cfg, rep, &sun, scene, &cap, fg, radiance, observed, err) != 0) goto out;
     if (gp.gs.gathered < nf)
-        rs_report_skip(rep, "gather of unseen facets", "%zu facets that no camera sees light no facet it sees "
-                       "(closure of the light paths in %d waves)", nf - gp.gs.gathered, gp.gs.waves);
+        rs_report_skip(rep, "gather of unseen facets",
+                       "%zu facets that no camera sees light no facet it sees "
+                       "(closure of the light paths in %d waves)",
+                       nf - gp.gs.gathered, gp.gs.waves);
     if (gp.gs.sees_nothing)
-        rs_report_skip(rep, "tracing of convex facets", "%zu facets have the whole model below their plane: "
-                       "their rays escape without tracing", gp.gs.sees_nothing);
+        rs_report_skip(rep, "tracing of convex facets",
+                       "%zu facets have the whole model below their plane: "
+                       "their rays escape without tracing",
+                       gp.gs.sees_nothing);
     if (gp.gs.relays)
-        rs_report_skip(rep, "full ray counts for relays", "%zu facets that no camera sees, gathered for their light on "
-                       "seen ones, traced %g of the rays ([irradiance] relay_share)", gp.gs.relays, g.relay_share);
+        rs_report_skip(rep, "full ray counts for relays",
+                       "%zu facets that no camera sees, gathered for their light on "
+                       "seen ones, traced %g of the rays ([irradiance] relay_share)",
+                       gp.gs.relays, g.relay_share);
     rs_json_set_int(rep->metrics, "facets_gathered", (long long)gp.gs.gathered);
     rs_json_set_int(rep->metrics, "facets_relays", (long long)gp.gs.relays);
     rs_json_set_int(rep->metrics, "facets_seeing_nothing", (long long)gp.gs.sees_nothing);
@@ -559,15 +588,17 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     else if (!gp.sh_candidates)
         rs_report_skip(rep, "sky harmonics", "no facet has the whole model below its plane");
     else if (!gp.sh.usable)
-        rs_report_skip(rep, "sky harmonics", "the sky map's order-2 irradiance is off by more than [irradiance] "
+        rs_report_skip(rep, "sky harmonics",
+                       "the sky map's order-2 irradiance is off by more than [irradiance] "
                        "sh_max_error = %g at every one of %d normals (up to %.2f %%, at %.2f %.2f %.2f): facets that "
-                       "see only sky gather with rays", gp.sh.tol, gp.sh.normals, 100 * gp.sh.max_error,
-                       gp.sh.worst_normal.x, gp.sh.worst_normal.y, gp.sh.worst_normal.z);
+                       "see only sky gather with rays",
+                       gp.sh.tol, gp.sh.normals, 100 * gp.sh.max_error, gp.sh.worst_normal.x, gp.sh.worst_normal.y,
+                       gp.sh.worst_normal.z);
     else
         rs_log_info("irradiance: %zu of %zu facets that see only sky took E_sky from the sky's order-2 harmonics, "
                     "no rays (error within %g on %.0f %% of the normals, up to %.2f %% at %.2f %.2f %.2f); the other "
-                    "%zu face a normal above that or cut the sun set's cone, and gathered", nsh,
-                    gp.gs.sees_nothing, gp.sh.tol, 100 * gp.sh.passed_share, 100 * gp.sh.max_error,
+                    "%zu face a normal above that or cut the sun set's cone, and gathered",
+                    nsh, gp.gs.sees_nothing, gp.sh.tol, 100 * gp.sh.passed_share, 100 * gp.sh.max_error,
                     gp.sh.worst_normal.x, gp.sh.worst_normal.y, gp.sh.worst_normal.z, gp.gs.sees_nothing - nsh);
     double rays = gp.gs.rays + first_pass_rays;
     rs_json_set_num(rep->metrics, "rays", rays);
@@ -581,7 +612,8 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         rs_json_set_int(rep->metrics, "facets_refined", (long long)refined);
         rs_json_set_int(rep->metrics, "facets_refined_to_cap", (long long)capped);
         rs_log_info("irradiance: target_error %g: %zu facets took more rays than the base counts, %zu of them "
-                    "%d x (the cap)", g.target_error, refined, capped, 1 << RS_GATHER_MAX_ROUNDS);
+                    "%d x (the cap)",
+                    g.target_error, refined, capped, 1 << RS_GATHER_MAX_ROUNDS);
     }
     rs_json_set_int(rep->metrics, "sky_pixels", (long long)env.sky_pixels);
     rs_json_set_int(rep->metrics, "filled_pixels", (long long)env.filled_pixels);
@@ -602,7 +634,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     if (so.fill.method == RS_SKYFILL_MODEL) {
         rs_json_set_int(rep->metrics, "sky_model_sh_order", info.fill.model.sh_order);
         rs_json_set_num(rep->metrics, "sky_model_fit_rms_log", info.fill.model.fit_rms_log);
-        rs_json *pz = rs_json_set_arr(rep->metrics, "sky_model_perez_green");   /* a b c d e */
+        rs_json *pz = rs_json_set_arr(rep->metrics, "sky_model_perez_green"); /* a b c d e */
         for (int k = 0; k < 5; k++) rs_json_push_num(pz, info.fill.model.perez[1][k]);
         rs_json_set_int(rep->metrics, "sky_ground_from_albedo", info.fill.ground_from_albedo);
     }
@@ -626,8 +658,8 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
      * held-out rate (rs_skyfill_sigma_map); the flat figure from the largest held-out error, and
      * their RMS (env.fill_sigma), stay in the metrics for comparison. */
     int use_model = so.fill.method == RS_SKYFILL_MODEL && info.fill.fit_samples;
-    double fill_unc = rs_skyfill_sigma_from_blocks(info.fill.cv_folds, use_model ? info.fill.cv_max_model
-                                                                              : info.fill.cv_max_row);
+    double fill_unc =
+        rs_skyfill_sigma_from_blocks(info.fill.cv_folds, use_model ? info.fill.cv_max_model : info.fill.cv_max_row);
     double fill_rate = rs_skyfill_rate_used(&info.fill, so.fill.method);
     rs_json_set_num(rep->metrics, "sky_fill_sigma_flat", fill_unc);
     rs_json_set_num(rep->metrics, "sky_fill_sigma_per_sqrt_rad", fill_rate);

@@ -6,15 +6,15 @@
 
 typedef struct {
     const rs_facet_gather *fg;
-    size_t f;                  /* facet of the next entry */
-    uint32_t q;                /* its index in the facet's row */
+    size_t f;   /* facet of the next entry */
+    uint32_t q; /* its index in the facet's row */
 } kernel_cursor;
 
 static int kernel_record(void *ctx, const rs_ply_element *el, size_t e, double *v, rs_err *err)
 {
     (void)el, (void)e, (void)err;
     kernel_cursor *c = ctx;
-    while (c->q >= c->fg[c->f].nentries) c->f++, c->q = 0;   /* empty rows; the count is the rows' total */
+    while (c->q >= c->fg[c->f].nentries) c->f++, c->q = 0; /* empty rows; the count is the rows' total */
     const rs_kentry *en = &c->fg[c->f].entries[c->q++];
     v[0] = (double)c->f;
     v[1] = en->col;

@@ -25,7 +25,7 @@ int rs_skydist_to_source(int w, int h, const uint8_t *src, const uint8_t *target
         free(ccol);
         return -1;
     }
-    for (int x = 0; x < w; x++) ccol[x] = (uint32_t)((long)x * cw / w);   /* each column's cell */
+    for (int x = 0; x < w; x++) ccol[x] = (uint32_t)((long)x * cw / w); /* each column's cell */
     for (int r = 0; r < h; r++) {
         size_t row = (size_t)r * w, crow = (size_t)((long)r * chh / h) * cw;
         for (int x = 0; x < w; x++) {
@@ -63,8 +63,7 @@ int rs_skydist_to_source(int w, int h, const uint8_t *src, const uint8_t *target
     }
     for (int r = 0; r < h; r++) {
         size_t row = (size_t)r * w, crow = (size_t)((long)r * chh / h) * cw;
-        for (int x = 0; x < w; x++)
-            out[row + x] = target[row + x] ? cdist[crow + ccol[x]] : 0;
+        for (int x = 0; x < w; x++) out[row + x] = target[row + x] ? cdist[crow + ccol[x]] : 0;
     }
     free(csrc);
     free(ctgt);

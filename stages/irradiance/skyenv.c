@@ -33,7 +33,7 @@ static double build_cdf(const rs_skyenv *env, double *cdf, int sun)
     size_t npx = (size_t)env->width * env->height, w = (size_t)env->width;
     cdf[0] = 0;
     for (int r = 0; r < env->height; r++) {
-        double om = rs_pano_pixel_solid_angle(env->width, env->height, r);   /* a sin: once per row */
+        double om = rs_pano_pixel_solid_angle(env->width, env->height, r); /* a sin: once per row */
         for (size_t k = (size_t)r * w; k < (size_t)(r + 1) * w; k++) {
             double p = 0;
             if ((env->sun[k] != 0) == sun) {
@@ -131,8 +131,7 @@ static void silhouette_weights(int w, int h, const uint8_t *mask, float *q)
  * larger than the map's saw the direction blurred over that many map pixels, and lands in only
  * one of them, so a panorama half as fine weighs a quarter of an equally clean fine one there. Map pixels that got nothing take the pixel under their
  * centre when it is sky (weight 1e-12 x its solid angle x q). acc: 4 * W * H, zeroed. */
-static void splat_capture(const rs_skyenv *env, const rs_capture *c, const uint8_t *mask, const float *q,
-                          double *acc)
+static void splat_capture(const rs_skyenv *env, const rs_capture *c, const uint8_t *mask, const float *q, double *acc)
 {
     int w = env->width, h = env->height, sw = c->pano->width, sh = c->pano->height;
     size_t npx = (size_t)w * h, nsrc = (size_t)sw * sh;
@@ -283,8 +282,8 @@ void rs_skyenv_sky_mask(const rs_scene *scene, const rs_capture *sky, uint8_t *m
     }
 }
 
-int rs_skyenv_build(const rs_capture *cap, const float *facet_id, double sun_threshold, double max_sr,
-                    int explicit, rs_skyenv *env, rs_err *err)
+int rs_skyenv_build(const rs_capture *cap, const float *facet_id, double sun_threshold, double max_sr, int explicit,
+                    rs_skyenv *env, rs_err *err)
 {
     rs_skyenv_opts o;
     memset(&o, 0, sizeof o);
@@ -295,8 +294,8 @@ int rs_skyenv_build(const rs_capture *cap, const float *facet_id, double sun_thr
     return rs_skyenv_build_opts(cap, facet_id, &o, env, NULL, err);
 }
 
-int rs_skyenv_build_opts(const rs_capture *cap, const float *facet_id, const rs_skyenv_opts *o,
-                         rs_skyenv *env, rs_skyenv_info *info, rs_err *err)
+int rs_skyenv_build_opts(const rs_capture *cap, const float *facet_id, const rs_skyenv_opts *o, rs_skyenv *env,
+                         rs_skyenv_info *info, rs_err *err)
 {
     rs_skyenv_info scratch;
     if (!info) info = &scratch;
@@ -310,8 +309,8 @@ int rs_skyenv_build_opts(const rs_capture *cap, const float *facet_id, const rs_
     env->radiance = malloc(3 * npx * sizeof *env->radiance);
     env->filled = calloc(npx, 1);
     env->sun = calloc(npx, 1);
-    uint8_t *meas = calloc(npx, 1), *cap_meas = calloc(npx, 1);   /* measured sky (incl. bright) */
-    uint8_t *src = calloc(npx, 1);                                /* measured, not bright: sources */
+    uint8_t *meas = calloc(npx, 1), *cap_meas = calloc(npx, 1); /* measured sky (incl. bright) */
+    uint8_t *src = calloc(npx, 1);                              /* measured, not bright: sources */
     double *lum = malloc(npx * sizeof *lum);
     uint32_t *order = malloc(npx * sizeof *order);
     double *key = malloc(npx * sizeof *key);
@@ -330,7 +329,8 @@ int rs_skyenv_build_opts(const rs_capture *cap, const float *facet_id, const rs_
         }
     double cap_median = median(lum, ncap);
     if ((o->sky || o->nothers) &&
-        merge_other_skies(env, cap, cap_meas, o->sun_threshold * (cap_median > 0 ? cap_median : 1e-30), o, meas, info) != 0) {
+        merge_other_skies(env, cap, cap_meas, o->sun_threshold * (cap_median > 0 ? cap_median : 1e-30), o, meas,
+                          info) != 0) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory merging the sky panorama");
         goto out;
     }
@@ -384,7 +384,7 @@ int rs_skyenv_build_opts(const rs_capture *cap, const float *facet_id, const rs_
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky fill's uncertainty");
         goto out;
     }
-    if (!o->explicit_sun) memset(env->sun, 0, npx);     /* everything by cosine rays */
+    if (!o->explicit_sun) memset(env->sun, 0, npx); /* everything by cosine rays */
     if (o->explicit_sun && build_distributions(env) != 0) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky distribution");
         goto out;
@@ -455,14 +455,16 @@ void rs_skyenv_release(rs_skyenv *env)
 static size_t pick(const double *cdf, size_t npx, double x)
 {
     double target = x * cdf[npx];
-    size_t lo = 0, hi = npx;                   /* the first k with cdf[k + 1] > target */
+    size_t lo = 0, hi = npx; /* the first k with cdf[k + 1] > target */
     while (lo < hi) {
         size_t mid = lo + (hi - lo) / 2;
-        if (cdf[mid + 1] > target) hi = mid;
-        else lo = mid + 1;
+        if (cdf[mid + 1] > target)
+            hi = mid;
+        else
+            lo = mid + 1;
     }
     if (lo >= npx) lo = npx - 1;
-    while (lo > 0 && cdf[lo + 1] == cdf[lo]) lo--;   /* never a pixel without power */
+    while (lo > 0 && cdf[lo + 1] == cdf[lo]) lo--; /* never a pixel without power */
     return lo;
 }
 

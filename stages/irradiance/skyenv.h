@@ -13,36 +13,36 @@
 
 typedef struct rs_skyenv {
     int width, height;
-    rs_pose pose;              /* the capture's: directions are looked up in its frame */
-    float *radiance;           /* 3 * W * H: radiance an escaping ray sees */
-    uint8_t *filled;           /* W * H: 1 where the value was filled in (not measured) */
-    uint8_t *sun;              /* W * H: 1 for the sun set (bright pixels sampled on their own) */
-    double *cdf;               /* W * H + 1: cumulative luminance x solid angle over the pixels not
+    rs_pose pose;                        /* the capture's: directions are looked up in its frame */
+    float *radiance;                     /* 3 * W * H: radiance an escaping ray sees */
+    uint8_t *filled;                     /* W * H: 1 where the value was filled in (not measured) */
+    uint8_t *sun;                        /* W * H: 1 for the sun set (bright pixels sampled on their own) */
+    double *cdf;                         /* W * H + 1: cumulative luminance x solid angle over the pixels not
                                   in the sun set; NULL when not importance-sampled */
-    double total_power;        /* cdf[W * H] */
-    double *sun_cdf;           /* the same over the sun set; NULL when it is empty */
-    uint32_t *cdf_guide, *sun_cdf_guide;  /* search guides of cdf and sun_cdf
+    double total_power;                  /* cdf[W * H] */
+    double *sun_cdf;                     /* the same over the sun set; NULL when it is empty */
+    uint32_t *cdf_guide, *sun_cdf_guide; /* search guides of cdf and sun_cdf
                                              (rs_skyenv_guide_build), NULL with them */
     double sun_power;
-    double sky_median;         /* median luminance of the measured sky pixels */
+    double sky_median; /* median luminance of the measured sky pixels */
     size_t sky_pixels, filled_pixels, bright_pixels;
-    double bright_sr;          /* solid angle of the bright pixels */
-    double fill_sigma;         /* relative standard uncertainty of the light from filled pixels
+    double bright_sr;     /* solid angle of the bright pixels */
+    double fill_sigma;    /* relative standard uncertainty of the light from filled pixels
                                   (held-out error of the fill method); 0 when not measured */
-    float *fill_sigma_px;      /* W * H: each filled pixel's relative standard uncertainty
+    float *fill_sigma_px; /* W * H: each filled pixel's relative standard uncertainty
                                   (rs_skyfill_sigma_map), 0 where measured */
 } rs_skyenv;
 
 /* What the map is built from and how it is completed. */
 typedef struct rs_skyenv_opts {
-    double sun_threshold;      /* see rs_skyenv_build */
+    double sun_threshold; /* see rs_skyenv_build */
     double max_sr;
     int explicit_sun;
     rs_skyfill_opts fill;
-    const rs_capture *sky;     /* sky-only panorama ([sky] panorama) or NULL */
-    const uint8_t *sky_mask;   /* its pixels whose rays miss the model (rs_skyenv_sky_mask) */
-    const rs_capture *const *others;      /* further captures ([capture.NAME]), nothers of them */
-    const uint8_t *const *other_masks;    /* their sky pixels, as sky_mask */
+    const rs_capture *sky;             /* sky-only panorama ([sky] panorama) or NULL */
+    const uint8_t *sky_mask;           /* its pixels whose rays miss the model (rs_skyenv_sky_mask) */
+    const rs_capture *const *others;   /* further captures ([capture.NAME]), nothers of them */
+    const uint8_t *const *other_masks; /* their sky pixels, as sky_mask */
     int nothers;
 } rs_skyenv_opts;
 
@@ -51,12 +51,12 @@ typedef struct rs_skyenv_opts {
 /* What rs_skyenv_build_opts found besides the map. */
 typedef struct rs_skyenv_info {
     rs_skyfill_report fill;
-    size_t sky_pano_pixels;    /* map pixels taken from the sky panorama */
-    double sky_pano_scale[3];  /* exposure factor applied to the sky panorama (capture / sky) */
-    double sky_overlap_sr;     /* solid angle both saw as sky: where the factor comes from */
-    size_t other_pixels;       /* map pixels the capture did not see, taken from further captures */
-    size_t blended_pixels;     /* map pixels the capture saw that further captures saw too */
-    double other_scale[RS_SKYENV_MAX_OTHERS][3];   /* their exposure factors, the same way */
+    size_t sky_pano_pixels;                      /* map pixels taken from the sky panorama */
+    double sky_pano_scale[3];                    /* exposure factor applied to the sky panorama (capture / sky) */
+    double sky_overlap_sr;                       /* solid angle both saw as sky: where the factor comes from */
+    size_t other_pixels;                         /* map pixels the capture did not see, taken from further captures */
+    size_t blended_pixels;                       /* map pixels the capture saw that further captures saw too */
+    double other_scale[RS_SKYENV_MAX_OTHERS][3]; /* their exposure factors, the same way */
     double other_overlap_sr[RS_SKYENV_MAX_OTHERS];
 } rs_skyenv_info;
 
@@ -68,8 +68,8 @@ typedef struct rs_skyenv_info {
  * Fill method: each hidden pixel takes the linear interpolation,
  * along its row (in azimuth, wrapping), of the nearest measured non-bright sky pixels on either
  * side; rows with none copy the nearest row that has some. Bright pixels never feed the fill. */
-int rs_skyenv_build(const rs_capture *cap, const float *facet_id, double sun_threshold, double max_sr,
-                    int explicit, rs_skyenv *env, rs_err *err);
+int rs_skyenv_build(const rs_capture *cap, const float *facet_id, double sun_threshold, double max_sr, int explicit,
+                    rs_skyenv *env, rs_err *err);
 
 /* The same with a choice of fill (o->fill) and an optional sky-only panorama. The map keeps the
  * capture's frame and size. Every direction the sky panorama sees as sky takes its value, times
@@ -81,8 +81,8 @@ int rs_skyenv_build(const rs_capture *cap, const float *facet_id, double sun_thr
  * it saw the direction: low for a mixed pixel 1 or 2 pixels from the model's silhouette in that
  * capture, lower for a panorama whose pixels are larger than the map's (skyenv.c). With no
  * further capture the capture's sky is used as it is. What none saw is filled. info may be NULL. */
-int rs_skyenv_build_opts(const rs_capture *cap, const float *facet_id, const rs_skyenv_opts *o,
-                         rs_skyenv *env, rs_skyenv_info *info, rs_err *err);
+int rs_skyenv_build_opts(const rs_capture *cap, const float *facet_id, const rs_skyenv_opts *o, rs_skyenv *env,
+                         rs_skyenv_info *info, rs_err *err);
 
 /* mask[k] = 1 for each pixel of the sky panorama whose ray from its position misses the
  * model (and whose value is usable). mask: width * height bytes, caller-owned. */

@@ -9,13 +9,16 @@
 #include "log.h"
 #include "skydist.h"
 
-#define CV_SECTORS 8           /* held-out azimuth sectors, plus one band of the lowest sky */
-#define CV_LOW_SHARE 0.2       /* the low band: this share of the measured sky's solid angle */
-#define CV_MIN_SR 0.01         /* a held-out block needs this much measured sky to count */
-#define FIT_CELLS_W 64         /* the model is fitted on a grid of at most 64 x 32 cells */
-#define CV_MAX_W 1024          /* held-out blocks are measured on a map at most this wide */
+#define CV_SECTORS   8    /* held-out azimuth sectors, plus one band of the lowest sky */
+#define CV_LOW_SHARE 0.2  /* the low band: this share of the measured sky's solid angle */
+#define CV_MIN_SR    0.01 /* a held-out block needs this much measured sky to count */
+#define FIT_CELLS_W  64   /* the model is fitted on a grid of at most 64 x 32 cells */
+#define CV_MAX_W     1024 /* held-out blocks are measured on a map at most this wide */
 
-static double lum(const float *rgb) { return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]; }
+static double lum(const float *rgb)
+{
+    return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+}
 
 static rs_v3 pixel_world(int w, int h, const rs_pose *pose, size_t k)
 {
@@ -40,8 +43,7 @@ static int fill_row(float *row, const uint8_t *src, const uint8_t *fill, int w)
             int c = (a + k) % w;
             if (!fill[c]) continue;
             double t = (double)k / gap;
-            for (int ch = 0; ch < 3; ch++)
-                row[3 * c + ch] = (float)((1 - t) * row[3 * a + ch] + t * row[3 * b + ch]);
+            for (int ch = 0; ch < 3; ch++) row[3 * c + ch] = (float)((1 - t) * row[3 * a + ch] + t * row[3 * b + ch]);
         }
         a = b;
     }
@@ -59,10 +61,12 @@ static int row_fill(int w, int h, float *rad, const uint8_t *src, const uint8_t 
         if (has[r]) continue;
         int best = -1;
         for (int d = 1; d < h && best < 0; d++) {
-            if (r - d >= 0 && has[r - d]) best = r - d;
-            else if (r + d < h && has[r + d]) best = r + d;
+            if (r - d >= 0 && has[r - d])
+                best = r - d;
+            else if (r + d < h && has[r + d])
+                best = r + d;
         }
-        if (best < 0) break;             /* no source anywhere: nothing to copy */
+        if (best < 0) break; /* no source anywhere: nothing to copy */
         for (int c = 0; c < w; c++)
             if (fill[(size_t)r * w + c])
                 memcpy(rad + 3 * ((size_t)r * w + c), rad + 3 * ((size_t)best * w + c), 3 * sizeof *rad);
@@ -175,8 +179,10 @@ long rs_skyfill_ground_from_bands(int w, int h, const rs_pose *pose, float *rad,
     for (int b = 0; b < nb; b++) {
         int best = -1;
         for (int dd = 0; dd <= reach && best < 0; dd++) {
-            if (b - dd >= 0 && acc[4 * (b - dd) + 3] > 0) best = b - dd;
-            else if (b + dd < nb && acc[4 * (b + dd) + 3] > 0) best = b + dd;
+            if (b - dd >= 0 && acc[4 * (b - dd) + 3] > 0)
+                best = b - dd;
+            else if (b + dd < nb && acc[4 * (b + dd) + 3] > 0)
+                best = b + dd;
         }
         nearest[b] = best;
     }
@@ -201,17 +207,17 @@ long rs_skyfill_ground_from_bands(int w, int h, const rs_pose *pose, float *rad,
  * is often seen at grazing angles only (a courtyard's camera sees it over a low wall, 1 to 2
  * degrees down, 60 m away): copied to a wall's view 30 degrees down onto the ground next to the
  * building, it was 25 % too dark there. */
-static int ground_fill(int w, int h, const rs_pose *pose, float *rad, const uint8_t *src, uint8_t *fill,
-                       double albedo, rs_skyfill_report *rep)
+static int ground_fill(int w, int h, const rs_pose *pose, float *rad, const uint8_t *src, uint8_t *fill, double albedo,
+                       rs_skyfill_report *rep)
 {
     size_t npx = (size_t)w * h, below = 0;
     double eh[3] = {0, 0, 0}, *up = malloc(npx * sizeof *up);
     if (!up) return -1;
-    /* The directions on every thread, the sum serial in pixel order (thread-count independent). */
+        /* The directions on every thread, the sum serial in pixel order (thread-count independent). */
 #pragma omp parallel for schedule(static)
     for (int r = 0; r < h; r++)
         for (size_t k = (size_t)r * w; k < (size_t)(r + 1) * w; k++) up[k] = pixel_world(w, h, pose, k).z;
-    for (int r = 0; r < h; r++) {             /* E_h, and the marks */
+    for (int r = 0; r < h; r++) { /* E_h, and the marks */
         double om = rs_pano_pixel_solid_angle(w, h, r);
         for (size_t k = (size_t)r * w; k < (size_t)(r + 1) * w; k++) {
             if (up[k] <= 0) {
@@ -232,8 +238,8 @@ static int ground_fill(int w, int h, const rs_pose *pose, float *rad, const uint
     for (size_t k = 0; k < npx; k++)
         if (fill[k] == RS_SKYFILL_GROUND_MODEL)
             for (int ch = 0; ch < 3; ch++) rad[3 * k + ch] = (float)rep->ground_rgb[ch];
-    long copied = rs_skyfill_ground_from_bands(w, h, pose, rad, src, fill, RS_SKYFILL_GROUND_MODEL,
-                                               RS_SKYFILL_GROUND_NEAR_RAD);
+    long copied =
+        rs_skyfill_ground_from_bands(w, h, pose, rad, src, fill, RS_SKYFILL_GROUND_MODEL, RS_SKYFILL_GROUND_NEAR_RAD);
     if (copied < 0) return -1;
     rep->ground_model_pixels = below - (size_t)copied;
     rep->ground_from_albedo = below > 0 && copied == 0;
@@ -271,8 +277,7 @@ static void assign_folds(int w, int h, const rs_pose *pose, const uint8_t *src, 
 }
 
 /* Relative error of the integrated luminance of block f's pixels: predicted (pred) vs measured. */
-static double block_error(int w, int h, const float *meas, const float *pred, const uint16_t *fold, int f,
-                          double *sr)
+static double block_error(int w, int h, const float *meas, const float *pred, const uint16_t *fold, int f, double *sr)
 {
     double sm = 0, sp = 0, om_sum = 0;
     for (size_t k = 0; k < (size_t)w * h; k++) {
@@ -333,7 +338,7 @@ static int cross_validate_block(int w, int h, const rs_pose *pose, const float *
     if (sr < CV_MIN_SR || rs_skymodel_fit(samples, n, sun, -1, o->sh_ridge, &m) != 0) goto out;
     for (int q = 0; q < o->sh_order + 2; q++) {
         rs_skymodel_refit_sh(samples, n, q - 1, o->sh_ridge, &m);
-        model_fill_sky(w, h, pose, tmp, fill_f, &m, 0);   /* overwrites exactly the block */
+        model_fill_sky(w, h, pose, tmp, fill_f, &m, 0); /* overwrites exactly the block */
         e_model[q] = block_error(w, h, rad, tmp, fold, f, &sr);
     }
     rc = 1;
@@ -390,8 +395,8 @@ static int cross_validate(int w, int h, const rs_pose *pose, const float *rad, c
                 double d = sqrt(fmax(dist[f], 2 * M_PI / RS_SKYDIST_CELLS_W));
                 rep->cv_rate_row = fmax(rep->cv_rate_row, fabs(e_row[f]) / d);
                 rep->cv_rate_model = fmax(rep->cv_rate_model, fabs(e_model[f][bq]) / d);
-                rs_log_debug("skyfill: held-out block %d: %.1f deg from the sky left, error rows %+.4f, model %+.4f",
-                             f, dist[f] * 180 / M_PI, e_row[f], e_model[f][bq]);
+                rs_log_debug("skyfill: held-out block %d: %.1f deg from the sky left, error rows %+.4f, model %+.4f", f,
+                             dist[f] * 180 / M_PI, e_row[f], e_model[f][bq]);
             }
     }
     return 0;
@@ -403,10 +408,12 @@ double rs_skyfill_sigma_from_blocks(int blocks, double largest_error)
 {
     if (blocks < 1 || !(largest_error >= 0)) return 1;
     double p = (double)blocks / (blocks + 1), lo = 0, hi = 10;
-    for (int k = 0; k < 100; k++) {               /* bisection: erf(z / sqrt 2) = p */
+    for (int k = 0; k < 100; k++) { /* bisection: erf(z / sqrt 2) = p */
         double mid = 0.5 * (lo + hi);
-        if (erf(mid / sqrt(2.0)) < p) lo = mid;
-        else hi = mid;
+        if (erf(mid / sqrt(2.0)) < p)
+            lo = mid;
+        else
+            hi = mid;
     }
     return largest_error / (0.5 * (lo + hi));
 }
@@ -434,8 +441,8 @@ int rs_skyfill_sigma_map(int w, int h, const uint8_t *src, const uint8_t *fill, 
     return 0;
 }
 
-int rs_skyfill_run(int w, int h, const rs_pose *pose, float *rad, const uint8_t *src, uint8_t *fill,
-                   const uint8_t *sun, const rs_skyfill_opts *o, rs_skyfill_report *rep)
+int rs_skyfill_run(int w, int h, const rs_pose *pose, float *rad, const uint8_t *src, uint8_t *fill, const uint8_t *sun,
+                   const rs_skyfill_opts *o, rs_skyfill_report *rep)
 {
     memset(rep, 0, sizeof *rep);
     rep->cv_rel_row = rep->cv_rel_model = -1;
@@ -450,8 +457,9 @@ int rs_skyfill_run(int w, int h, const rs_pose *pose, float *rad, const uint8_t 
         rs_v3 acc = rs_v3_make(0, 0, 0);
         for (size_t k = 0; sun && k < npx; k++)
             if (sun[k])
-                acc = rs_v3_add(acc, rs_v3_scale(pixel_world(w, h, pose, k),
-                                                 lum(rad + 3 * k) * rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w))));
+                acc = rs_v3_add(acc,
+                                rs_v3_scale(pixel_world(w, h, pose, k),
+                                            lum(rad + 3 * k) * rs_pano_pixel_solid_angle(w, h, (int)(k / (size_t)w))));
         sun_dir = rs_v3_norm(acc);
         rep->sun_source = RS_SUN_PIXELS;
     }
@@ -505,7 +513,7 @@ int rs_skyfill_run(int w, int h, const rs_pose *pose, float *rad, const uint8_t 
             model_fill_sky(w, h, pose, rad, fill, &rep->model, 1);
             rc = ground_fill(w, h, pose, rad, src, fill, o->ground_albedo, rep);
         } else {
-            rc = row_fill(w, h, rad, src, fill);     /* too little sky to fit: rows at least */
+            rc = row_fill(w, h, rad, src, fill); /* too little sky to fit: rows at least */
             rep->fit_samples = 0;
         }
         rep->fill_sigma = rep->fit_samples ? rep->cv_rel_model : rep->cv_rel_row;

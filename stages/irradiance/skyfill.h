@@ -12,13 +12,13 @@ typedef enum { RS_SKYFILL_ROW = 0, RS_SKYFILL_MODEL = 1 } rs_skyfill_method;
 
 typedef struct rs_skyfill_opts {
     rs_skyfill_method method;
-    int sun_given;             /* 1: sun_dir is known (config); else from sun pixels or a search */
-    rs_v3 sun_dir;             /* unit, world */
-    double sun_mask_rad;       /* sky within this angle of the sun stays out of the model fit */
-    int sh_order;              /* highest residual order tried (-1: Perez alone) */
+    int sun_given;       /* 1: sun_dir is known (config); else from sun pixels or a search */
+    rs_v3 sun_dir;       /* unit, world */
+    double sun_mask_rad; /* sky within this angle of the sun stays out of the model fit */
+    int sh_order;        /* highest residual order tried (-1: Perez alone) */
     double sh_ridge;
-    double ground_albedo;      /* ground radiance = albedo E_horizontal / pi when no ground is seen */
-    int cross_validate;        /* 1: held-out errors of both methods (fill_sigma needs it) */
+    double ground_albedo; /* ground radiance = albedo E_horizontal / pi when no ground is seen */
+    int cross_validate;   /* 1: held-out errors of both methods (fill_sigma needs it) */
 } rs_skyfill_opts;
 
 /* SEARCH: from the visible sky's glow (rs_skymodel_find_sun); SHADOWS: set by the caller when the
@@ -26,9 +26,9 @@ typedef struct rs_skyfill_opts {
 typedef enum { RS_SUN_CONFIG, RS_SUN_PIXELS, RS_SUN_SEARCH, RS_SUN_SHADOWS } rs_sun_source;
 
 typedef struct rs_skyfill_report {
-    rs_v3 sun_dir;             /* used by the model (world, unit) */
+    rs_v3 sun_dir; /* used by the model (world, unit) */
     rs_sun_source sun_source;
-    rs_skymodel model;         /* the final fit (method model) */
+    rs_skymodel model;                 /* the final fit (method model) */
     double cv_rel_row, cv_rel_model;   /* RMS over held-out blocks of the relative error of
                                           their integrated luminance; -1 when not computed */
     double cv_max_row, cv_max_model;   /* the largest |relative error| over those blocks (the
@@ -36,13 +36,13 @@ typedef struct rs_skyfill_report {
     double cv_rate_row, cv_rate_model; /* the largest |relative error| over the square root of
                                           the block's mean distance (radians) from the sky left
                                           (skydist.h); -1 when not computed */
-    int cv_folds;              /* held-out blocks with enough sky */
-    double fill_sigma;         /* cv of the method used: relative uncertainty of filled light
+    int cv_folds;                      /* held-out blocks with enough sky */
+    double fill_sigma;                 /* cv of the method used: relative uncertainty of filled light
                                   (1 when no held-out block could be measured) */
-    double ground_rgb[3];      /* the ground model's radiance: ground_albedo * E_horizontal / pi */
-    double horizontal_irradiance[3]; /* E_horizontal of the completed sky (model fill) */
-    size_t ground_model_pixels; /* filled pixels below the horizon that took it */
-    int ground_from_albedo;    /* 1: every filled pixel below the horizon took it */
+    double ground_rgb[3];              /* the ground model's radiance: ground_albedo * E_horizontal / pi */
+    double horizontal_irradiance[3];   /* E_horizontal of the completed sky (model fill) */
+    size_t ground_model_pixels;        /* filled pixels below the horizon that took it */
+    int ground_from_albedo;            /* 1: every filled pixel below the horizon took it */
     size_t fit_samples;
 } rs_skyfill_report;
 
@@ -76,8 +76,8 @@ int rs_skyfill_sigma_map(int w, int h, const uint8_t *src, const uint8_t *fill, 
 /* Each pixel below the horizon with fill[k] == which takes the mean of the source (src) pixels
  * below the horizon in the nearest world elevation band that has some, within max_rad of its
  * own (M_PI / 2 or more: any), and is marked 1. Returns the pixels set, -1 out of memory. */
-long rs_skyfill_ground_from_bands(int w, int h, const rs_pose *pose, float *radiance, const uint8_t *src,
-                                  uint8_t *fill, uint8_t which, double max_rad);
+long rs_skyfill_ground_from_bands(int w, int h, const rs_pose *pose, float *radiance, const uint8_t *src, uint8_t *fill,
+                                  uint8_t which, double max_rad);
 
 /* radiance: 3 * w * h floats of a map in frame pose (rs_pano conventions), read and filled in
  * place. src (w * h): 1 for measured sky usable as a source (not the sun set). fill: 1 for the
@@ -90,8 +90,7 @@ long rs_skyfill_ground_from_bands(int w, int h, const rs_pose *pose, float *radi
  * RS_SKYFILL_GROUND_NEAR_RAD), else ground_albedo * E_horizontal / pi per channel from the
  * completed sky, those pixels marked RS_SKYFILL_GROUND_MODEL in fill. Returns 0, -1 out of
  * memory. */
-int rs_skyfill_run(int w, int h, const rs_pose *pose, float *radiance, const uint8_t *src,
-                   uint8_t *fill, const uint8_t *sun, const rs_skyfill_opts *o,
-                   rs_skyfill_report *rep);
+int rs_skyfill_run(int w, int h, const rs_pose *pose, float *radiance, const uint8_t *src, uint8_t *fill,
+                   const uint8_t *sun, const rs_skyfill_opts *o, rs_skyfill_report *rep);
 
 #endif

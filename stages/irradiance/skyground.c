@@ -13,8 +13,8 @@ static double quantile(float *v, size_t n, double q)
     return rs_select_kth(v, n, k < n ? k : n - 1);
 }
 
-int rs_skyground_albedo(const rs_gather_ctx *g, const rs_mesh *mesh, const double *radiance,
-                        const uint8_t *observed, rs_skyground *out)
+int rs_skyground_albedo(const rs_gather_ctx *g, const rs_mesh *mesh, const double *radiance, const uint8_t *observed,
+                        rs_skyground *out)
 {
     memset(out, 0, sizeof *out);
     size_t nf = mesh->nfaces, nup = 0;

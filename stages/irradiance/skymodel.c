@@ -9,9 +9,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define NPAR 6                /* a b c d e, log scale */
-#define NSH ((RS_SKYMODEL_MAX_SH + 1) * (RS_SKYMODEL_MAX_SH + 1))
-#define HUBER_LOG 0.25        /* log-radiance residual beyond which a sample is down-weighted */
+#define NPAR      6 /* a b c d e, log scale */
+#define NSH       ((RS_SKYMODEL_MAX_SH + 1) * (RS_SKYMODEL_MAX_SH + 1))
+#define HUBER_LOG 0.25 /* log-radiance residual beyond which a sample is down-weighted */
 /* Weak prior toward the CIE standard sky the fit started from: a deviation of one prior_scale
  * costs PRIOR_WEIGHT x the total sample weight (a log residual of 0.1 on every sample). A visible
  * sky that constrains a parameter moves it anyway; one that does not (the anti-solar sky near
@@ -51,9 +51,10 @@ static void sh_eval(int order, rs_v3 d, double *y)
     for (int l = 0; l <= order; l++)
         for (int m = 0; m <= l; m++) {
             double f = 1;
-            for (int k = l - m + 1; k <= l + m; k++) f *= k;    /* (l + m)! / (l - m)! */
+            for (int k = l - m + 1; k <= l + m; k++) f *= k; /* (l + m)! / (l - m)! */
             double K = sqrt((2 * l + 1) / (4 * M_PI) / f);
-            if (m == 0) y[l * l + l] = K * P[l][0];
+            if (m == 0)
+                y[l * l + l] = K * P[l][0];
             else {
                 y[l * l + l + m] = 1.4142135623730951 * K * P[l][m] * cos(m * phi);
                 y[l * l + l - m] = 1.4142135623730951 * K * P[l][m] * sin(m * phi);
@@ -63,7 +64,7 @@ static void sh_eval(int order, rs_v3 d, double *y)
 
 /* Per-sample data of one channel's fit. */
 typedef struct {
-    double cos_theta, gamma, cos2_gamma, logL, w;   /* cos_theta clamped as in rs_skymodel_perez */
+    double cos_theta, gamma, cos2_gamma, logL, w; /* cos_theta clamped as in rs_skymodel_perez */
 } fitpt;
 
 /* log of the Perez factor at a fitting point, and (when grad) its derivatives by a b c d e. */
@@ -83,8 +84,8 @@ static double log_perez_pt(const double *q, const fitpt *p, double *grad)
 }
 
 typedef struct {
-    const double *q0;          /* prior centre (a..e) */
-    double weight;             /* PRIOR_WEIGHT x total sample weight */
+    const double *q0; /* prior centre (a..e) */
+    double weight;    /* PRIOR_WEIGHT x total sample weight */
 } prior;
 
 static double prior_cost(const prior *pr, const double *q)
@@ -124,7 +125,7 @@ static double lm_fit(const fitpt *pt, size_t n, double *q, double *res, double *
     if (c == DBL_MAX) return c;
     for (int it = 0; it < 100; it++) {
         for (size_t i = 0; i < n; i++) {
-            double g[5] = {0, 0, 0, 0, 0};             /* set: q passed cost(), so finite here */
+            double g[5] = {0, 0, 0, 0, 0}; /* set: q passed cost(), so finite here */
             log_perez_pt(q, &pt[i], g);
             for (int k = 0; k < 5; k++) jac[i * NPAR + k] = -g[k];
             jac[i * NPAR + 5] = -1;
@@ -135,7 +136,7 @@ static double lm_fit(const fitpt *pt, size_t n, double *q, double *res, double *
                 Jtr[a] -= pt[i].w * jac[i * NPAR + a] * res[i];
                 for (int b = 0; b <= a; b++) JtJ[a * NPAR + b] += pt[i].w * jac[i * NPAR + a] * jac[i * NPAR + b];
             }
-        for (int a = 0; a < 5; a++) {               /* the prior's residuals */
+        for (int a = 0; a < 5; a++) { /* the prior's residuals */
             double sc = pr->weight / (prior_scale[a] * prior_scale[a]);
             JtJ[a * NPAR + a] += sc;
             Jtr[a] -= sc * (q[a] - pr->q0[a]);
@@ -204,8 +205,8 @@ static void fit_channel(fitpt *pt, size_t n, double *w0, double *res, double *ja
     }
 }
 
-static void sh_fit_channel(const rs_skysample *s, size_t n, const double *res, const double *w, int order,
-                           double ridge, double *coef)
+static void sh_fit_channel(const rs_skysample *s, size_t n, const double *res, const double *w, int order, double ridge,
+                           double *coef)
 {
     int nc = (order + 1) * (order + 1);
     double A[NSH * NSH] = {0}, b[NSH] = {0}, y[NSH], sw = 0;
@@ -273,7 +274,7 @@ int rs_skymodel_fit(const rs_skysample *s, size_t n, rs_v3 sun, int sh_order, do
     for (int ch = 0; ch < 3; ch++) {
         size_t k = 0;
         for (size_t i = 0; i < n; i++) {
-            if (!(s[i].rgb[ch] > 0)) continue;   /* log of black: no information on the shape */
+            if (!(s[i].rgb[ch] > 0)) continue; /* log of black: no information on the shape */
             pt[k].cos_theta = s[i].dir.z < 0.01 ? 0.01 : s[i].dir.z;
             pt[k].gamma = angle_between(s[i].dir, m->sun);
             pt[k].cos2_gamma = cos(pt[k].gamma) * cos(pt[k].gamma);

@@ -7,22 +7,22 @@
 #include <stddef.h>
 #include "vec.h"
 
-#define RS_SKYMODEL_MAX_SH 4   /* highest residual order; (order + 1)^2 coefficients */
+#define RS_SKYMODEL_MAX_SH 4 /* highest residual order; (order + 1)^2 coefficients */
 
 /* One fitting point: a patch of measured sky (the sun left out). */
 typedef struct rs_skysample {
-    rs_v3 dir;                 /* unit, world frame, z > 0 */
-    double rgb[3];             /* mean radiance over the patch */
-    double weight;             /* measured solid angle of the patch, sr */
+    rs_v3 dir;     /* unit, world frame, z > 0 */
+    double rgb[3]; /* mean radiance over the patch */
+    double weight; /* measured solid angle of the patch, sr */
 } rs_skysample;
 
 typedef struct rs_skymodel {
-    rs_v3 sun;                 /* unit world direction toward the sun */
-    double perez[3][5];        /* a b c d e per channel (Perez, Seals, Michalsky 1993) */
-    double log_scale[3];       /* log of the channel's radiance where the Perez factor is 1 */
-    int sh_order;              /* -1: no residual; else 0..RS_SKYMODEL_MAX_SH */
+    rs_v3 sun;           /* unit world direction toward the sun */
+    double perez[3][5];  /* a b c d e per channel (Perez, Seals, Michalsky 1993) */
+    double log_scale[3]; /* log of the channel's radiance where the Perez factor is 1 */
+    int sh_order;        /* -1: no residual; else 0..RS_SKYMODEL_MAX_SH */
     double sh[3][(RS_SKYMODEL_MAX_SH + 1) * (RS_SKYMODEL_MAX_SH + 1)];
-    double fit_rms_log;        /* weighted RMS of the log residual after the fit (luminance) */
+    double fit_rms_log; /* weighted RMS of the log residual after the fit (luminance) */
 } rs_skymodel;
 
 /* Perez relative luminance (1 + a exp(b / cos theta)) (1 + c exp(d gamma) + e cos^2 gamma) with
@@ -35,8 +35,7 @@ double rs_skymodel_perez(const double p[5], double cos_theta, double gamma);
  * the fit), then residual harmonics up to sh_order (-1: none) by ridge regression with a
  * penalty sh_ridge * (l (l + 1))^2 that keeps the extrapolation into unseen directions smooth.
  * The sun direction is given. Returns 0, or -1 with fewer than 12 usable samples. */
-int rs_skymodel_fit(const rs_skysample *s, size_t n, rs_v3 sun, int sh_order, double sh_ridge,
-                    rs_skymodel *m);
+int rs_skymodel_fit(const rs_skysample *s, size_t n, rs_v3 sun, int sh_order, double sh_ridge, rs_skymodel *m);
 
 /* Refits only the residual harmonics of a fitted model at another order (the Perez part and
  * the samples must be those of the fit): cheap order selection. */

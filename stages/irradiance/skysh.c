@@ -22,10 +22,13 @@ static void sh9(rs_v3 d, double y[RS_SKYSH_COEFS])
 
 /* The clamped cosine's harmonic coefficients A_l (Ramamoorthi & Hanrahan 2001, eq. 8): pi,
  * 2 pi / 3, pi / 4; E(n) = sum_lm A_l L_lm Y_lm(n). */
-static const double A_L[RS_SKYSH_COEFS] = {M_PI, 2 * M_PI / 3, 2 * M_PI / 3, 2 * M_PI / 3, M_PI / 4,
-                                           M_PI / 4, M_PI / 4, M_PI / 4, M_PI / 4};
+static const double A_L[RS_SKYSH_COEFS] = {M_PI,     2 * M_PI / 3, 2 * M_PI / 3, 2 * M_PI / 3, M_PI / 4,
+                                           M_PI / 4, M_PI / 4,     M_PI / 4,     M_PI / 4};
 
-static double lum3(const double *e) { return 0.2126 * e[0] + 0.7152 * e[1] + 0.0722 * e[2]; }
+static double lum3(const double *e)
+{
+    return 0.2126 * e[0] + 0.7152 * e[1] + 0.0722 * e[2];
+}
 
 /* A pixel's four channels (R, G, B, luminance when filled), 0 when not finite. */
 static void pixel_values(const rs_skyenv *env, size_t p, double v[RS_SKYSH_CHANNELS])
@@ -33,7 +36,7 @@ static void pixel_values(const rs_skyenv *env, size_t p, double v[RS_SKYSH_CHANN
     const float *L = env->radiance + 3 * p;
     for (int ch = 0; ch < 3; ch++) v[ch] = isfinite(L[ch]) ? L[ch] : 0;
     v[3] = env->filled && env->filled[p] ? lum3(v) : 0;
-    v[4] = env->fill_sigma_px ? v[3] * env->fill_sigma_px[p] : 0;   /* gather.h: fill_sigma_lum */
+    v[4] = env->fill_sigma_px ? v[3] * env->fill_sigma_px[p] : 0; /* gather.h: fill_sigma_lum */
 }
 
 /* The map's pixel directions from per-row and per-column tables (pano.h's convention:
@@ -73,7 +76,7 @@ enum { BLOCK = 8 };
 typedef struct {
     double v[RS_SKYSH_CHANNELS][3];
     rs_v3 axis;
-    double sin_half;           /* > 1: the cone is a hemisphere or more, always summed by pixel */
+    double sin_half; /* > 1: the cone is a hemisphere or more, always summed by pixel */
 } block;
 
 static void block_build(const rs_skyenv *env, const grid *g, int c0, int r0, block *b)
@@ -135,7 +138,7 @@ static void exact_blocks(const rs_skyenv *env, const grid *g, const block *bl, i
 rs_v3 rs_skysh_normal(int k, int n)
 {
     double z = 1 - (2.0 * k + 1) / n, rho = sqrt(fmax(0, 1 - z * z));
-    double phi = k * M_PI * (3 - sqrt(5.0));              /* the golden angle */
+    double phi = k * M_PI * (3 - sqrt(5.0)); /* the golden angle */
     return rs_v3_make(rho * cos(phi), rho * sin(phi), z);
 }
 
@@ -194,7 +197,8 @@ int rs_skysh_build(const rs_skyenv *env, double tol, int normals, rs_skysh *sh, 
         for (int r = 0; r < g.h; r++)
             for (int c = 0; c < g.w; c++)
                 if (env->sun[(size_t)r * g.w + c])
-                    mincos = fmin(mincos, rs_v3_dot(sh->sun_axis, rs_pose_dir_to_world(&env->pose, grid_dir(&g, c, r))));
+                    mincos =
+                        fmin(mincos, rs_v3_dot(sh->sun_axis, rs_pose_dir_to_world(&env->pose, grid_dir(&g, c, r))));
         sh->sun_sin = mincos > 0 ? sqrt(1 - mincos * mincos) : 2;
     }
 
@@ -205,7 +209,8 @@ int rs_skysh_build(const rs_skyenv *env, double tol, int normals, rs_skysh *sh, 
 #pragma omp parallel for schedule(dynamic, 4)
     for (int k = 0; k < normals; k++) {
         rs_v3 n = rs_skysh_normal(k, normals);
-        exact_blocks(env, &g, bl, nbc, nbr, rs_pose_dir_to_local(&env->pose, n), ex + (size_t)k * 2 * RS_SKYSH_CHANNELS);
+        exact_blocks(env, &g, bl, nbc, nbr, rs_pose_dir_to_local(&env->pose, n),
+                     ex + (size_t)k * 2 * RS_SKYSH_CHANNELS);
         eval_sh(sh, n, ex + ((size_t)k * 2 + 1) * RS_SKYSH_CHANNELS);
     }
     double emax[RS_SKYSH_CHANNELS + 1] = {0};

@@ -21,9 +21,9 @@ enum { RS_SKYSH_CHANNELS = 5, RS_SKYSH_COEFS = 9, RS_SKYSH_MAX_NORMALS = 1024 };
 #define RS_SKYSH_BOUND_FACTOR 1.5
 
 typedef struct rs_skysh {
-    int usable;                /* 1: the test passed at some normals: facets near them may use it */
-    double tol;                /* the test's tolerance (relative) */
-    int normals;               /* test normals (Fibonacci sphere) */
+    int usable;  /* 1: the test passed at some normals: facets near them may use it */
+    double tol;  /* the test's tolerance (relative) */
+    int normals; /* test normals (Fibonacci sphere) */
     /* The map outside the sun set, projected: L_lm per channel (radiance x sr). */
     double coef[RS_SKYSH_CHANNELS][RS_SKYSH_COEFS];
     /* The sun set (env->sun), exactly: sum of L d dOmega per channel. Its clamped-cosine
@@ -31,18 +31,18 @@ typedef struct rs_skysh {
      * below: a facet whose plane cuts the set is left to the rays. */
     int has_sun;
     double sun_vec[RS_SKYSH_CHANNELS][3];
-    rs_v3 sun_axis;            /* unit; the set lies within the cone of this axis ... */
-    double sun_sin;            /* ... whose half-angle has this sine */
+    rs_v3 sun_axis; /* unit; the set lies within the cone of this axis ... */
+    double sun_sin; /* ... whose half-angle has this sine */
     /* The test, over the map outside the sun set: worst relative error of the projected
      * irradiance against the exact clamped-cosine sum over the map's pixels, R, G and B, with
      * the error taken relative to max(E(n), 1e-3 max_n E) so that normals facing a black
      * part of the map do not decide alone. max_error_filled: the same for the filled
      * luminance, relative to the normal's luminance E (reported, not tested). */
     double max_error, max_error_filled;
-    rs_v3 worst_normal;        /* where max_error was found */
-    float error_at[RS_SKYSH_MAX_NORMALS];   /* each test normal's error */
-    float normal_at[RS_SKYSH_MAX_NORMALS][3];   /* the test normals (rs_skysh_normal) */
-    double passed_share;       /* share of the sphere of normals whose bound is within tol */
+    rs_v3 worst_normal;                       /* where max_error was found */
+    float error_at[RS_SKYSH_MAX_NORMALS];     /* each test normal's error */
+    float normal_at[RS_SKYSH_MAX_NORMALS][3]; /* the test normals (rs_skysh_normal) */
+    double passed_share;                      /* share of the sphere of normals whose bound is within tol */
 } rs_skysh;
 
 /* Projects env (world frame, its pixels' solid angles) and runs the frequency test over

@@ -16,8 +16,8 @@ int rs_solar_parse_datetime(const char *text, double *julian_day, rs_err *err);
  * azimuth clockwise from geographic north and elevation above the horizon, degrees.
  * Accuracy about 0.01 degrees for years 1800-2100 (NOAA); the refraction term is a standard
  * atmosphere's. */
-void rs_solar_position(double julian_day, double latitude_deg, double longitude_deg,
-                       double *azimuth_deg, double *elevation_deg);
+void rs_solar_position(double julian_day, double latitude_deg, double longitude_deg, double *azimuth_deg,
+                       double *elevation_deg);
 
 /* World direction (unit, Z up) toward a sun at compass azimuth (clockwise from north) and
  * elevation, given the world azimuth of north: north_deg = atan2(y, x) of geographic north in

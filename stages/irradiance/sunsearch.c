@@ -14,11 +14,11 @@ typedef struct search_ctx {
     const rs_scene *scene;
     const rs_skyenv *env;
     const rs_sunshadow_pairs *pairs;
-    uint32_t *facets;          /* the facets of the pairs, once each */
-    uint32_t *slot;            /* nf: facet -> index in facets */
+    uint32_t *facets; /* the facets of the pairs, once each */
+    uint32_t *slot;   /* nf: facet -> index in facets */
     size_t nfacets;
-    rs_v3 *org, *nrm;          /* per entry of facets: ray origin (offset centroid), normal */
-    float *log_ratio;          /* nf: log(Y / E), NAN where either is not positive */
+    rs_v3 *org, *nrm; /* per entry of facets: ray origin (offset centroid), normal */
+    float *log_ratio; /* nf: log(Y / E), NAN where either is not positive */
 } search_ctx;
 
 /* Whether direction s is one the map filled, above the horizon. */
@@ -45,7 +45,7 @@ static double score(const search_ctx *c, rs_v3 s, double tau, rs_ray *rays, uint
         state[k] = NONE;
         if (!(rs_v3_dot(c->nrm[k], s) > 0.1)) continue;
         rays[nr] = (rs_ray){.org = c->org[k], .dir = s, .tnear = 0, .tfar = INFINITY};
-        state[k] = LIT;                          /* until the ray says otherwise */
+        state[k] = LIT; /* until the ray says otherwise */
         nr++;
     }
     rs_scene_occluded(c->scene, rays, occl, nr);
@@ -73,8 +73,7 @@ static double score(const search_ctx *c, rs_v3 s, double tau, rs_ray *rays, uint
 
 /* Scores dirs[0..n) on all threads: the median contrast into med and, with tau > 0, the edge
  * score into edge (-INFINITY where the median is); np the pairs. -1 out of memory. */
-static int score_all(const search_ctx *c, const rs_v3 *dirs, int n, double tau, double *med, double *edge,
-                     size_t *np)
+static int score_all(const search_ctx *c, const rs_v3 *dirs, int n, double tau, double *med, double *edge, size_t *np)
 {
     int failed = 0;
 #pragma omp parallel
@@ -138,7 +137,7 @@ int rs_sunsearch_run(const rs_scene *scene, const rs_skyenv *env, const rs_sunsh
     size_t nf = m->nfaces;
     size_t stride = (pairs->n + RS_SUNSEARCH_MAX_PAIRS - 1) / RS_SUNSEARCH_MAX_PAIRS;
     rs_sunshadow_pairs sub = {.n = 0};
-    if (stride > 1) {                           /* every stride-th pair: spread over the model */
+    if (stride > 1) { /* every stride-th pair: spread over the model */
         sub.a = malloc(RS_SUNSEARCH_MAX_PAIRS * sizeof *sub.a);
         sub.b = malloc(RS_SUNSEARCH_MAX_PAIRS * sizeof *sub.b);
         if (!sub.a || !sub.b) {
@@ -194,7 +193,7 @@ int rs_sunsearch_run(const rs_scene *scene, const rs_skyenv *env, const rs_sunsh
     out->candidates = n;
     int top = best_apart(dirs, med, n, NULL, 0, 0);
     if (top < 0) {
-        rc = 1;                                 /* no direction had enough pairs */
+        rc = 1; /* no direction had enough pairs */
         goto done;
     }
     double tau = 0.5 * med[top];

@@ -33,11 +33,11 @@
 #define RS_SUNSEARCH_MIN_GLOW 2.0
 
 typedef struct rs_sunsearch {
-    rs_v3 dir;                 /* unit, world, toward the sun */
-    double score;              /* its median log contrast */
-    double edge_score;         /* its edge score (sunsearch.c), what picked it */
-    size_t pairs;              /* lit-shadowed pairs behind it */
-    int candidates;            /* directions scored */
+    rs_v3 dir;         /* unit, world, toward the sun */
+    double score;      /* its median log contrast */
+    double edge_score; /* its edge score (sunsearch.c), what picked it */
+    size_t pairs;      /* lit-shadowed pairs behind it */
+    int candidates;    /* directions scored */
 } rs_sunsearch;
 
 /* E and L: 3 per facet (E_sky + G without a sun, and the observed radiance). Returns 0 with

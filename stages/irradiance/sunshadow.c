@@ -6,18 +6,21 @@
 #include <string.h>
 #include "select.h"
 
-enum { DARK, LIT, MIXED };     /* full shadow, full sun, anything else (partial, unknown, facing away) */
+enum { DARK, LIT, MIXED }; /* full shadow, full sun, anything else (partial, unknown, facing away) */
 
-#define MAX_PARTNERS 4096      /* per lit facet: enough for a median, bounded scratch */
+#define MAX_PARTNERS 4096 /* per lit facet: enough for a median, bounded scratch */
 
-static double luminance(const double *rgb) { return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]; }
+static double luminance(const double *rgb)
+{
+    return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+}
 
 /* Facet centroids sorted by the cell of a uniform grid (cell = radius): a radius query reads
  * the 27 cells around a point. */
 typedef struct cell_index {
     double cell;
-    uint64_t *key;             /* sorted */
-    uint32_t *facet;           /* in key order */
+    uint64_t *key;   /* sorted */
+    uint32_t *facet; /* in key order */
     size_t n;
 } cell_index;
 
@@ -75,15 +78,19 @@ static void index_range(const cell_index *g, uint64_t k, size_t *lo, size_t *hi)
     size_t a = 0, b = g->n;
     while (a < b) {
         size_t m = a + (b - a) / 2;
-        if (g->key[m] < k) a = m + 1;
-        else b = m;
+        if (g->key[m] < k)
+            a = m + 1;
+        else
+            b = m;
     }
     *lo = a;
     b = g->n;
     while (a < b) {
         size_t m = a + (b - a) / 2;
-        if (g->key[m] <= k) a = m + 1;
-        else b = m;
+        if (g->key[m] <= k)
+            a = m + 1;
+        else
+            b = m;
     }
     *hi = a;
 }
@@ -145,7 +152,7 @@ static size_t lit_facet_dni(const rs_sunshadow_input *in, const cell_index *g, c
                     rs_v3 off = rs_v3_sub(cen[j], cen[i]);
                     if (rs_v3_len(off) > in->radius || rs_v3_dot(nrm[i], nrm[j]) < 0.996 ||
                         fabs(rs_v3_dot(nrm[i], off)) > 0.1 * in->radius)
-                        continue;      /* not on i's plane (5 degrees, a tenth of the radius) */
+                        continue; /* not on i's plane (5 degrees, a tenth of the radius) */
                     const double *Lj = in->L + 3 * (size_t)j, *Ej = in->E + 3 * (size_t)j;
                     double d[4], ratio = luminance(Li) / luminance(Lj);
                     for (int ch = 0; ch < 3; ch++) d[ch] = (Li[ch] * Ej[ch] / Lj[ch] - Ei[ch]) / cosi;
@@ -169,13 +176,13 @@ static double mad(float *v, size_t n, double med)
 int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out)
 {
     memset(out, 0, sizeof *out);
-    if (!(in->radius > 0) || !(in->margin >= 0)) return 1;   /* nothing observed to size them */
+    if (!(in->radius > 0) || !(in->margin >= 0)) return 1; /* nothing observed to size them */
     const rs_mesh *m = in->mesh;
     size_t nf = m->nfaces;
     rs_v3 *cen = malloc((nf ? nf : 1) * sizeof *cen), *nrm = malloc((nf ? nf : 1) * sizeof *nrm);
     uint8_t *st = malloc(nf ? nf : 1);
     uint32_t *lit = malloc((nf ? nf : 1) * sizeof *lit);
-    float *dl = malloc((4 * nf + 1) * sizeof *dl);    /* per used lit facet: D per channel, E's share */
+    float *dl = malloc((4 * nf + 1) * sizeof *dl); /* per used lit facet: D per channel, E's share */
     cell_index g = {0};
     int rc = -1;
     if (!cen || !nrm || !st || !lit || !dl) goto out;
@@ -196,15 +203,16 @@ int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out)
     for (size_t f = 0; f < nf; f++) {
         const double *L = in->L + 3 * f, *E = in->E + 3 * f;
         cand[f] = st[f] != MIXED && in->observed[f] && L[0] > 0 && L[1] > 0 && L[2] > 0 && E[0] > 0 && E[1] > 0 &&
-                  E[2] > 0 && !near_other(&g, cen, st, f, in->margin);
+            E[2] > 0 && !near_other(&g, cen, st, f, in->margin);
     }
     for (size_t f = 0; f < nf; f++) {
         if (!cand[f]) {
-            if (st[f] != MIXED) st[f] = MIXED;    /* partners must be beyond the margin too */
+            if (st[f] != MIXED) st[f] = MIXED; /* partners must be beyond the margin too */
             continue;
         }
-        if (st[f] == DARK) out->shadowed++;
-        else if (rs_v3_dot(nrm[f], in->sun_dir) > 0.1)     /* grazing: D / cos_i amplifies noise */
+        if (st[f] == DARK)
+            out->shadowed++;
+        else if (rs_v3_dot(nrm[f], in->sun_dir) > 0.1) /* grazing: D / cos_i amplifies noise */
             lit[nlit++] = (uint32_t)f;
     }
     free(cand);
@@ -275,8 +283,8 @@ int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out)
         blk[nb++] = rs_select_kth(tmp, n, n / 2);
     }
     out->blocks = nb;
-    out->sigma_stat_lum = nb >= 3 ? 1.2533 * 1.4826 * mad(blk, nb, out->dni_lum) / sqrt((double)nb)
-                                  : 1.4826 * mad(col, nu, out->dni_lum);
+    out->sigma_stat_lum =
+        nb >= 3 ? 1.2533 * 1.4826 * mad(blk, nb, out->dni_lum) / sqrt((double)nb) : 1.4826 * mad(col, nu, out->dni_lum);
     /* What the uncertainty of E (the sky fill's) makes of it: the same for every pair, not
      * averaged away; the median over lit facets. */
     for (size_t k = 0; k < nu; k++) col[k] = dl[4 * k + 3];
@@ -302,7 +310,7 @@ int rs_sunshadow_pairs_build(const rs_mesh *mesh, const uint8_t *observed, doubl
                              int max_per_facet, rs_sunshadow_pairs *out)
 {
     memset(out, 0, sizeof *out);
-    if (!(radius > 0)) return 0;                /* nothing observed: no pairs */
+    if (!(radius > 0)) return 0; /* nothing observed: no pairs */
     size_t nf = mesh->nfaces, cap = nf * (size_t)max_per_facet;
     rs_v3 *cen = calloc(nf ? nf : 1, sizeof *cen), *nrm = calloc(nf ? nf : 1, sizeof *nrm);
     uint32_t *cnt = calloc(nf ? nf : 1, sizeof *cnt);

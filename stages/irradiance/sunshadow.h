@@ -22,24 +22,24 @@
 
 typedef struct rs_sunshadow_input {
     const rs_mesh *mesh;
-    const float *vis;          /* nf: share of the sun's disc each facet sees; < 0 unknown */
-    rs_v3 sun_dir;             /* unit, toward the sun */
-    const double *E;           /* 3 nf: E_sky + G without the sun */
-    const double *L;           /* 3 nf: observed radiance */
-    const uint8_t *observed;   /* nf */
-    const double *E_sigma;     /* nf: standard uncertainty of E's luminance (the sky fill's); NULL: none */
-    double margin;             /* m: a facet this close to one of another kind is left out */
-    double radius;             /* m: partners within this distance (> margin) */
+    const float *vis;        /* nf: share of the sun's disc each facet sees; < 0 unknown */
+    rs_v3 sun_dir;           /* unit, toward the sun */
+    const double *E;         /* 3 nf: E_sky + G without the sun */
+    const double *L;         /* 3 nf: observed radiance */
+    const uint8_t *observed; /* nf */
+    const double *E_sigma;   /* nf: standard uncertainty of E's luminance (the sky fill's); NULL: none */
+    double margin;           /* m: a facet this close to one of another kind is left out */
+    double radius;           /* m: partners within this distance (> margin) */
 } rs_sunshadow_input;
 
 typedef struct rs_sunshadow {
-    double dni[3];             /* per channel, the panorama's radiance unit x sr; >= 0 */
-    double dni_lum;            /* its luminance */
-    double sigma_stat_lum;     /* standard error of dni_lum, from the spread between blocks of 2 x radius */
-    double sigma_sys_lum;      /* what E_sigma makes of it (median over lit facets) */
-    double sigma_lum;          /* both, in quadrature */
-    size_t lit, shadowed;      /* observed facets in full sun and in full shadow beyond the margin */
-    size_t lit_used;           /* lit facets that found a shadowed partner */
+    double dni[3];         /* per channel, the panorama's radiance unit x sr; >= 0 */
+    double dni_lum;        /* its luminance */
+    double sigma_stat_lum; /* standard error of dni_lum, from the spread between blocks of 2 x radius */
+    double sigma_sys_lum;  /* what E_sigma makes of it (median over lit facets) */
+    double sigma_lum;      /* both, in quadrature */
+    size_t lit, shadowed;  /* observed facets in full sun and in full shadow beyond the margin */
+    size_t lit_used;       /* lit facets that found a shadowed partner */
     size_t blocks;
 } rs_sunshadow;
 

@@ -70,7 +70,7 @@ int rs_sunsource_setup(const rs_config *cfg, rs_capture *cap, const float *facet
     int shadows_on = strcmp(rs_config_string(cfg, "sky", "sun_from_shadows"), "on") == 0;
     if (!rs_config_has(cfg, "sky", "sun_irradiance") && !shadows_on) return 0;
     sun->active = 1;
-    sun->from_shadows = !rs_config_has(cfg, "sky", "sun_irradiance");   /* the given DNI wins */
+    sun->from_shadows = !rs_config_has(cfg, "sky", "sun_irradiance"); /* the given DNI wins */
     sun->dni = sun->from_shadows ? 0 : rs_config_real(cfg, "sky", "sun_irradiance");
     double col[3];
     rs_config_reals(cfg, "sky", "sun_color", col);
@@ -78,8 +78,7 @@ int rs_sunsource_setup(const rs_config *cfg, rs_capture *cap, const float *facet
     double col_lum = rs_skyenv_luminance(colf);
     if (!(col[0] >= 0 && col[1] >= 0 && col[2] >= 0 && col_lum > 0))
         return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
-                          "[sky] sun_color = %g %g %g: expected three values >= 0, not all 0", col[0], col[1],
-                          col[2]);
+                          "[sky] sun_color = %g %g %g: expected three values >= 0, not all 0", col[0], col[1], col[2]);
     for (int ch = 0; ch < 3; ch++) sun->rgb[ch] = col[ch] / col_lum;
     sun->halo_factor = rs_config_real(cfg, "irradiance", "sun_threshold");
     sun->cone_rad = rs_config_real(cfg, "irradiance", "sun_max_cone_deg") * M_PI / 180;
@@ -99,8 +98,8 @@ int rs_sunsource_setup(const rs_config *cfg, rs_capture *cap, const float *facet
         if (fill->sun_given && rs_v3_dot(d, sun->dir_world) < cos(sun->cone_rad)) continue;
         brightest = fmax(brightest, rs_skyenv_luminance(cap->pano->data + 3 * k));
     }
-    sun->clip_level = rs_config_has(cfg, "sky", "sun_clip_level") ? rs_config_real(cfg, "sky", "sun_clip_level")
-                                                                   : 0.9 * brightest;
+    sun->clip_level =
+        rs_config_has(cfg, "sky", "sun_clip_level") ? rs_config_real(cfg, "sky", "sun_clip_level") : 0.9 * brightest;
     if (!fill->sun_given) {
         if (!(sun->clip_level > 0) || !largest_blob_dir(cap, facet_id, sun->clip_level, &sun->dir_world))
             return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
@@ -116,19 +115,21 @@ int rs_sunsource_setup(const rs_config *cfg, rs_capture *cap, const float *facet
     double el = asin(fmax(-1, fmin(1, sun->dir_world.z))) * 180 / M_PI;
     if (sun->from_shadows)
         rs_log_info("irradiance: explicit sun at elevation %.2f deg (%s), its DNI from the shadows; %zu panorama "
-                    "pixels (%.3g sr) of its disc and halo removed, holding %.3g of it", el, sun->dir_from,
-                    sun->removed_px, sun->removed_sr, sun->removed_power);
+                    "pixels (%.3g sr) of its disc and halo removed, holding %.3g of it",
+                    el, sun->dir_from, sun->removed_px, sun->removed_sr, sun->removed_power);
     else
         rs_log_info("irradiance: explicit sun of %g (DNI; colour %.3g %.3g %.3g) at elevation %.2f deg (%s); %zu "
-                    "panorama pixels (%.3g sr) of its disc and halo removed, holding %.3g of it", sun->dni,
-                    sun->rgb[0], sun->rgb[1], sun->rgb[2], el, sun->dir_from, sun->removed_px, sun->removed_sr,
-                    sun->removed_power);
+                    "panorama pixels (%.3g sr) of its disc and halo removed, holding %.3g of it",
+                    sun->dni, sun->rgb[0], sun->rgb[1], sun->rgb[2], el, sun->dir_from, sun->removed_px,
+                    sun->removed_sr, sun->removed_power);
     if (sun->removed_px == 0 && !sun->from_shadows)
         rs_log_warn("irradiance: no bright sky pixel within %.2f deg of the given sun: is the sun hidden, or its "
-                    "direction wrong?", sun->cone_rad * 180 / M_PI);
+                    "direction wrong?",
+                    sun->cone_rad * 180 / M_PI);
     else if (!sun->from_shadows && sun->removed_power > sun->dni)
         rs_log_warn("irradiance: [sky] sun_irradiance = %g is less than the %.4g the panorama already holds "
-                    "around the sun: is it in the panorama's units (radiance x sr)?", sun->dni, sun->removed_power);
+                    "around the sun: is it in the panorama's units (radiance x sr)?",
+                    sun->dni, sun->removed_power);
     return 0;
 }
 
@@ -145,7 +146,7 @@ size_t rs_sunsource_remove(rs_sunsource *sun, rs_capture *c, const float *facet_
     free(lum);
     double level = sun->halo_factor * median;
     if (sun->clip_level > 0 && sun->clip_level < level) level = sun->clip_level;
-    if (!(level > 0)) return 0;               /* a black sky: nothing tells the sun from it */
+    if (!(level > 0)) return 0; /* a black sky: nothing tells the sun from it */
     double cos_cone = cos(sun->cone_rad);
     for (size_t k = 0; k < npx; k++) {
         if (!is_sky(c, facet_id, k)) continue;
@@ -160,7 +161,7 @@ size_t rs_sunsource_remove(rs_sunsource *sun, rs_capture *c, const float *facet_
             sun->removed_power += y * om;
             for (int ch = 0; ch < 3; ch++) sun->removed_rgb[ch] += px[ch] * om;
         }
-        px[0] = px[1] = px[2] = -1;          /* not ok: the sky map fills it as unseen sky */
+        px[0] = px[1] = px[2] = -1; /* not ok: the sky map fills it as unseen sky */
         removed++;
     }
     sun->removed_px += removed;
@@ -171,14 +172,14 @@ int rs_sunsource_auto(const rs_config *cfg, const rs_skyenv *env, const rs_skyfi
 {
     if (sun->active || strcmp(rs_config_string(cfg, "sky", "sun_from_shadows"), "auto") != 0) return 0;
     if (!fill->sun_given) {
-        sun->search = env->bright_pixels == 0;   /* no sun in the sky: perhaps behind the building */
+        sun->search = env->bright_pixels == 0; /* no sun in the sky: perhaps behind the building */
         return 0;
     }
     rs_v3 s = rs_v3_norm(fill->sun_dir);
-    if (!(s.z > 0)) return 0;                    /* below the horizon: no direct light */
+    if (!(s.z > 0)) return 0; /* below the horizon: no direct light */
     int w = env->width, h = env->height, c, r;
     rs_pano_world_to_pixel(&env->pose, w, h, s, &c, &r);
-    if (!env->filled[(size_t)r * w + c]) return 0;   /* a camera saw the sky there: the map has the sun */
+    if (!env->filled[(size_t)r * w + c]) return 0; /* a camera saw the sky there: the map has the sun */
     /* Bright measured pixels next to it: seen, at least in part. Not env->sun, which is empty
      * when nothing samples the sun explicitly. */
     double cone = cos(rs_config_real(cfg, "irradiance", "sun_max_cone_deg") * M_PI / 180);
@@ -195,7 +196,8 @@ int rs_sunsource_auto(const rs_config *cfg, const rs_skyenv *env, const rs_skyfi
     sun->dir_from = rs_config_has(cfg, "sky", "sun_azimuth_deg") ? "config" : "solar position";
     for (int ch = 0; ch < 3; ch++) sun->rgb[ch] = 1;
     rs_log_info("irradiance: no camera saw the sun at elevation %.2f deg (%s): its DNI comes from the model's "
-                "shadows ([sky] sun_from_shadows = auto)", asin(fmin(1, s.z)) * 180 / M_PI, sun->dir_from);
+                "shadows ([sky] sun_from_shadows = auto)",
+                asin(fmin(1, s.z)) * 180 / M_PI, sun->dir_from);
     return 1;
 }
 
@@ -220,7 +222,7 @@ int rs_sunsource_visibility(const rs_sunsource *sun, const rs_scene *scene, int 
         }
 #pragma omp for schedule(dynamic, 64)
         for (size_t f = 0; f < nf; f++) {
-            if (!ray || !occl || (!fg[f].rays && !fg[f].sky_sh)) continue;   /* not gathered */
+            if (!ray || !occl || (!fg[f].rays && !fg[f].sky_sh)) continue; /* not gathered */
             rs_v3 n = rs_scene_normal(scene, (uint32_t)f);
             if (!(rs_v3_dot(n, s) > 0)) continue;
             rs_v3 a = rs_mesh_vert(m, m->tris[3 * f]), b = rs_mesh_vert(m, m->tris[3 * f + 1]),
@@ -232,8 +234,9 @@ int rs_sunsource_visibility(const rs_sunsource *sun, const rs_scene *scene, int 
                 rs_sobol2_owen((uint32_t)i, rs_hash_combine(fs, 2), &u, &v);
                 /* Uniform over the disc's cone (small angle: uniform over a flat disc). */
                 double r = RS_SUN_RADIUS_RAD * sqrt(u), phi = 2 * M_PI * v;
-                rs_v3 d = rs_v3_add(rs_v3_scale(s, cos(r)),
-                                    rs_v3_scale(rs_v3_add(rs_v3_scale(t1, cos(phi)), rs_v3_scale(t2, sin(phi))), sin(r)));
+                rs_v3 d =
+                    rs_v3_add(rs_v3_scale(s, cos(r)),
+                              rs_v3_scale(rs_v3_add(rs_v3_scale(t1, cos(phi)), rs_v3_scale(t2, sin(phi))), sin(r)));
                 rs_v3 p = rs_triangle_point(a, b, c, px, py);
                 ray[i].org = rs_v3_add(p, rs_v3_scale(n, rs_scene_offset(scene, p)));
                 ray[i].dir = d;
@@ -299,18 +302,24 @@ int rs_sunsource_from_shadows(rs_sunsource *sun, const rs_mesh *mesh, const floa
     }
     for (size_t f = 0; f < nf; f++) E_sigma[f] = fg[f].fill_sigma_lum;
     sun->margin = rs_sunshadow_margin(mesh, observed, cam, pano_height);
-    rs_sunshadow_input in = {.mesh = mesh, .vis = vis, .sun_dir = sun->dir_world, .E = E, .L = radiance,
-                             .observed = observed, .E_sigma = E_sigma, .margin = sun->margin,
+    rs_sunshadow_input in = {.mesh = mesh,
+                             .vis = vis,
+                             .sun_dir = sun->dir_world,
+                             .E = E,
+                             .L = radiance,
+                             .observed = observed,
+                             .E_sigma = E_sigma,
+                             .margin = sun->margin,
                              .radius = 3 * sun->margin};
     sun->shadow_rc = rs_sunshadow_estimate(&in, &sun->shadow);
     free(E);
     free(E_sigma);
     if (sun->shadow_rc < 0) return -1;
     if (sun->shadow_rc == 0 && sun->searched && !(sun->shadow.dni_lum > 5 * sun->shadow.sigma_stat_lum))
-        sun->shadow_rc = 2;                   /* the best of many directions: demand more */
+        sun->shadow_rc = 2; /* the best of many directions: demand more */
     sun->dni = sun->shadow_rc == 0 ? sun->shadow.dni_lum : 0;
     for (int ch = 0; ch < 3; ch++) sun->rgb[ch] = sun->dni > 0 ? sun->shadow.dni[ch] / sun->dni : 1;
-    if (sun->shadow_rc != 0 && sun->removed_power > 0) {   /* no shadows to read: keep what was seen */
+    if (sun->shadow_rc != 0 && sun->removed_power > 0) { /* no shadows to read: keep what was seen */
         sun->fell_back = 1;
         sun->dni = sun->removed_power;
         for (int ch = 0; ch < 3; ch++) sun->rgb[ch] = sun->removed_rgb[ch] / sun->removed_power;
@@ -330,8 +339,8 @@ void rs_sunsource_apply(const rs_sunsource *sun, const rs_scene *scene, size_t n
             fg[f].esky[ch] += e * sun->rgb[ch];
             fg[f].esun[ch] += e * sun->rgb[ch];
         }
-        fg[f].esky_lum += e;                  /* rgb has luminance 1 */
-        if (sun->from_shadows && !sun->fell_back) {   /* inferred, not measured: filled light */
+        fg[f].esky_lum += e;                        /* rgb has luminance 1 */
+        if (sun->from_shadows && !sun->fell_back) { /* inferred, not measured: filled light */
             fg[f].filled_lum += e;
             fg[f].fill_sigma_lum = hypot(fg[f].fill_sigma_lum, sun->shadow.sigma_lum * u);
         }

@@ -22,28 +22,28 @@
 #define RS_SUN_RADIUS_RAD (0.2665 * M_PI / 180)
 
 typedef struct rs_sunsource {
-    int active;                /* 0: no explicit sun, everything here does nothing */
-    int from_shadows;          /* dni and rgb are estimated from the shadows (rs_sunsource_from_shadows) */
-    double dni;                /* direct normal irradiance (luminance), the panorama's radiance unit x sr */
-    double rgb[3];             /* [sky] sun_color at luminance 1: the DNI per channel is dni x rgb */
-    rs_v3 dir_world;           /* unit, toward the sun */
-    const char *dir_from;      /* "config", "solar position" or "clipped disc" */
-    rs_sunshadow shadow;       /* with from_shadows: the estimate (dni_lum 0 when it failed) */
-    int shadow_rc;             /* its rs_sunshadow_estimate result; 2: a searched sun, not significant */
-    int search;                /* auto, nothing places the sun and no camera saw one: search the shadows */
-    int searched;              /* the direction came from rs_sunsource_search */
-    rs_sunsearch found;        /* its result */
-    double found_off_deg;      /* its angle to the sky's own estimate (rs_sunsource_search) */
-    double margin;             /* its margin (m) */
-    double clip_level;         /* luminance from which a capture pixel is the clipped disc */
-    double halo_factor;        /* pixels within cone_rad above this x the median sky go too */
+    int active;           /* 0: no explicit sun, everything here does nothing */
+    int from_shadows;     /* dni and rgb are estimated from the shadows (rs_sunsource_from_shadows) */
+    double dni;           /* direct normal irradiance (luminance), the panorama's radiance unit x sr */
+    double rgb[3];        /* [sky] sun_color at luminance 1: the DNI per channel is dni x rgb */
+    rs_v3 dir_world;      /* unit, toward the sun */
+    const char *dir_from; /* "config", "solar position" or "clipped disc" */
+    rs_sunshadow shadow;  /* with from_shadows: the estimate (dni_lum 0 when it failed) */
+    int shadow_rc;        /* its rs_sunshadow_estimate result; 2: a searched sun, not significant */
+    int search;           /* auto, nothing places the sun and no camera saw one: search the shadows */
+    int searched;         /* the direction came from rs_sunsource_search */
+    rs_sunsearch found;   /* its result */
+    double found_off_deg; /* its angle to the sky's own estimate (rs_sunsource_search) */
+    double margin;        /* its margin (m) */
+    double clip_level;    /* luminance from which a capture pixel is the clipped disc */
+    double halo_factor;   /* pixels within cone_rad above this x the median sky go too */
     double cone_rad;
-    size_t removed_px;         /* pixels taken out of the panoramas (all of them) */
-    double removed_sr;         /* their solid angle in the capture */
-    double removed_power;      /* sum of luminance x solid angle over the capture's removed pixels:
+    size_t removed_px;     /* pixels taken out of the panoramas (all of them) */
+    double removed_sr;     /* their solid angle in the capture */
+    double removed_power;  /* sum of luminance x solid angle over the capture's removed pixels:
                                   what the panorama had of the sun (a lower bound when clipped) */
-    double removed_rgb[3];     /* the same per channel */
-    int fell_back;             /* on, no estimate: the DNI is removed_power (what the panorama held) */
+    double removed_rgb[3]; /* the same per channel */
+    int fell_back;         /* on, no estimate: the DNI is removed_power (what the panorama held) */
 } rs_sunsource;
 
 /* Reads [sky] sun_irradiance (or sun_from_shadows = on), sun_color and sun_clip_level; when set, takes the sun's direction from fill

@@ -106,11 +106,15 @@ static int check_opts(const rs_denoise_opts *o, rs_err *err)
         return rs_err_set(err, RS_ERR_INPUT, NULL, 0, "[mesh] denoise_vertex_iterations = %d; expected 1 to 1000",
                           o->vertex_iterations);
     if (!(o->sigma_r_deg > 0 && o->sigma_r_deg <= 90))
-        return rs_err_set(err, RS_ERR_INPUT, NULL, 0, "[mesh] denoise_sigma_r_deg = %g; expected more than 0 and at "
-                          "most 90 degrees", o->sigma_r_deg);
+        return rs_err_set(err, RS_ERR_INPUT, NULL, 0,
+                          "[mesh] denoise_sigma_r_deg = %g; expected more than 0 and at "
+                          "most 90 degrees",
+                          o->sigma_r_deg);
     if (!(o->sigma_s_edges > 0 && o->sigma_s_edges <= 100))
-        return rs_err_set(err, RS_ERR_INPUT, NULL, 0, "[mesh] denoise_sigma_s = %g; expected more than 0 and at most "
-                          "100 mean edge lengths", o->sigma_s_edges);
+        return rs_err_set(err, RS_ERR_INPUT, NULL, 0,
+                          "[mesh] denoise_sigma_s = %g; expected more than 0 and at most "
+                          "100 mean edge lengths",
+                          o->sigma_s_edges);
     if (!(o->max_move_m > 0 && isfinite(o->max_move_m)))
         return rs_err_set(err, RS_ERR_INPUT, NULL, 0, "[mesh] denoise_max_move = %g; expected a distance above 0 m",
                           o->max_move_m);

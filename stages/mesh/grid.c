@@ -13,15 +13,18 @@ enum { KEEP = 0, DROP_DEPTH = 1, DROP_GRAZING = 2 };
 
 typedef struct grid_ctx {
     const rs_cloud *c;
-    const double *o;           /* scanner centre of the current scan */
-    double *range;             /* per point: distance to its scanner, 0 when unusable */
-    double *dir;               /* per point: unit direction from its scanner */
+    const double *o; /* scanner centre of the current scan */
+    double *range;   /* per point: distance to its scanner, 0 when unusable */
+    double *dir;     /* per point: unit direction from its scanner */
     double max_ratio, cos_graze;
-    uint32_t *tris;            /* triangles as cloud point indices */
+    uint32_t *tris; /* triangles as cloud point indices */
     size_t ntris, cap;
 } grid_ctx;
 
-static rs_v3 point(const grid_ctx *g, size_t i) { return rs_v3_make(g->c->xyz[3 * i], g->c->xyz[3 * i + 1], g->c->xyz[3 * i + 2]); }
+static rs_v3 point(const grid_ctx *g, size_t i)
+{
+    return rs_v3_make(g->c->xyz[3 * i], g->c->xyz[3 * i + 1], g->c->xyz[3 * i + 2]);
+}
 
 /* Tests triangle (i, j, k); when kept, writes it into out wound counter-clockwise seen from
  * the scanner (normal toward it) and sets *flip if the given order had to be turned. */
@@ -133,7 +136,7 @@ int rs_grid_stride(const rs_cloud *c, int s, const rs_grid_opts *o, double col_s
     k = fmin(k, floor(sqrt(tris / RS_GRID_MIN_TRIANGLES)));
     int lim = sc->cols < sc->rows ? sc->cols : sc->rows;
     if (!(k >= 1)) k = 1;
-    if (k > lim / 8.0) k = lim / 8 > 1 ? lim / 8 : 1;   /* keep a grid: at least 8 cells across */
+    if (k > lim / 8.0) k = lim / 8 > 1 ? lim / 8 : 1; /* keep a grid: at least 8 cells across */
     return (int)k;
 }
 
@@ -146,7 +149,10 @@ static int lattice(int n, int k, int *out)
     return m;
 }
 
-int rs_grid_lattice(int n, int k, int *out) { return lattice(n, k, out); }
+int rs_grid_lattice(int n, int k, int *out)
+{
+    return lattice(n, k, out);
+}
 
 static int triangulate_scan(grid_ctx *g, const rs_scan *s, int sidx, const rs_grid_opts *o, rs_grid_stats *st)
 {
@@ -175,7 +181,7 @@ static int triangulate_scan(grid_ctx *g, const rs_scan *s, int sidx, const rs_gr
             size_t r = (size_t)rl[ri], rn = (size_t)rl[ri + 1];
             double ar = o->max_gap_factor * (double)(rn - r) * row_step;
             double cos_row = row_step > 0 && ar < M_PI ? cos(ar) : -2;
-            size_t q[4] = {c0 + r, c1 + r, c1 + rn, c0 + rn};   /* 00 10 11 01, around the cell */
+            size_t q[4] = {c0 + r, c1 + r, c1 + rn, c0 + rn}; /* 00 10 11 01, around the cell */
             int ok[4], nok = 0;
             for (int k = 0; k < 4; k++) nok += ok[k] = g->range[q[k]] > 0;
             st->cells++;
@@ -260,7 +266,7 @@ rs_mesh *rs_grid_triangulate(const rs_cloud *c, const rs_grid_opts *o, rs_grid_s
                 d[j] = c->xyz[3 * i + j] - sc->position[j];
                 r2 += d[j] * d[j];
             }
-            if (!(r2 > 0) || !isfinite(r2)) continue;   /* a point at the scanner has no ray */
+            if (!(r2 > 0) || !isfinite(r2)) continue; /* a point at the scanner has no ray */
             g.range[i] = sqrt(r2);
             for (int j = 0; j < 3; j++) g.dir[3 * i + j] = d[j] / g.range[i];
         }

@@ -9,11 +9,11 @@
 #include "mesh.h"
 
 typedef struct rs_grid_opts {
-    double max_depth_ratio;    /* drop triangles whose ranges differ by more than this fraction */
-    double max_grazing_rad;    /* drop triangles seen at more than this angle from their normal */
-    double max_gap_factor;     /* drop cells spanning more than this many angular grid steps */
-    size_t target_faces;       /* the facet budget ([mesh] facets), 0: none */
-    double target_edge_m;      /* or the facet size ([mesh] facet_size), 0: none */
+    double max_depth_ratio; /* drop triangles whose ranges differ by more than this fraction */
+    double max_grazing_rad; /* drop triangles seen at more than this angle from their normal */
+    double max_gap_factor;  /* drop cells spanning more than this many angular grid steps */
+    size_t target_faces;    /* the facet budget ([mesh] facets), 0: none */
+    double target_edge_m;   /* or the facet size ([mesh] facet_size), 0: none */
 } rs_grid_opts;
 
 /* The grid mesh at stride k keeps at least this many times the budget's triangles, so that the
@@ -25,14 +25,14 @@ typedef struct rs_grid_opts {
 #define RS_GRID_MIN_TRIANGLES 1e6
 
 typedef struct rs_grid_stats {
-    size_t cells;              /* grid cells, the wrap-around column included */
-    size_t cells_no_return;    /* cells with fewer than 3 valid corners */
-    size_t triangles;          /* triangles kept */
-    size_t dropped_depth;      /* triangles across a depth discontinuity */
-    size_t dropped_grazing;    /* triangles seen at a grazing angle (or degenerate) */
-    size_t dropped_gap;        /* cells spanning an angular gap (e.g. the seam of a partial sweep) */
-    size_t flipped;            /* triangles whose grid winding faced away and was turned */
-    int stride;                /* rows and columns used: every stride-th (of the last scan) */
+    size_t cells;           /* grid cells, the wrap-around column included */
+    size_t cells_no_return; /* cells with fewer than 3 valid corners */
+    size_t triangles;       /* triangles kept */
+    size_t dropped_depth;   /* triangles across a depth discontinuity */
+    size_t dropped_grazing; /* triangles seen at a grazing angle (or degenerate) */
+    size_t dropped_gap;     /* cells spanning an angular gap (e.g. the seam of a partial sweep) */
+    size_t flipped;         /* triangles whose grid winding faced away and was turned */
+    int stride;             /* rows and columns used: every stride-th (of the last scan) */
 } rs_grid_stats;
 
 /* The stride k for scan s of c: 1 without a budget, or when the full grid has fewer than

@@ -101,8 +101,10 @@ static int run_input_mesh(const rs_config *cfg, const char *in_path, rs_report *
     }
     size_t dropped = m->nfaces - kept, nv = 0;
     if (kept == 0) {
-        rs_err_set(err, RS_ERR_INPUT, in_path, 0, "[mesh] input_mesh: none of its %zu faces has a non-zero area; "
-                   "expected a triangle mesh", m->nfaces);
+        rs_err_set(err, RS_ERR_INPUT, in_path, 0,
+                   "[mesh] input_mesh: none of its %zu faces has a non-zero area; "
+                   "expected a triangle mesh",
+                   m->nfaces);
         goto out;
     }
     for (size_t v = 0; v < m->nverts; v++)
@@ -115,8 +117,7 @@ static int run_input_mesh(const rs_config *cfg, const char *in_path, rs_report *
     for (size_t v = 0; v < m->nverts; v++)
         if (remap[v] != UINT32_MAX) memcpy(out->verts + 3 * (size_t)remap[v], m->verts + 3 * v, 3 * sizeof(float));
     for (size_t k = 0; k < 3 * kept; k++) out->tris[k] = remap[m->tris[k]];
-    if (dropped)
-        rs_log_warn("%s: dropped %zu zero-area faces of %zu", in_path, dropped, m->nfaces);
+    if (dropped) rs_log_warn("%s: dropped %zu zero-area faces of %zu", in_path, dropped, m->nfaces);
     rs_json_set_str(rep->metrics, "source", "input_mesh");
     rs_json_set_int(rep->metrics, "faces_in", (long long)m->nfaces);
     rs_json_set_int(rep->metrics, "dropped_zero_area", (long long)dropped);
@@ -127,7 +128,8 @@ static int run_input_mesh(const rs_config *cfg, const char *in_path, rs_report *
 
     char path[4096];
     double t1 = rs_now();
-    if (write_mesh(out, rs_work_path(cfg, "mesh.ply", path, sizeof path), "input_mesh", 0, "none (input_mesh)", NULL, err) != 0)
+    if (write_mesh(out, rs_work_path(cfg, "mesh.ply", path, sizeof path), "input_mesh", 0, "none (input_mesh)", NULL,
+                   err) != 0)
         goto out;
     rs_report_time(rep, "write", rs_now() - t1);
     rc = 0;
@@ -141,8 +143,7 @@ out:
 /* The facet size from the panorama: a facet spans about pixels_per_facet pixels wherever it is,
  * so its size grows with the distance from the camera (*edge_per_m: metres of edge per metre of
  * distance). *facet_m is that size at the median distance from the camera to the model. */
-static int derive_facet_size(const rs_config *cfg, const rs_mesh *m, double *facet_m, double *edge_per_m,
-                             rs_err *err)
+static int derive_facet_size(const rs_config *cfg, const rs_mesh *m, double *facet_m, double *edge_per_m, rs_err *err)
 {
     char pano[4096];
     int width = 0;
@@ -176,10 +177,12 @@ static int derive_facet_size(const rs_config *cfg, const rs_mesh *m, double *fac
     *edge_per_m = ppf * (2 * M_PI / width);
     *facet_m = *edge_per_m * med;
     if (!(*facet_m > 0))
-        return rs_err_set(err, RS_ERR_INPUT, pano, 0, "cannot derive a facet size: median distance %g m from the "
-                          "camera to the model; expected the camera away from the scan", med);
-    rs_log_info("facet size grows with distance: %g px of a %d px panorama, %.4g m at the median distance %.3g m",
-                ppf, width, *facet_m, med);
+        return rs_err_set(err, RS_ERR_INPUT, pano, 0,
+                          "cannot derive a facet size: median distance %g m from the "
+                          "camera to the model; expected the camera away from the scan",
+                          med);
+    rs_log_info("facet size grows with distance: %g px of a %d px panorama, %.4g m at the median distance %.3g m", ppf,
+                width, *facet_m, med);
     return 0;
 }
 
@@ -206,15 +209,14 @@ static double cap_spacing(const rs_config *cfg, const rs_mesh *grid)
 /* Adds each scan's nadir cap to the grid mesh (see nadir.h) on the grid's lattice (stride),
  * coarse when there is a budget; a scan whose ground below is not flat is left open and the
  * report says why. */
-static int fill_nadir(const rs_config *cfg, const rs_cloud *c, int stride, rs_mesh **grid, rs_report *rep,
-                      rs_err *err)
+static int fill_nadir(const rs_config *cfg, const rs_cloud *c, int stride, rs_mesh **grid, rs_report *rep, rs_err *err)
 {
     size_t added = 0;
     double spacing = cap_spacing(cfg, *grid);
     for (int s = 0; s < c->nscans; s++) {
         rs_nadir_stats ns;
-        rs_mesh *cap = rs_nadir_cap_coarse(c, s, rs_config_real(cfg, "mesh", "nadir_max_rms"), stride, spacing, &ns,
-                                           err);
+        rs_mesh *cap =
+            rs_nadir_cap_coarse(c, s, rs_config_real(cfg, "mesh", "nadir_max_rms"), stride, spacing, &ns, err);
         if (!cap) {
             if (!ns.why_not[0]) return -1;
             char what[64];
@@ -247,7 +249,7 @@ static rs_mesh *multi_scan(const rs_config *cfg, const rs_cloud *c, const rs_gri
     if (!all) goto nomem;
     memset(gs, 0, sizeof *gs);
     for (int s = 0; s < c->nscans; s++) {
-        rs_cloud one = *c;     /* a view of scan s alone: the grid indexes the shared arrays */
+        rs_cloud one = *c; /* a view of scan s alone: the grid indexes the shared arrays */
         one.nscans = 1;
         one.scans = &c->scans[s];
         rs_grid_stats g1;
@@ -264,8 +266,8 @@ static rs_mesh *multi_scan(const rs_config *cfg, const rs_cloud *c, const rs_gri
             rs_nadir_stats ns;
             /* At the grid's own spacing: the overlap test keeps or drops whole cap faces, and
              * coarse ones left duplicated sheets where another station saw the ground. */
-            rs_mesh *cap = rs_nadir_cap_coarse(c, s, rs_config_real(cfg, "mesh", "nadir_max_rms"), g1.stride, 0,
-                                               &ns, err);
+            rs_mesh *cap =
+                rs_nadir_cap_coarse(c, s, rs_config_real(cfg, "mesh", "nadir_max_rms"), g1.stride, 0, &ns, err);
             if (!cap && !ns.why_not[0]) {
                 rs_mesh_free(grid);
                 goto fail;
@@ -295,7 +297,7 @@ static rs_mesh *multi_scan(const rs_config *cfg, const rs_cloud *c, const rs_gri
         }
         for (size_t f = f0; f < merged->nfaces; f++) {
             owner[f] = s;
-            guess[f] = f - f0 >= nreal;   /* the cap's faces come after the grid's */
+            guess[f] = f - f0 >= nreal; /* the cap's faces come after the grid's */
         }
         caps += grid->nfaces - nreal;
         rs_mesh_free(grid);
@@ -315,7 +317,8 @@ static rs_mesh *multi_scan(const rs_config *cfg, const rs_cloud *c, const rs_gri
     rs_json_set_int(rep->metrics, "overlap_faces_dropped", (long long)os.dropped);
     rs_json_set_int(rep->metrics, "overlap_nadir_faces_dropped", (long long)os.dropped_guess);
     rs_log_info("%d scans: %zu of %zu faces dropped where another scan saw the surface better (%zu of them nadir "
-                "fill)", c->nscans, os.dropped, all->nfaces, os.dropped_guess);
+                "fill)",
+                c->nscans, os.dropped, all->nfaces, os.dropped_guess);
     size_t kept = 0;
     for (size_t f = 0; f < all->nfaces; f++)
         if (!drop[f]) memmove(all->tris + 3 * kept++, all->tris + 3 * f, 3 * sizeof *all->tris);
@@ -346,7 +349,8 @@ static rs_mesh *build_surface(const rs_config *cfg, const rs_cloud *c, int *nadi
         rs_unorg_opts uo = {strcmp(rs_config_string(cfg, "mesh", "surface"), "poisson") == 0,
                             (int)rs_config_int(cfg, "mesh", "normal_neighbours"),
                             rs_config_has(cfg, "mesh", "max_edge") ? rs_config_real(cfg, "mesh", "max_edge") : 0,
-                            (int)rs_config_int(cfg, "mesh", "poisson_depth"), (int)rs_config_int(cfg, "pipeline", "threads")};
+                            (int)rs_config_int(cfg, "mesh", "poisson_depth"),
+                            (int)rs_config_int(cfg, "pipeline", "threads")};
         rs_unorg_stats us;
         rs_mesh *m = rs_unorg_mesh(c, &uo, &us, err);
         if (!m) return NULL;
@@ -362,8 +366,8 @@ static rs_mesh *build_surface(const rs_config *cfg, const rs_cloud *c, int *nadi
             rs_json_set_num(rep->metrics, "poisson_cell_m", us.cell_m);
             rs_json_set_int(rep->metrics, "faces_trimmed", (long long)us.faces_trimmed);
             rs_json_set_int(rep->metrics, "faces_small_pieces", (long long)us.faces_pieces);
-        }
-        else rs_json_set_num(rep->metrics, "max_edge_m", us.max_edge_m);
+        } else
+            rs_json_set_num(rep->metrics, "max_edge_m", us.max_edge_m);
         rs_log_info("%zu unorganized points (spacing median %.3g m, p90 %.3g m): %zu triangles", us.points,
                     us.spacing_median_m, us.spacing_p90_m, m->nfaces);
         return m;
@@ -374,8 +378,10 @@ static rs_mesh *build_surface(const rs_config *cfg, const rs_cloud *c, int *nadi
     rs_grid_opts go = {rs_config_real(cfg, "mesh", "max_depth_ratio"),
                        rs_config_real(cfg, "mesh", "max_grazing_deg") * M_PI / 180.0, MAX_GAP_STEPS, 0, 0};
     /* A budget far below the grid's cells: every k-th row and column (grid.h). */
-    if (rs_config_has(cfg, "mesh", "facets")) go.target_faces = (size_t)rs_config_int(cfg, "mesh", "facets");
-    else if (rs_config_has(cfg, "mesh", "facet_size")) go.target_edge_m = rs_config_real(cfg, "mesh", "facet_size");
+    if (rs_config_has(cfg, "mesh", "facets"))
+        go.target_faces = (size_t)rs_config_int(cfg, "mesh", "facets");
+    else if (rs_config_has(cfg, "mesh", "facet_size"))
+        go.target_edge_m = rs_config_real(cfg, "mesh", "facet_size");
     rs_grid_stats gs;
     rs_mesh *grid;
     if (c->nscans == 1) {
@@ -400,7 +406,8 @@ static rs_mesh *build_surface(const rs_config *cfg, const rs_cloud *c, int *nadi
     rs_json_set_int(rep->metrics, "triangles_dropped_depth", (long long)gs.dropped_depth);
     rs_json_set_int(rep->metrics, "triangles_dropped_grazing", (long long)gs.dropped_grazing);
     if (grid->nfaces == 0) {
-        rs_err_set(err, RS_ERR_INPUT, NULL, 0, "no triangle survived the grid triangulation (%zu cells, %zu without "
+        rs_err_set(err, RS_ERR_INPUT, NULL, 0,
+                   "no triangle survived the grid triangulation (%zu cells, %zu without "
                    "returns, %zu across depth jumps, %zu at grazing angles); expected a scan of surfaces",
                    gs.cells, gs.cells_no_return, gs.dropped_depth, gs.dropped_grazing);
         rs_mesh_free(grid);
@@ -427,7 +434,8 @@ static int report_quality(const rs_config *cfg, const rs_cloud *c, const rs_mesh
     rs_mesh_quality_json(&q, rs_json_set_obj(rep->metrics, "quality"));
     rs_report_time(rep, "report", rs_now() - t0);
     rs_log_info("mesh: %zu facets, edges %.3g m mean (%.3g .. %.3g m, p5 .. p95), %zu boundary loops, %zu non-manifold "
-                "edges", q.faces, q.edge_mean_m, q.edge_p5_m, q.edge_p95_m, q.boundary_loops, q.nonmanifold_edges);
+                "edges",
+                q.faces, q.edge_mean_m, q.edge_p5_m, q.edge_p95_m, q.boundary_loops, q.nonmanifold_edges);
     if (q.points_tested)
         rs_log_info("scan points to the mesh: mean %.4g m, p95 %.4g m, %.1f %% within 2 cm (%zu points)", q.dist_mean_m,
                     q.dist_p95_m, 100 * q.within_2cm, q.points_tested);
@@ -463,8 +471,9 @@ static int check_capture_frame(const rs_config *cfg, const rs_cloud *c, rs_err *
         return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
                           "[capture] position %.10g %.10g %.10g is in the georeferenced frame, but the scan was "
                           "recentred by rhoscan_origin %.10g %.10g %.10g (cloud.ply): expected the position in the "
-                          "recentred frame, %.10g %.10g %.10g", cam[0], cam[1], cam[2], c->origin[0], c->origin[1],
-                          c->origin[2], cam[0] - c->origin[0], cam[1] - c->origin[1], cam[2] - c->origin[2]);
+                          "recentred frame, %.10g %.10g %.10g",
+                          cam[0], cam[1], cam[2], c->origin[0], c->origin[1], c->origin[2], cam[0] - c->origin[0],
+                          cam[1] - c->origin[1], cam[2] - c->origin[2]);
     return 0;
 }
 
@@ -486,7 +495,8 @@ static int denoise_mesh(const rs_config *cfg, rs_mesh *m, rs_report *rep, rs_err
     o.max_move_m = rs_config_real(cfg, "mesh", "denoise_max_move");
     rs_denoise_stats ds;
     if (rs_denoise_apply(m, &o, &ds, err) != 0) {
-        if (!err->file[0]) snprintf(err->file, sizeof err->file, "%.*s", (int)sizeof err->file - 1, rs_config_file(cfg));
+        if (!err->file[0])
+            snprintf(err->file, sizeof err->file, "%.*s", (int)sizeof err->file - 1, rs_config_file(cfg));
         return -1;
     }
     rs_report_time(rep, "denoise", rs_now() - t0);
@@ -508,7 +518,8 @@ static int run_scan(const rs_config *cfg, rs_report *rep, rs_err *err)
     int rc = -1;
     double t0 = rs_now();
     if (!rs_file_exists(rs_work_path(cfg, "cloud.ply", path, sizeof path)))
-        return rs_err_set(err, RS_ERR_INPUT, path, 0, "not found: run the ingest stage first, or set [mesh] input_mesh");
+        return rs_err_set(err, RS_ERR_INPUT, path, 0,
+                          "not found: run the ingest stage first, or set [mesh] input_mesh");
     rs_cloud *c = rs_cloud_read_ply(path, err);
     if (!c) return -1;
     rs_report_time(rep, "read", rs_now() - t0);
@@ -597,6 +608,7 @@ int rs_mesh_run(const rs_config *cfg, rs_report *rep, rs_err *err)
 {
     char dir[4096], in_path[4096];
     if (rs_workdir(cfg, dir, sizeof dir, err) != 0) return -1;
-    if (rs_config_path(cfg, "mesh", "input_mesh", in_path, sizeof in_path)) return run_input_mesh(cfg, in_path, rep, err);
+    if (rs_config_path(cfg, "mesh", "input_mesh", in_path, sizeof in_path))
+        return run_input_mesh(cfg, in_path, rep, err);
     return run_scan(cfg, rep, err);
 }

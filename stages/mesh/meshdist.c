@@ -10,17 +10,20 @@
 struct rs_meshdist {
     RTCDevice device;
     RTCScene scene;
-    rs_mesh *mesh;             /* own copy: the callback reads the triangles */
+    rs_mesh *mesh; /* own copy: the callback reads the triangles */
 };
 
 typedef struct query_state {
     const rs_mesh *m;
     double p[3];
-    double best;               /* distance of the nearest point so far */
+    double best; /* distance of the nearest point so far */
     size_t face;
 } query_state;
 
-static double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+static double dot3(const double *a, const double *b)
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
 
 void rs_closest_on_triangle(const double p[3], const double a[3], const double b[3], const double c[3], double out[3])
 {
@@ -33,9 +36,15 @@ void rs_closest_on_triangle(const double p[3], const double a[3], const double b
         cp[j] = p[j] - c[j];
     }
     double d1 = dot3(ab, ap), d2 = dot3(ac, ap);
-    if (d1 <= 0 && d2 <= 0) { memcpy(out, a, 3 * sizeof *out); return; }
+    if (d1 <= 0 && d2 <= 0) {
+        memcpy(out, a, 3 * sizeof *out);
+        return;
+    }
     double d3 = dot3(ab, bp), d4 = dot3(ac, bp);
-    if (d3 >= 0 && d4 <= d3) { memcpy(out, b, 3 * sizeof *out); return; }
+    if (d3 >= 0 && d4 <= d3) {
+        memcpy(out, b, 3 * sizeof *out);
+        return;
+    }
     double vc = d1 * d4 - d3 * d2;
     if (vc <= 0 && d1 >= 0 && d3 <= 0) {
         double v = d1 / (d1 - d3);
@@ -43,7 +52,10 @@ void rs_closest_on_triangle(const double p[3], const double a[3], const double b
         return;
     }
     double d5 = dot3(ab, cp), d6 = dot3(ac, cp);
-    if (d6 >= 0 && d5 <= d6) { memcpy(out, c, 3 * sizeof *out); return; }
+    if (d6 >= 0 && d5 <= d6) {
+        memcpy(out, c, 3 * sizeof *out);
+        return;
+    }
     double vb = d5 * d2 - d1 * d6;
     if (vb <= 0 && d2 >= 0 && d6 <= 0) {
         double w = d2 / (d2 - d6);
@@ -57,7 +69,10 @@ void rs_closest_on_triangle(const double p[3], const double a[3], const double b
         return;
     }
     double denom = va + vb + vc;
-    if (!(denom != 0)) { memcpy(out, a, 3 * sizeof *out); return; }   /* degenerate: a corner */
+    if (!(denom != 0)) {
+        memcpy(out, a, 3 * sizeof *out);
+        return;
+    } /* degenerate: a corner */
     double v = vb / denom, w = vc / denom;
     for (int j = 0; j < 3; j++) out[j] = a[j] + ab[j] * v + ac[j] * w;
 }
@@ -78,7 +93,7 @@ static bool query_cb(struct RTCPointQueryFunctionArguments *args)
         q->best = d;
         q->face = args->primID;
         if (d < args->query->radius) {
-            args->query->radius = (float)d * (1 + 1e-6f) + 1e-9f;   /* float radius: never cut the true nearest */
+            args->query->radius = (float)d * (1 + 1e-6f) + 1e-9f; /* float radius: never cut the true nearest */
             return true;
         }
     }

@@ -10,7 +10,7 @@
 #include "meshdist.h"
 
 typedef struct edge_key {
-    uint32_t a, b;             /* a < b */
+    uint32_t a, b; /* a < b */
 } edge_key;
 
 static int cmp_edge(const void *x, const void *y)

@@ -11,12 +11,12 @@
 typedef struct rs_mesh_quality {
     size_t faces, verts, edges;
     double edge_mean_m, edge_median_m, edge_p5_m, edge_p95_m, edge_min_m, edge_max_m;
-    size_t boundary_edges;     /* edges with one face */
-    size_t boundary_loops;     /* connected chains of boundary edges: holes and outer borders */
-    size_t nonmanifold_edges;  /* edges with three or more faces */
-    size_t points_tested;      /* scan points measured (evenly spread over the cloud) */
-    double dist_mean_m, dist_p95_m;   /* their distance to the mesh (capped at max_dist_m) */
-    double within_2cm;         /* share of them within 2 cm of the mesh */
+    size_t boundary_edges;          /* edges with one face */
+    size_t boundary_loops;          /* connected chains of boundary edges: holes and outer borders */
+    size_t nonmanifold_edges;       /* edges with three or more faces */
+    size_t points_tested;           /* scan points measured (evenly spread over the cloud) */
+    double dist_mean_m, dist_p95_m; /* their distance to the mesh (capped at max_dist_m) */
+    double within_2cm;              /* share of them within 2 cm of the mesh */
 } rs_mesh_quality;
 
 /* Measures m; pts (3 doubles per point, the mesh's frame) may be NULL. At most max_points of

@@ -8,11 +8,14 @@
 #include "linsolve.h"
 #include "vec.h"
 
-#define MIN_RIM_SHARE 0.8        /* of the columns must have a point below the scanner */
-#define MAX_RIM_ELEVATION -0.35  /* rad (-20 degrees): the rim must look down */
-#define MAX_TILT_COS 0.866       /* the fitted plane within 30 degrees of horizontal */
+#define MIN_RIM_SHARE     0.8   /* of the columns must have a point below the scanner */
+#define MAX_RIM_ELEVATION -0.35 /* rad (-20 degrees): the rim must look down */
+#define MAX_TILT_COS      0.866 /* the fitted plane within 30 degrees of horizontal */
 
-static double elevation(rs_v3 d) { return atan2(d.z, sqrt(d.x * d.x + d.y * d.y)); }
+static double elevation(rs_v3 d)
+{
+    return atan2(d.z, sqrt(d.x * d.x + d.y * d.y));
+}
 
 /* Least-squares plane z = k[0] x + k[1] y + k[2] through n points; 0 on success. */
 static int fit_plane(const rs_v3 *p, size_t n, double k[3])
@@ -118,14 +121,15 @@ rs_mesh *rs_nadir_cap_coarse(const rs_cloud *c, int s, double max_rms_m, int str
     free(pts);
     st->rms_m = bad ? INFINITY : sqrt(ss / nrim);
     double tilt_cos = 1 / sqrt(1 + plane[0] * plane[0] + plane[1] * plane[1]);
-    if (bad || st->rms_m > max_rms_m || tilt_cos < MAX_TILT_COS ||
-        P.z <= plane[0] * P.x + plane[1] * P.y + plane[2]) {
-        snprintf(st->why_not, sizeof st->why_not, "the ground below is not a plane under the scanner "
-                 "(rim RMS %.3g m, limit %.3g m)", st->rms_m, max_rms_m);
+    if (bad || st->rms_m > max_rms_m || tilt_cos < MAX_TILT_COS || P.z <= plane[0] * P.x + plane[1] * P.y + plane[2]) {
+        snprintf(st->why_not, sizeof st->why_not,
+                 "the ground below is not a plane under the scanner "
+                 "(rim RMS %.3g m, limit %.3g m)",
+                 st->rms_m, max_rms_m);
         goto done;
     }
     /* Rings from the rim down to the nadir, spaced like the grid's rows. */
-    for (size_t i = 1; i < nsteps; i++)      /* median step, by insertion sort (few hundred) */
+    for (size_t i = 1; i < nsteps; i++) /* median step, by insertion sort (few hundred) */
         for (size_t j = i; j > 0 && steps[j - 1] > steps[j]; j--) {
             double t = steps[j];
             steps[j] = steps[j - 1];
@@ -184,7 +188,7 @@ rs_mesh *rs_nadir_cap_coarse(const rs_cloud *c, int s, double max_rms_m, int str
                 q = rs_v3_add(P, rs_v3_scale(d, t));
             }
             float *v = cap->verts + 3 * (size_t)vid(m, K, cols, nin, col, r);
-            if (r == 0 && has[col]) {          /* bit-identical to the cloud's point for welding */
+            if (r == 0 && has[col]) { /* bit-identical to the cloud's point for welding */
                 v[0] = (float)rim[col].x, v[1] = (float)rim[col].y, v[2] = (float)rim[col].z;
             } else {
                 v[0] = (float)q.x, v[1] = (float)q.y, v[2] = (float)q.z;
@@ -270,11 +274,13 @@ rs_mesh *rs_mesh_merge_welded(const rs_mesh *a, const rs_mesh *b)
         keyed_vertex q;
         memcpy(q.p, b->verts + 3 * v, sizeof q.p);
         q.index = 0;
-        size_t lo = 0, hi = a->nverts;             /* first key >= (p, 0) */
+        size_t lo = 0, hi = a->nverts; /* first key >= (p, 0) */
         while (lo < hi) {
             size_t mid = (lo + hi) / 2;
-            if (cmp_keyed(&keys[mid], &q) < 0) lo = mid + 1;
-            else hi = mid;
+            if (cmp_keyed(&keys[mid], &q) < 0)
+                lo = mid + 1;
+            else
+                hi = mid;
         }
         map[v] = lo < a->nverts && memcmp(keys[lo].p, q.p, sizeof q.p) == 0 ? keys[lo].index : (uint32_t)nv++;
     }

@@ -9,10 +9,10 @@
 #include "mesh.h"
 
 typedef struct rs_nadir_stats {
-    size_t ring_points;        /* lowest valid point of each column used as the cap's rim */
-    double rms_m;              /* RMS distance of the rim from the fitted plane */
-    size_t triangles;          /* triangles added */
-    char why_not[160];         /* when nothing was added: the reason */
+    size_t ring_points; /* lowest valid point of each column used as the cap's rim */
+    double rms_m;       /* RMS distance of the rim from the fitted plane */
+    size_t triangles;   /* triangles added */
+    char why_not[160];  /* when nothing was added: the reason */
 } rs_nadir_stats;
 
 /* The cap for scan s of c: the plane fitted to the lowest ring of points, meshed from the ring

@@ -8,7 +8,7 @@
 
 #include "scene.h"
 
-#define BLOCK 1024
+#define BLOCK        1024
 #define MAX_ATTEMPTS 3
 /* Faces a dedup line may cross within the tolerance before it gives up. */
 #define MAX_CROSSINGS 8
@@ -16,8 +16,8 @@
 #define COS_SAME_FACING 0.7071
 
 typedef struct scan_part {
-    rs_mesh *mesh;             /* all vertices, this scan's faces */
-    size_t *global;            /* its face k is face global[k] of the input */
+    rs_mesh *mesh;  /* all vertices, this scan's faces */
+    size_t *global; /* its face k is face global[k] of the input */
     rs_scene *scene;
 } scan_part;
 
@@ -55,7 +55,7 @@ static float *smooth_normals(const rs_mesh *m)
     for (size_t f = 0; f < m->nfaces; f++) {
         rs_v3 a = rs_mesh_vert(m, m->tris[3 * f]), b = rs_mesh_vert(m, m->tris[3 * f + 1]),
               c = rs_mesh_vert(m, m->tris[3 * f + 2]);
-        rs_v3 n = rs_v3_cross(rs_v3_sub(b, a), rs_v3_sub(c, a));   /* length: twice the area */
+        rs_v3 n = rs_v3_cross(rs_v3_sub(b, a), rs_v3_sub(c, a)); /* length: twice the area */
         for (int j = 0; j < 3; j++) {
             float *v = vn + 3 * (size_t)m->tris[3 * f + j];
             v[0] += (float)n.x;
@@ -122,7 +122,7 @@ int rs_overlap_resolve(const rs_mesh *m, const int *owner, const uint8_t *guess,
                 /* Only faces of t near the centroid count (t in units of the ray's length). */
                 r->tnear = len > tol_m ? 1 - tol_m / len : 0;
                 r->tfar = 1 + tol_m / (len > 0 ? len : 1);
-                if (owner[f] == t || drop[f]) r->tnear = r->tfar = NAN;   /* skipped: not finite */
+                if (owner[f] == t || drop[f]) r->tnear = r->tfar = NAN; /* skipped: not finite */
             }
             /* The first face in the window may be another surface (the wall beside a floor,
              * at a corner): look past it, a few times. */
@@ -133,7 +133,7 @@ int rs_overlap_resolve(const rs_mesh *m, const int *owner, const uint8_t *guess,
                     if (!isfinite(r->tnear)) continue;
                     rays++;
                     const rs_hit *h = &hit[f - start];
-                    r->tnear = r->tfar = NAN;   /* done with f unless it looks further below */
+                    r->tnear = r->tfar = NAN; /* done with f unless it looks further below */
                     if (h->face == RS_NO_HIT) continue;
                     rs_v3 n_t = rs_v3_from_f(sn + 3 * parts[t].global[h->face]), c = cen[f - start];
                     rs_v3 n = nrm[f - start];
@@ -194,7 +194,7 @@ int rs_overlap_dedup(rs_mesh *m, double tol_m, size_t *removed, rs_err *err)
     for (size_t f = 0; f < m->nfaces; f++)
         for (int j = 1; j < 3; j++) {
             uint32_t a = root(parent, m->tris[3 * f]), b = root(parent, m->tris[3 * f + j]);
-            if (a != b) parent[a < b ? b : a] = a < b ? a : b;   /* smaller index as root: order-free */
+            if (a != b) parent[a < b ? b : a] = a < b ? a : b; /* smaller index as root: order-free */
         }
     for (size_t v = 0; v < m->nverts; v++) parent[v] = root(parent, (uint32_t)v);
     if (!(sc = rs_scene_new(m, err))) goto out;
@@ -218,7 +218,7 @@ int rs_overlap_dedup(rs_mesh *m, double tol_m, size_t *removed, rs_err *err)
             rs_scene_intersect(sc, &r, &h, 1);
             uint32_t g = h.face;
             if (g == RS_NO_HIT) break;
-            r.tnear = h.t + 1e-6;   /* 1 um past the face crossed: beyond float rounding of t */
+            r.tnear = h.t + 1e-6; /* 1 um past the face crossed: beyond float rounding of t */
             if (g == f || parent[m->tris[3 * (size_t)g]] == parent[m->tris[3 * f]]) continue;
             if (rs_v3_dot(rs_scene_normal(sc, g), n) < COS_SAME_FACING) continue;
             double area_g;

@@ -11,8 +11,8 @@
 #include "mesh.h"
 
 typedef struct rs_overlap_stats {
-    size_t dropped;            /* faces dropped: another scan saw their surface better */
-    size_t dropped_guess;      /* of which guessed faces (nadir caps) covered by a real observation */
+    size_t dropped;       /* faces dropped: another scan saw their surface better */
+    size_t dropped_guess; /* of which guessed faces (nadir caps) covered by a real observation */
     size_t rays;
 } rs_overlap_stats;
 

@@ -17,17 +17,17 @@
 /* An edge of the current mesh, in the heap of candidate collapses or out of it (refused
  * until its neighbourhood changes, or dead). */
 typedef struct edge {
-    uint32_t a, b;             /* a < b */
-    uint32_t pos;              /* index in the heap, or OUT / DEAD */
+    uint32_t a, b; /* a < b */
+    uint32_t pos;  /* index in the heap, or OUT / DEAD */
     double cost;
 } edge;
-#define OUT UINT32_MAX
+#define OUT  UINT32_MAX
 #define DEAD (UINT32_MAX - 1)
 
 /* The heap holds each edge's sort key beside its id, so that comparisons stay in the heap. */
 typedef struct heap_entry {
     double cost;
-    uint64_t ab;               /* a << 32 | b: ties go by vertex index */
+    uint64_t ab; /* a << 32 | b: ties go by vertex index */
     uint32_t id;
 } heap_entry;
 
@@ -39,7 +39,7 @@ typedef struct id_list {
 
 /* One vertex's neighbours: for each, how many of the vertex's live faces hold it and one such face. */
 typedef struct nbset {
-    uint32_t *mark, *slot;     /* per mesh vertex: stamp of the last gather, index into v */
+    uint32_t *mark, *slot; /* per mesh vertex: stamp of the last gather, index into v */
     uint32_t stamp;
     uint32_t *v, *cnt, *face;
     size_t n, cap;
@@ -49,18 +49,18 @@ typedef struct simp {
     const rs_simplify_opts *o;
     rs_simplify_stats *st;
     size_t nv, nf;
-    double *pos;               /* 3 per vertex, recentred on the bounding box */
-    double *Q;                 /* 10 per vertex: A (6), b (3), c of x'Ax + 2b'x + c */
-    double *w;                 /* per vertex: face area gathered in its quadric (m^2) */
+    double *pos; /* 3 per vertex, recentred on the bounding box */
+    double *Q;   /* 10 per vertex: A (6), b (3), c of x'Ax + 2b'x + c */
+    double *w;   /* per vertex: face area gathered in its quadric (m^2) */
     uint32_t *tri;
     uint8_t *face_dead, *retry;
-    id_list *vf, *ve;          /* per vertex: its faces, its edges */
+    id_list *vf, *ve; /* per vertex: its faces, its edges */
     edge *edges;
     size_t nedges;
-    heap_entry *heap;          /* a binary min-heap of edges on (cost, a, b) */
+    heap_entry *heap; /* a binary min-heap of edges on (cost, a, b) */
     size_t hn;
     nbset nb[2];
-    double centre[3];          /* subtracted from the input coordinates */
+    double centre[3]; /* subtracted from the input coordinates */
     double edge_sum;
     size_t edge_count, faces_alive;
     double cos_turn;
@@ -77,8 +77,16 @@ void rs_simplify_defaults(rs_simplify_opts *o)
 
 /* ---- small geometry ---- */
 
-static void sub3(const double *a, const double *b, double *r) { r[0] = a[0] - b[0]; r[1] = a[1] - b[1]; r[2] = a[2] - b[2]; }
-static double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+static void sub3(const double *a, const double *b, double *r)
+{
+    r[0] = a[0] - b[0];
+    r[1] = a[1] - b[1];
+    r[2] = a[2] - b[2];
+}
+static double dot3(const double *a, const double *b)
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
 static void cross3(const double *a, const double *b, double *r)
 {
     r[0] = a[1] * b[2] - a[2] * b[1];
@@ -131,7 +139,7 @@ static void quadric_add_plane(double *q, const double *n, double d, double w)
 static double quadric_eval(const double *q, const double *x)
 {
     return q[0] * x[0] * x[0] + 2 * q[1] * x[0] * x[1] + 2 * q[2] * x[0] * x[2] + q[3] * x[1] * x[1] +
-           2 * q[4] * x[1] * x[2] + q[5] * x[2] * x[2] + 2 * (q[6] * x[0] + q[7] * x[1] + q[8] * x[2]) + q[9];
+        2 * q[4] * x[1] * x[2] + q[5] * x[2] * x[2] + 2 * (q[6] * x[0] + q[7] * x[1] + q[8] * x[2]) + q[9];
 }
 
 /* Cost of collapsing edge (a, b) and the position x of the merged vertex. */
@@ -154,10 +162,10 @@ static double evaluate(const simp *s, uint32_t a, uint32_t b, double *x)
         x[1] = (c01 * r0 + c11 * r1 + c12 * r2) / det;
         x[2] = (c02 * r0 + c12 * r1 + c22 * r2) / det;
     } else {
-        memcpy(x, m, sizeof m);   /* no area around the edge: nothing to fit */
+        memcpy(x, m, sizeof m); /* no area around the edge: nothing to fit */
     }
     double cost = quadric_eval(q, x);
-    if (!(cost > 0)) cost = 0;   /* rounding */
+    if (!(cost > 0)) cost = 0; /* rounding */
     double e[3];
     sub3(pa, pb, e);
     return cost + s->o->length_weight * (s->w[a] + s->w[b]) * dot3(e, e);
@@ -286,7 +294,10 @@ static int gather(simp *s, uint32_t v, nbset *nb)
     return 0;
 }
 
-static int in_set(const nbset *nb, uint32_t u) { return nb->mark[u] == nb->stamp; }
+static int in_set(const nbset *nb, uint32_t u)
+{
+    return nb->mark[u] == nb->stamp;
+}
 
 static int face_has(const simp *s, uint32_t f, uint32_t v)
 {
@@ -355,12 +366,12 @@ static int try_collapse(simp *s, uint32_t e)
     uint32_t a = s->edges[e].a, b = s->edges[e].b;
     nbset *A = &s->nb[0], *B = &s->nb[1];
     if (gather(s, a, A) != 0 || gather(s, b, B) != 0) return -1;
-    if (!in_set(A, b)) {   /* cannot happen while edges and faces agree; never retry it */
+    if (!in_set(A, b)) { /* cannot happen while edges and faces agree; never retry it */
         s->edges[e].pos = DEAD;
         return 0;
     }
     uint32_t shared = A->cnt[A->slot[b]];
-    if (shared > 2) {   /* a non-manifold edge stays as it is */
+    if (shared > 2) { /* a non-manifold edge stays as it is */
         s->st->rejected_topology++;
         return 0;
     }

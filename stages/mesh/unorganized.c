@@ -46,7 +46,7 @@ static int spacing(const float *xyz, size_t n, double *med, double *p90, rs_err 
  * spacing varies 1 to 4 cm with range, into pieces the simplifier cannot join; a tangent
  * tolerance of 0.5 leaves two_planes_sky's bulges (p95 35 mm against 18 mm at 0.25). Returns
  * the count of faces removed, or (size_t)-1. */
-#define TRIM_REACH 3.0
+#define TRIM_REACH  3.0
 #define TRIM_NORMAL 0.25
 static size_t trim(rs_mesh *m, const float *xyz, const float *nrm, size_t n, double cell_m, rs_err *err)
 {
@@ -61,7 +61,8 @@ static size_t trim(rs_mesh *m, const float *xyz, const float *nrm, size_t n, dou
     for (size_t f = 0; f < m->nfaces; f++)
         for (int j = 0; j < 3; j++)
             cen[3 * f + j] = (m->verts[3 * (size_t)m->tris[3 * f] + j] + m->verts[3 * (size_t)m->tris[3 * f + 1] + j] +
-                              m->verts[3 * (size_t)m->tris[3 * f + 2] + j]) / 3.0f;
+                              m->verts[3 * (size_t)m->tris[3 * f + 2] + j]) /
+                3.0f;
     if (rs_pcl_nearest(xyz, n, xyz, n, 1, gap, NULL, err) != 0 ||
         rs_pcl_nearest(xyz, n, cen, m->nfaces, 0, d, near, err) != 0)
         goto out;
@@ -152,7 +153,8 @@ rs_mesh *rs_unorg_mesh(const rs_cloud *c, const rs_unorg_opts *o, rs_unorg_stats
 {
     memset(st, 0, sizeof *st);
     if (!c->has_viewpoint) {
-        rs_err_set(err, RS_ERR_INPUT, NULL, 0, "an unorganized cloud needs its scanner position to orient the surface: "
+        rs_err_set(err, RS_ERR_INPUT, NULL, 0,
+                   "an unorganized cloud needs its scanner position to orient the surface: "
                    "expected [ingest] scanner_position = X Y Z (world frame, metres)");
         return NULL;
     }
@@ -225,8 +227,10 @@ rs_mesh *rs_unorg_mesh(const rs_cloud *c, const rs_unorg_opts *o, rs_unorg_stats
         m = compact(pv, nv, tris, tmp.nfaces, err);
     }
     if (m && m->nfaces == 0) {
-        rs_err_set(err, RS_ERR_INPUT, NULL, 0, "surface reconstruction of %zu points gave no triangle (median spacing "
-                   "%.3g m); expected a scan of surfaces", n, st->spacing_median_m);
+        rs_err_set(err, RS_ERR_INPUT, NULL, 0,
+                   "surface reconstruction of %zu points gave no triangle (median spacing "
+                   "%.3g m); expected a scan of surfaces",
+                   n, st->spacing_median_m);
         rs_mesh_free(m);
         m = NULL;
     }

@@ -9,22 +9,22 @@
 #include "mesh.h"
 
 typedef struct rs_unorg_opts {
-    int poisson;               /* 0: greedy projection triangulation, 1: Poisson */
+    int poisson; /* 0: greedy projection triangulation, 1: Poisson */
     int normal_neighbours;
-    double max_edge_m;         /* greedy: search radius; <= 0: 8 x the 90th percentile spacing */
+    double max_edge_m; /* greedy: search radius; <= 0: 8 x the 90th percentile spacing */
     int poisson_depth;
-    int threads;               /* 0: all cores */
+    int threads; /* 0: all cores */
 } rs_unorg_opts;
 
 typedef struct rs_unorg_stats {
     size_t points;
-    double spacing_median_m, spacing_p90_m;   /* nearest-neighbour distances */
-    double max_edge_m;         /* greedy: the search radius used */
-    size_t faces_raw;          /* from PCL, before trimming */
-    size_t faces_trimmed;      /* Poisson: faces far from every point, removed */
-    size_t faces_pieces;       /* Poisson: faces of small pieces left by the trim, removed */
-    double cell_m;             /* Poisson: the octree's finest cell */
-    size_t points_no_normal;   /* too few neighbours for a normal */
+    double spacing_median_m, spacing_p90_m; /* nearest-neighbour distances */
+    double max_edge_m;                      /* greedy: the search radius used */
+    size_t faces_raw;                       /* from PCL, before trimming */
+    size_t faces_trimmed;                   /* Poisson: faces far from every point, removed */
+    size_t faces_pieces;                    /* Poisson: faces of small pieces left by the trim, removed */
+    double cell_m;                          /* Poisson: the octree's finest cell */
+    size_t points_no_normal;                /* too few neighbours for a normal */
 } rs_unorg_stats;
 
 /* Meshes the valid points of c outside its scan grids, seen from c->viewpoint (required: it

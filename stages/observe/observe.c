@@ -18,12 +18,12 @@
 #include "stages.h"
 
 typedef struct {
-    uint32_t face;             /* facet hit by the pixel's centre ray, RS_NO_HIT if none */
-    uint8_t pure;              /* all guard rays hit the same facet, from the front */
-    uint8_t smooth;            /* all sub-pixel rays hit one surface: the centre hit's plane, from
+    uint32_t face;  /* facet hit by the pixel's centre ray, RS_NO_HIT if none */
+    uint8_t pure;   /* all guard rays hit the same facet, from the front */
+    uint8_t smooth; /* all sub-pixel rays hit one surface: the centre hit's plane, from
                                   the front, no silhouette or crease inside the pixel */
-    float weight;              /* footprint area on the facet (m^2), 0 when not usable */
-    float depth;               /* distance to the hit (m) */
+    float weight;   /* footprint area on the facet (m^2), 0 when not usable */
+    float depth;    /* distance to the hit (m) */
 } pixel_hit;
 
 /* Casts a centre ray and four guard rays per pixel, row by row. */
@@ -34,8 +34,11 @@ static void trace_pixels(const rs_scene *scene, const rs_capture *cap, double co
     /* The four guard rays sit `guard` pixels from the centre along the diagonals: a camera's
      * pixel integrates a footprint wider than the pixel (lens blur, demosaicing, a renderer's
      * 1.5-pixel filter), and next to a sky 50 times brighter a 1 % leak is a 50 % error. */
-    const double sub[5][2] = {{0.5, 0.5}, {0.5 - guard, 0.5 - guard}, {0.5 + guard, 0.5 - guard},
-                              {0.5 - guard, 0.5 + guard}, {0.5 + guard, 0.5 + guard}};
+    const double sub[5][2] = {{0.5, 0.5},
+                              {0.5 - guard, 0.5 - guard},
+                              {0.5 + guard, 0.5 - guard},
+                              {0.5 - guard, 0.5 + guard},
+                              {0.5 + guard, 0.5 + guard}};
     /* The ray directions' azimuth terms depend on the column only: cos and sin of phi once per
      * column and sub-pixel offset (the profile had a fifth of this stage in sincos), computed
      * as rs_pano_uv_to_dir does, so the directions are the same to the bit. */
@@ -57,7 +60,7 @@ static void trace_pixels(const rs_scene *scene, const rs_capture *cap, double co
             for (int s = 0; s < 5; s++) rs_sincos_pi((r + sub[s][1]) / h, &st[s], &ct[s]);
             for (int c = 0; c < w; c++)
                 for (int s = 0; s < 5; s++) {
-                    const double *cs = azi ? azi + 2 * (5 * c + s) : NULL;   /* out of memory: the slow way */
+                    const double *cs = azi ? azi + 2 * (5 * c + s) : NULL; /* out of memory: the slow way */
                     rs_v3 d = cs ? rs_v3_make(st[s] * cs[0], st[s] * cs[1], ct[s])
                                  : rs_pano_uv_to_dir((c + sub[s][0]) / w, (r + sub[s][1]) / h);
                     rs_ray *ray = &rays[5 * c + s];
@@ -93,7 +96,7 @@ static void trace_pixels(const rs_scene *scene, const rs_capture *cap, double co
                         smooth = 0;
                 }
                 double cosv = -rs_v3_dot(rays[5 * c].dir, rs_scene_normal(scene, hc->face));
-                if (cosv < cos_max_view) continue;   /* grazing: footprint unbounded */
+                if (cosv < cos_max_view) continue; /* grazing: footprint unbounded */
                 p->pure = (uint8_t)pure;
                 p->smooth = (uint8_t)smooth;
                 p->weight = (float)(omega * (double)hc->t * hc->t / cosv);
@@ -135,7 +138,7 @@ static int small_facet_radiance(const rs_scene *scene, const rs_capture *cap, co
                                 int npoints, double cos_max_view, const float *noise2, double rgb[3],
                                 double *visible_share, double *var_rel)
 {
-    uint32_t pix[4096];        /* [observe] facet_points is at most 4096 */
+    uint32_t pix[4096]; /* [observe] facet_points is at most 4096 */
     const rs_mesh *m = rs_scene_mesh(scene);
     rs_v3 a = rs_mesh_vert(m, m->tris[3 * f]), b = rs_mesh_vert(m, m->tris[3 * f + 1]),
           c = rs_mesh_vert(m, m->tris[3 * f + 2]);
@@ -185,9 +188,9 @@ static double pixel_noise(const rs_scene *scene, const rs_capture *cap, const pi
     double *azi = malloc((size_t)w * 2 * sizeof *azi), *pol = malloc((size_t)h * 2 * sizeof *pol);
     for (int c = 0; azi && pol && c < w; c++) rs_sincos_pi(1.0 - 2.0 * ((c + 0.5) / w), &azi[2 * c + 1], &azi[2 * c]);
     for (int r = 0; azi && pol && r < h; r++) rs_sincos_pi((r + 0.5) / h, &pol[2 * r], &pol[2 * r + 1]);
-#define PIXEL_DIR(c, r)                                                                                 \
+#define PIXEL_DIR(c, r)                                                                                      \
     (azi && pol ? rs_v3_make(pol[2 * (r)] * azi[2 * (c)], pol[2 * (r)] * azi[2 * (c) + 1], pol[2 * (r) + 1]) \
-                : rs_pano_uv_to_dir(((c) + 0.5) / w, ((r) + 0.5) / h))   /* out of memory: the slow way */
+                : rs_pano_uv_to_dir(((c) + 0.5) / w, ((r) + 0.5) / h)) /* out of memory: the slow way */
 #pragma omp parallel for schedule(dynamic, 8)
     for (int r = 0; r < h; r++)
         for (int c = 0; c < w; c++) {
@@ -196,8 +199,7 @@ static double pixel_noise(const rs_scene *scene, const rs_capture *cap, const pi
             const float *a = cap->pano->data + 3 * k;
             if (px[k].face == RS_NO_HIT || !px[k].smooth || !rs_capture_pixel_ok(a)) continue;
             rs_v3 n = rs_scene_normal(scene, px[k].face);
-            rs_v3 x = rs_v3_scale(rs_pose_dir_to_world(&cap->pose, PIXEL_DIR(c, r)),
-                                  px[k].depth);
+            rs_v3 x = rs_v3_scale(rs_pose_dir_to_world(&cap->pose, PIXEL_DIR(c, r)), px[k].depth);
             const int nb[4][2] = {{0, 2}, {0, -2}, {2, 0}, {-2, 0}};
             double acc = 0;
             int pairs = 0;
@@ -208,8 +210,7 @@ static double pixel_noise(const rs_scene *scene, const rs_capture *cap, const pi
                 const float *b = cap->pano->data + 3 * k2;
                 if (px[k2].face == RS_NO_HIT || !px[k2].smooth || !rs_capture_pixel_ok(b)) continue;
                 if (rs_v3_dot(n, rs_scene_normal(scene, px[k2].face)) < 0.999) continue;
-                rs_v3 x2 = rs_v3_scale(rs_pose_dir_to_world(&cap->pose, PIXEL_DIR(c2, r2)),
-                                       px[k2].depth);
+                rs_v3 x2 = rs_v3_scale(rs_pose_dir_to_world(&cap->pose, PIXEL_DIR(c2, r2)), px[k2].depth);
                 if (fabs(rs_v3_dot(n, rs_v3_sub(x2, x))) > 0.01 * px[k].depth) continue;
                 double d2 = 0;
                 int chs = 0;
@@ -246,8 +247,7 @@ static int write_facet_ids(const rs_config *cfg, const rs_capture *cap, const pi
     int w = cap->pano->width, h = cap->pano->height;
     rs_image *ids = rs_image_new(w, h, 1);
     if (!ids) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
-    for (size_t k = 0; k < (size_t)w * h; k++)
-        ids->data[k] = px[k].face == RS_NO_HIT ? -1.0f : (float)px[k].face;
+    for (size_t k = 0; k < (size_t)w * h; k++) ids->data[k] = px[k].face == RS_NO_HIT ? -1.0f : (float)px[k].face;
     char path[4096];
     static const char *const names[] = {"Y"};
     int rc = rs_image_write_exr(ids, rs_work_path(cfg, "facet_id.exr", path, sizeof path), names, 0,
@@ -271,8 +271,7 @@ int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     if (!mesh) return -1;
     if (rs_capture_load(cfg, "capture", &cap, err) != 0) goto out;
     if (cap.nonfinite || cap.negative)
-        rs_log_warn("%s: %zu non-finite and %zu negative pixels are excluded", cap.path, cap.nonfinite,
-                    cap.negative);
+        rs_log_warn("%s: %zu non-finite and %zu negative pixels are excluded", cap.path, cap.nonfinite, cap.negative);
     double t0 = rs_now();
     if (!(scene = rs_scene_new(mesh, err))) goto out;
     rs_report_time(rep, "bvh", rs_now() - t0);
@@ -299,7 +298,7 @@ int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_report_time(rep, "trace_pixels", rs_now() - t0);
     t0 = rs_now();
     double noise_median = pixel_noise(scene, &cap, px, noise2);
-    for (size_t k = 0; k < npx; k++)       /* no same-surface pair: the image's typical noise */
+    for (size_t k = 0; k < npx; k++) /* no same-surface pair: the image's typical noise */
         if (noise2[k] < 0) noise2[k] = (float)noise_median;
     rs_report_time(rep, "pixel_noise", rs_now() - t0);
 
@@ -317,7 +316,7 @@ int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         uint32_t f = px[k].face;
         for (int ch = 0; ch < 3; ch++) rgb[3 * f + ch] += (double)px[k].weight * v[ch];
         wsum[f] += px[k].weight;
-        var_rel[f] += (double)px[k].weight * px[k].weight * noise2[k];   /* / wsum^2 below */
+        var_rel[f] += (double)px[k].weight * px[k].weight * noise2[k]; /* / wsum^2 below */
         npix[f] += 1;
     }
 
@@ -337,10 +336,10 @@ int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         var_rel[f] = 0;
         if (rs_v3_len(rs_scene_normal(scene, (uint32_t)f)) == 0) {
             rgb[3 * f] = rgb[3 * f + 1] = rgb[3 * f + 2] = 0;
-            continue;      /* degenerate facet */
+            continue; /* degenerate facet */
         }
-        int used = small_facet_radiance(scene, &cap, px, (uint32_t)f, facet_points, cos_max_view, noise2, l, &share,
-                                        &v);
+        int used =
+            small_facet_radiance(scene, &cap, px, (uint32_t)f, facet_points, cos_max_view, noise2, l, &share, &v);
         if (used > 0 && share >= min_visible) {
             for (int ch = 0; ch < 3; ch++) rgb[3 * f + ch] = l[ch];
             var_rel[f] = v;
@@ -378,7 +377,7 @@ int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory building observe.ply");
         goto out;
     }
-    for (size_t f = 0; f < nf; f++) wsum[f] = observed[f];   /* wsum is free now: the flag as doubles */
+    for (size_t f = 0; f < nf; f++) wsum[f] = observed[f]; /* wsum is free now: the flag as doubles */
     for (size_t f = 0; f < nf; f++) var_rel[f] = observed[f] ? sqrt(var_rel[f]) : 0;
     if (!rs_ply_add_scalar(faces, "observed", RS_PLY_UINT8, wsum) ||
         !rs_ply_add_scalar(faces, "radiance_sigma_rel", RS_PLY_FLOAT32, var_rel)) {
@@ -386,8 +385,9 @@ int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         goto out;
     }
     rs_ply_add_comment(out, "rhoscan %s observe: radiance_* is the observed radiance of each facet", RHOSCAN_VERSION);
-    rs_ply_add_comment(out, "radiance_sigma_rel: relative standard error of radiance_* from the pixels' noise (each "
-                            "pixel's from its same-surface neighbours two pixels away; median pixel noise %.4g)",
+    rs_ply_add_comment(out,
+                       "radiance_sigma_rel: relative standard error of radiance_* from the pixels' noise (each "
+                       "pixel's from its same-surface neighbours two pixels away; median pixel noise %.4g)",
                        sqrt(noise_median));
     if (rs_ply_write(out, rs_work_path(cfg, "observe.ply", path, sizeof path), 1, err) != 0) goto out;
 
@@ -404,8 +404,8 @@ int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     if (nf - by_pixels - by_points)
         rs_report_skip(rep, "unobserved facets", "%zu facets are hidden from the camera or seen too little",
                        nf - by_pixels - by_points);
-    rs_log_info("observe: %zu facets, %zu observed by pixels, %zu by points; %.1f %% of the seen area observed",
-                nf, by_pixels, by_points, area_seen > 0 ? 100 * area_obs / area_seen : 0.0);
+    rs_log_info("observe: %zu facets, %zu observed by pixels, %zu by points; %.1f %% of the seen area observed", nf,
+                by_pixels, by_points, area_seen > 0 ? 100 * area_obs / area_seen : 0.0);
     rc = 0;
 out:
     rs_ply_free(out);

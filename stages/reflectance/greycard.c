@@ -11,7 +11,10 @@
 #include "log.h"
 #include "stage.h"
 
-static double lum3(const double *v) { return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; }
+static double lum3(const double *v)
+{
+    return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
+}
 
 int rs_greycard_report(const rs_config *cfg, size_t nf, const double *esky, const double *g, const double *rho,
                        const uint8_t *estimable, rs_json *metrics, rs_err *err)
@@ -21,7 +24,8 @@ int rs_greycard_report(const rs_config *cfg, size_t nf, const double *esky, cons
     int x0, y0, x1, y1, used = 0;
     if (sscanf(text, "%d %d %d %d %n", &x0, &y0, &x1, &y1, &used) != 4 || text[used] || x1 <= x0 || y1 <= y0 ||
         x0 < 0 || y0 < 0)
-        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0, "[calib] grey_card_region = \"%s\": expected "
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                          "[calib] grey_card_region = \"%s\": expected "
                           "4 pixel indices x0 y0 x1 y1 >= 0 with x0 < x1, y0 < y1 (columns x0..x1-1, rows y0..y1-1)",
                           text);
     double albedo = rs_config_real(cfg, "calib", "grey_card_albedo");
@@ -39,8 +43,10 @@ int rs_greycard_report(const rs_config *cfg, size_t nf, const double *esky, cons
         goto out;
     }
     if (x1 > w || y1 > h) {
-        rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0, "[calib] grey_card_region = \"%s\" reaches past the "
-                   "%d x %d panorama %s: expected x1 <= %d, y1 <= %d", text, w, h, cap.path, w, h);
+        rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                   "[calib] grey_card_region = \"%s\" reaches past the "
+                   "%d x %d panorama %s: expected x1 <= %d, y1 <= %d",
+                   text, w, h, cap.path, w, h);
         goto out;
     }
     double L[3] = {0, 0, 0}, E[3] = {0, 0, 0}, R[3] = {0, 0, 0};
@@ -71,9 +77,10 @@ int rs_greycard_report(const rs_config *cfg, size_t nf, const double *esky, cons
         }
     free(seen);
     if (!npx) {
-        rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0, "[calib] grey_card_region = \"%s\": none of its pixels "
-                   "of %s shows a facet of the model with a usable value: expected the region on the card", text,
-                   cap.path);
+        rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                   "[calib] grey_card_region = \"%s\": none of its pixels "
+                   "of %s shows a facet of the model with a usable value: expected the region on the card",
+                   text, cap.path);
         goto out;
     }
     double implied[3];

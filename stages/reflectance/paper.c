@@ -57,7 +57,7 @@ int rs_paper_kernel(const rs_mesh *mesh, float **K_out, double *pairs_tested, rs
             }
             tested += 1;
             if (!visible) continue;
-            double g = cos_i * cos_j / d2;            /* symmetric part; times the emitter's area */
+            double g = cos_i * cos_j / d2; /* symmetric part; times the emitter's area */
             K[i * m + j] = (float)(g * area[j]);
             K[j * m + i] = (float)(g * area[i]);
         }

@@ -9,14 +9,14 @@
 #include "select.h"
 
 typedef struct {
-    const uint8_t *wanted;     /* facets that search (NULL: all) */
-    double a, h;               /* accuracy, cell size */
+    const uint8_t *wanted; /* facets that search (NULL: all) */
+    double a, h;           /* accuracy, cell size */
     rs_v3 lo;
     rs_v3 *c, *n;
     double *area, *R, *radius; /* R: harmonic mean distance (INFINITY: sees no facet) */
     int32_t *cell;             /* 3 per facet */
     size_t *bucket_start, mask;
-    uint32_t *members;         /* facets sorted by bucket */
+    uint32_t *members; /* facets sorted by bucket */
 } grid;
 
 typedef struct {
@@ -27,12 +27,15 @@ typedef struct {
 static size_t cell_hash(const int32_t *k, size_t mask)
 {
     uint64_t h = (uint64_t)(uint32_t)k[0] * 73856093u ^ (uint64_t)(uint32_t)k[1] * 19349663u ^
-                 (uint64_t)(uint32_t)k[2] * 83492791u;
+        (uint64_t)(uint32_t)k[2] * 83492791u;
     h ^= h >> 29;
     return (size_t)(h * 0xbf58476d1ce4e5b9ULL >> 17) & mask;
 }
 
-static int32_t cell_of(double x, double lo, double h) { return (int32_t)floor((x - lo) / h); }
+static int32_t cell_of(double x, double lo, double h)
+{
+    return (int32_t)floor((x - lo) / h);
+}
 
 static int by_eps(const void *a, const void *b)
 {
@@ -89,12 +92,12 @@ static size_t neighbours(const grid *g, uint32_t i, cand **buf, size_t *cap, can
                     uint32_t j = g->members[q];
                     const int32_t *kj = g->cell + 3 * (size_t)j;
                     if (j == i || (!all && (kj[0] != k[0] || kj[1] != k[1] || kj[2] != k[2]))) continue;
-                    if (try_candidate(g, i, j, buf, cap, &nc) != 0) return 0;   /* out of memory */
+                    if (try_candidate(g, i, j, buf, cap, &nc) != 0) return 0; /* out of memory */
                 }
                 if (all) goto searched;
             }
 searched:
-    if (!nc) return 1;         /* none: buf may not exist yet (qsort and memcpy take no NULL) */
+    if (!nc) return 1; /* none: buf may not exist yet (qsort and memcpy take no NULL) */
     /* The order of the buckets must not decide which neighbours are kept, nor the sums. */
     qsort(*buf, nc, sizeof **buf, by_eps);
     if (nc > RS_POOL_MAX_NEIGHBOURS - 1) nc = RS_POOL_MAX_NEIGHBOURS - 1;

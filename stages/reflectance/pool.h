@@ -20,14 +20,14 @@
 #include "mesh.h"
 
 /* The disk's size in facets of a facet's own area, and a hard cap on the neighbours kept. */
-#define RS_POOL_FACETS 32
+#define RS_POOL_FACETS         32
 #define RS_POOL_MAX_NEIGHBOURS 64
 
 typedef struct rs_pool {
     size_t nf;
-    size_t *start;             /* nf + 1: facet i's neighbours are nbr[start[i] .. start[i + 1]) */
-    uint32_t *nbr;             /* itself first */
-    float *w;                  /* their weights, summing to 1 per facet */
+    size_t *start; /* nf + 1: facet i's neighbours are nbr[start[i] .. start[i + 1]) */
+    uint32_t *nbr; /* itself first */
+    float *w;      /* their weights, summing to 1 per facet */
 } rs_pool;
 
 /* Builds the neighbour lists. inv_dist: per facet, mean 1 / hit distance (1/m, 0: R infinite);

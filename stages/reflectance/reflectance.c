@@ -37,35 +37,35 @@
  * estimable area, so a class seen on a few facets does not take their noise. */
 enum { RS_FILL_UP, RS_FILL_SIDE, RS_FILL_DOWN, RS_FILL_CLASSES };
 static const char *const fill_class_name[RS_FILL_CLASSES] = {"up", "side", "down"};
-#define RS_FILL_CLASS_COS 0.70710678   /* normal within 45 degrees of straight up or down */
+#define RS_FILL_CLASS_COS   0.70710678 /* normal within 45 degrees of straight up or down */
 #define RS_FILL_PRIOR_SHARE 0.01
 
 typedef struct {
     size_t nf;
     const double *area, *L, *esky, *gseen;
-    const double *sky_filled, *esky_sigma, *mc_sigma;   /* from irradiance.ply */
-    const double *L_sigma_rel;               /* from observe.ply */
+    const double *sky_filled, *esky_sigma, *mc_sigma; /* from irradiance.ply */
+    const double *L_sigma_rel;                        /* from observe.ply */
     double sigma_floor;
     const uint8_t *observed;
-    const rs_transport *K;     /* gather kernel (interreflection) */
-    const float *dense;        /* paper kernel, m * m (paper) */
-    int method;                /* 0 interreflection, 1 direct, 2 paper */
+    const rs_transport *K; /* gather kernel (interreflection) */
+    const float *dense;    /* paper kernel, m * m (paper) */
+    int method;            /* 0 interreflection, 1 direct, 2 paper */
     double min_irradiance;
     int fill_given;
     double fill_given_value;
-    const uint8_t *orient;     /* fill class per facet (fill_class_of); NULL: one fill for all */
-    const double *esun;        /* the sun's part of esky, never pooled (irradiance.ply) */
-    const rs_pool *pool;       /* NULL: each facet's own gather (pool.h) */
+    const uint8_t *orient; /* fill class per facet (fill_class_of); NULL: one fill for all */
+    const double *esun;    /* the sun's part of esky, never pooled (irradiance.ply) */
+    const rs_pool *pool;   /* NULL: each facet's own gather (pool.h) */
 } refl_in;
 
 typedef struct {
     double *rho, *G, *Lfill;
-    double *E, *scratch;       /* E_sky + G as divided by (pooled), and room for 3 per facet */
+    double *E, *scratch; /* E_sky + G as divided by (pooled), and room for 3 per facet */
     uint8_t *estimable;
-    double fill[3];            /* the mean of all estimable facets */
-    double fill_class[RS_FILL_CLASSES][3];   /* what unobserved facets of each orientation take */
+    double fill[3];                        /* the mean of all estimable facets */
+    double fill_class[RS_FILL_CLASSES][3]; /* what unobserved facets of each orientation take */
     int iterations;
-    size_t blowups;            /* paper: rows whose kernel sums past pi */
+    size_t blowups; /* paper: rows whose kernel sums past pi */
 } refl_out;
 
 static uint8_t fill_class_of(rs_v3 n)
@@ -81,7 +81,10 @@ static const double *fill_of(const refl_in *in, const refl_out *out, size_t i)
 /* P(|N(0, 1)| <= 1.2816) = 0.80: the two-sided 80 % bound of a normal error, in sigmas. */
 #define RS_NORMAL_Z80 1.2816
 
-static double lum3(const double *v) { return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; }
+static double lum3(const double *v)
+{
+    return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
+}
 
 static int cmp_double(const void *a, const void *b)
 {
@@ -140,7 +143,7 @@ static void estimate(const refl_in *in, refl_out *out, double Emin)
         if (in->method == 2 && in->dense) {
             double rs = 0;
             for (size_t j = 0; j < in->nf; j++) rs += in->dense[i * in->nf + j];
-            if (rs > M_PI) ok = 0;   /* point-to-point form factor blew up: not written out */
+            if (rs > M_PI) ok = 0; /* point-to-point form factor blew up: not written out */
         }
         out->estimable[i] = (uint8_t)ok;
         for (int ch = 0; ch < 3; ch++) out->rho[3 * i + ch] = ok ? M_PI * in->L[3 * i + ch] / E[ch] : 0;
@@ -155,9 +158,8 @@ static void estimate(const refl_in *in, refl_out *out, double Emin)
         double s = sum[0][ch] + sum[1][ch] + sum[2][ch];
         out->fill[ch] = in->fill_given ? in->fill_given_value : (all > 0 ? s / all : 0.5);
         for (int c = 0; c < RS_FILL_CLASSES; c++)
-            out->fill_class[c][ch] = in->fill_given || !(all > 0)
-                                         ? out->fill[ch]
-                                         : (sum[c][ch] + prior * out->fill[ch]) / (wsum[c] + prior);
+            out->fill_class[c][ch] =
+                in->fill_given || !(all > 0) ? out->fill[ch] : (sum[c][ch] + prior * out->fill[ch]) / (wsum[c] + prior);
     }
 }
 
@@ -182,7 +184,7 @@ static int solve(const refl_in *in, refl_out *out)
         compute_G(in, out->Lfill, out->G);
         total_irradiance(in, out);
         estimate(in, out, Emin);
-        if (in->method == 1) break;              /* direct: no G, nothing to iterate */
+        if (in->method == 1) break; /* direct: no G, nothing to iterate */
         double change = 0;
         for (size_t i = 0; i < nf; i++) {
             if (in->observed[i]) continue;
@@ -206,8 +208,7 @@ static int solve(const refl_in *in, refl_out *out)
     return 0;
 }
 
-static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in *in, const refl_out *out,
-                        rs_err *err)
+static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in *in, const refl_out *out, rs_err *err)
 {
     size_t nf = in->nf;
     rs_ply *ply = rs_ply_new();
@@ -234,8 +235,9 @@ static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in
     for (size_t i = 0; i < nf; i++) {
         double E = lum3(in->esky + 3 * i) + lum3(out->G + 3 * i);
         double rE2 = (in->esky_sigma[i] * in->esky_sigma[i] + in->mc_sigma[i] * in->mc_sigma[i]) / (E * E);
-        tmp[i] = out->estimable[i] && E > 0 ? sqrt(in->sigma_floor * in->sigma_floor +
-                                                   in->L_sigma_rel[i] * in->L_sigma_rel[i] + rE2) : 0;
+        tmp[i] = out->estimable[i] && E > 0
+            ? sqrt(in->sigma_floor * in->sigma_floor + in->L_sigma_rel[i] * in->L_sigma_rel[i] + rE2)
+            : 0;
     }
     if (!rs_ply_add_scalar(faces, "albedo_sigma_rel", RS_PLY_FLOAT32, tmp)) goto oom;
     for (size_t i = 0; i < nf; i++) tmp[i] *= RS_NORMAL_Z80;
@@ -255,16 +257,18 @@ static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in
         }
         if (!rs_ply_add_scalar(faces, rgbnames[ch], RS_PLY_UINT8, tmp)) goto oom;
     }
-    rs_ply_add_comment(ply, "rhoscan %s reflectance: method %s; albedo of non-estimable facets is the fill of "
-                            "their orientation: up %.4f %.4f %.4f, side %.4f %.4f %.4f, down %.4f %.4f %.4f",
+    rs_ply_add_comment(ply,
+                       "rhoscan %s reflectance: method %s; albedo of non-estimable facets is the fill of "
+                       "their orientation: up %.4f %.4f %.4f, side %.4f %.4f %.4f, down %.4f %.4f %.4f",
                        RHOSCAN_VERSION, rs_config_string(cfg, "reflectance", "method"), out->fill_class[0][0],
                        out->fill_class[0][1], out->fill_class[0][2], out->fill_class[1][0], out->fill_class[1][1],
                        out->fill_class[1][2], out->fill_class[2][0], out->fill_class[2][1], out->fill_class[2][2]);
     rs_ply_add_comment(ply, "rhoscan_fill_albedo %.9g %.9g %.9g", out->fill[0], out->fill[1], out->fill[2]);
-    rs_ply_add_comment(ply, "albedo_sigma_rel: standard (1 sigma) relative uncertainty of the albedo = sqrt(%.4g^2 + "
-                            "radiance_sigma_rel^2 + (irradiance_sky_sigma^2 + irradiance_mc_sigma^2) / (E_sky + G)^2); "
-                            "albedo_bound80_rel = %.4f x albedo_sigma_rel: |relative error| below it with 80 %% "
-                            "probability (two-sided, normal); albedo_sigma = albedo_sigma_rel x mean albedo",
+    rs_ply_add_comment(ply,
+                       "albedo_sigma_rel: standard (1 sigma) relative uncertainty of the albedo = sqrt(%.4g^2 + "
+                       "radiance_sigma_rel^2 + (irradiance_sky_sigma^2 + irradiance_mc_sigma^2) / (E_sky + G)^2); "
+                       "albedo_bound80_rel = %.4f x albedo_sigma_rel: |relative error| below it with 80 %% "
+                       "probability (two-sided, normal); albedo_sigma = albedo_sigma_rel x mean albedo",
                        in->sigma_floor, RS_NORMAL_Z80);
     char path[4096];
     rc = rs_ply_write(ply, rs_work_path(cfg, "albedo.ply", path, sizeof path), 1, err);
@@ -291,14 +295,16 @@ static int optional_prop(const rs_ply *ply, const char *file, const char *name, 
 
 /* What pooling needs from irradiance.ply: 1 read, 0 absent (a file from before pooling: the
  * summary says so), -1 error. */
-static int pool_inputs(const rs_ply *irr, const char *ip, size_t nf, double *esun, double *inv_dist,
-                       uint8_t *gathered, double *tmp, rs_report *rep, rs_err *err)
+static int pool_inputs(const rs_ply *irr, const char *ip, size_t nf, double *esun, double *inv_dist, uint8_t *gathered,
+                       double *tmp, rs_report *rep, rs_err *err)
 {
     const rs_ply_element *faces = rs_ply_find_element(irr, "face");
     if (!faces || !rs_ply_find_prop(faces, "hit_distance_inv") || !rs_ply_find_prop(faces, "gathered") ||
         !rs_ply_find_prop(faces, "irradiance_sun_r")) {
-        rs_report_skip(rep, "pooling", "%s has no hit_distance_inv, gathered or irradiance_sun (written before "
-                       "pooling): each facet keeps its own gather", ip);
+        rs_report_skip(rep, "pooling",
+                       "%s has no hit_distance_inv, gathered or irradiance_sun (written before "
+                       "pooling): each facet keeps its own gather",
+                       ip);
         return 0;
     }
     if (rs_faceprop_get_rgb(irr, ip, "irradiance_sun", nf, esun, err) != 0 ||
@@ -321,7 +327,7 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     size_t nf = mesh->nfaces;
     double *buf = calloc(24 * nf + 1, sizeof *buf);
     uint8_t *flags = calloc(4 * nf + 1, 1);
-    double *pbuf = calloc(10 * nf + 1, sizeof *pbuf);   /* E, scratch, esun, inv_dist */
+    double *pbuf = calloc(10 * nf + 1, sizeof *pbuf); /* E, scratch, esun, inv_dist */
     rs_pool pool = {0};
     if (!buf || !flags || !pbuf) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu facets", nf);
@@ -330,8 +336,12 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     double *area = buf, *L = buf + nf, *esky = buf + 4 * nf, *gseen = buf + 7 * nf, *obsd = buf + 10 * nf;
     double *esun = pbuf + 6 * nf, *inv_dist = pbuf + 9 * nf;
     uint8_t *gathered = flags + 2 * nf, *orient = flags + 3 * nf;
-    refl_out ro = {.rho = buf + 11 * nf, .G = buf + 14 * nf, .Lfill = buf + 17 * nf, .E = pbuf,
-                   .scratch = pbuf + 3 * nf, .estimable = flags + nf};
+    refl_out ro = {.rho = buf + 11 * nf,
+                   .G = buf + 14 * nf,
+                   .Lfill = buf + 17 * nf,
+                   .E = pbuf,
+                   .scratch = pbuf + 3 * nf,
+                   .estimable = flags + nf};
     for (size_t f = 0; f < nf; f++) {
         rs_v3 c, n;
         rs_mesh_face(mesh, f, &c, &n, &area[f]);
@@ -353,7 +363,8 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         optional_prop(irr, ip, "irradiance_mc_sigma", nf, buf + 23 * nf, err) != 0)
         goto out;
     double t0 = rs_now(), accuracy = rs_config_real(cfg, "reflectance", "pool_accuracy");
-    int can_pool = accuracy > 0 && m != 2 ? pool_inputs(irr, ip, nf, esun, inv_dist, gathered, ro.scratch, rep, err) : 0;
+    int can_pool =
+        accuracy > 0 && m != 2 ? pool_inputs(irr, ip, nf, esun, inv_dist, gathered, ro.scratch, rep, err) : 0;
     if (can_pool < 0) goto out;
     if (can_pool) {
         if (rs_pool_build(mesh, inv_dist, gathered, flags, accuracy, &pool) != 0) {
@@ -367,7 +378,8 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         rs_json_set_int(rep->metrics, "pool_facets_pooled", (long long)pooled);
         rs_report_time(rep, "pool", rs_now() - t0);
         rs_log_info("reflectance: irradiance pooled within the plane (accuracy %g): %zu of the %zu observed facets, "
-                    "%.1f facets per mean", accuracy, pooled, asked, mean);
+                    "%.1f facets per mean",
+                    accuracy, pooled, asked, mean);
     }
     t0 = rs_now();
     if (m == 0) {
@@ -377,23 +389,38 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         if ((long)nf > maxf) {
             rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
                        "[reflectance] method = paper on %zu facets: its O(m^3) visibility would not finish "
-                       "in minutes; expected at most [reflectance] paper_max_facets = %ld facets", nf, maxf);
+                       "in minutes; expected at most [reflectance] paper_max_facets = %ld facets",
+                       nf, maxf);
             goto out;
         }
         double pairs;
         if (rs_paper_kernel(mesh, &dense, &pairs, err) != 0) goto out;
         rs_json_set_num(rep->metrics, "paper_pairs_tested", pairs);
-        memset(gseen, 0, 3 * nf * sizeof *gseen);   /* the paper reads no panorama at hit points */
+        memset(gseen, 0, 3 * nf * sizeof *gseen); /* the paper reads no panorama at hit points */
     } else {
         rs_report_skip(rep, "interreflection", "method = direct ignores light from other facets");
     }
     rs_report_time(rep, "kernel", rs_now() - t0);
-    refl_in in = {nf, area, L, esky, gseen, buf + 20 * nf, buf + 21 * nf, buf + 23 * nf, buf + 22 * nf,
-                  rs_config_real(cfg, "reflectance", "albedo_sigma_floor"), flags, K, dense, m,
+    refl_in in = {nf,
+                  area,
+                  L,
+                  esky,
+                  gseen,
+                  buf + 20 * nf,
+                  buf + 21 * nf,
+                  buf + 23 * nf,
+                  buf + 22 * nf,
+                  rs_config_real(cfg, "reflectance", "albedo_sigma_floor"),
+                  flags,
+                  K,
+                  dense,
+                  m,
                   rs_config_real(cfg, "reflectance", "min_irradiance"),
-                  rs_config_has(cfg, "reflectance", "unobserved_albedo"), 0,
+                  rs_config_has(cfg, "reflectance", "unobserved_albedo"),
+                  0,
                   strcmp(rs_config_string(cfg, "reflectance", "unobserved_albedo_by"), "all") == 0 ? NULL : orient,
-                  esun, pool.start ? &pool : NULL};
+                  esun,
+                  pool.start ? &pool : NULL};
     if (in.fill_given) in.fill_given_value = rs_config_real(cfg, "reflectance", "unobserved_albedo");
     t0 = rs_now();
     if (solve(&in, &ro) != 0) {
@@ -403,7 +430,7 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_report_time(rep, "solve", rs_now() - t0);
     /* Pooled, the files carry what the albedo divided by: E_sky = sun + pooled rest, G pooled,
      * and the Monte Carlo noise of that mean. */
-    if (in.pool) {            /* into buffers the solve is done with: E, scratch, inv_dist */
+    if (in.pool) { /* into buffers the solve is done with: E, scratch, inv_dist */
         double *esky_p = ro.E, *G_p = ro.scratch, *mc_p = inv_dist;
         for (size_t k = 0; k < 3 * nf; k++) G_p[k] = esky[k] - esun[k];
         rs_pool_apply3(&pool, G_p, esky_p);
@@ -427,7 +454,8 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     }
     if (blow)
         rs_log_warn("paper: %zu facets have kernel row sums above pi (the point-to-point form factor "
-                    "diverges for close neighbours); they are flagged not estimable", blow);
+                    "diverges for close neighbours); they are flagged not estimable",
+                    blow);
     rs_json_set_str(rep->metrics, "method", method);
     rs_json_set_int(rep->metrics, "facets", (long long)nf);
     rs_json_set_int(rep->metrics, "observed", (long long)nobs);
@@ -442,11 +470,14 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         for (int ch = 0; ch < 3; ch++) rs_json_push_num(a, ro.fill_class[c][ch]);
     }
     if (nobs > nest)
-        rs_report_skip(rep, "albedo of observed facets", "%zu observed facets receive too little light "
-                       "or are degenerate: flagged estimable = 0", nobs - nest);
+        rs_report_skip(rep, "albedo of observed facets",
+                       "%zu observed facets receive too little light "
+                       "or are degenerate: flagged estimable = 0",
+                       nobs - nest);
     rs_log_info("reflectance (%s): %zu facets, %zu observed, %zu estimable; fill albedo up %.3f, side %.3f, "
-                "down %.3f (luminance)", method, nf, nobs, nest, lum3(ro.fill_class[RS_FILL_UP]),
-                lum3(ro.fill_class[RS_FILL_SIDE]), lum3(ro.fill_class[RS_FILL_DOWN]));
+                "down %.3f (luminance)",
+                method, nf, nobs, nest, lum3(ro.fill_class[RS_FILL_UP]), lum3(ro.fill_class[RS_FILL_SIDE]),
+                lum3(ro.fill_class[RS_FILL_DOWN]));
     rc = write_albedo(cfg, mesh, &in, &ro, err);
 out:
     free(buf);

@@ -92,15 +92,14 @@ int rs_render_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_int(rep->metrics, "albedo_channels_capped", (long long)capped);
     double residual, t0 = rs_now();
     int iters = rs_transport_solve(K, rho, esky, L, G, rs_config_real(cfg, "render", "tolerance"),
-                              (int)rs_config_int(cfg, "render", "max_iterations"), &residual);
+                                   (int)rs_config_int(cfg, "render", "max_iterations"), &residual);
     if (iters < 0) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
         goto out;
     }
     rs_report_time(rep, "forward_solve", rs_now() - t0);
     int converged = residual < rs_config_real(cfg, "render", "tolerance");
-    if (!converged)
-        rs_log_warn("forward solve stopped after %d iterations with relative change %.3g", iters, residual);
+    if (!converged) rs_log_warn("forward solve stopped after %d iterations with relative change %.3g", iters, residual);
 
     int w = cap.pano->width, h = cap.pano->height;
     for (int k = 0; k < 5; k++)
@@ -116,7 +115,7 @@ int rs_render_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         float id = ids->data[k];
         for (int ch = 0; ch < 3; ch++) obs->data[3 * k + ch] = isfinite(o[ch]) ? o[ch] : 0;
         if (!(id >= 0 && id < (float)nf)) {
-            memcpy(syn->data + 3 * k, obs->data + 3 * k, 3 * sizeof(float));   /* sky as observed */
+            memcpy(syn->data + 3 * k, obs->data + 3 * k, 3 * sizeof(float)); /* sky as observed */
             continue;
         }
         size_t f = (size_t)id;
@@ -160,8 +159,8 @@ int rs_render_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         case 2: wrc[k] = write_pair(cfg, syn, "synth", (float)expo, &werr[k]); break;
         case 3: wrc[k] = write_pair(cfg, diff, "diff", (float)expo * 4, &werr[k]); break;
         default:
-            wrc[k] = rs_image_write_png(obs, rs_work_path(cfg, "observed.png", opath, sizeof opath), (float)expo,
-                                        &werr[k]);
+            wrc[k] =
+                rs_image_write_png(obs, rs_work_path(cfg, "observed.png", opath, sizeof opath), (float)expo, &werr[k]);
         }
     }
     for (int k = 0; k < 5; k++)
@@ -179,8 +178,8 @@ int rs_render_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_num(rep->metrics, "relative_difference_model_pixels", rel);
     rs_json_set_num(rep->metrics, "relative_difference_facets", fobs > 0 ? fsum / fobs : 0);
     rs_json_set_num(rep->metrics, "preview_exposure", expo);
-    rs_log_info("render: forward solve %d iterations (change %.2g); relative difference %.4f over %zu pixels",
-                iters, residual, rel, used);
+    rs_log_info("render: forward solve %d iterations (change %.2g); relative difference %.4f over %zu pixels", iters,
+                residual, rel, used);
     rc = 0;
 out:
     for (int k = 0; k < 5; k++) rs_image_free(img[k]);

@@ -14,8 +14,7 @@ static const char *const names[2] = {"sky_filled", "albedo_sigma"};
 static const char *const props[2] = {"sky_filled", "albedo_sigma_rel"};
 static const double full[2] = {RS_RENDER_SKY_FILLED_FULL, RS_RENDER_SIGMA_REL_FULL};
 
-static int write_one(const rs_config *cfg, const double *v, size_t nf, const rs_image *ids, int which,
-                     rs_err *err)
+static int write_one(const rs_config *cfg, const double *v, size_t nf, const rs_image *ids, int which, rs_err *err)
 {
     char path[4096], file[64], note[160];
     int w = ids->width, h = ids->height, rc = -1;
@@ -33,7 +32,7 @@ static int write_one(const rs_config *cfg, const double *v, size_t nf, const rs_
         float *c = col->data + 3 * k;
         if (!(id >= 0 && id < (float)nf)) {
             raw->data[k] = -1;
-            c[0] = c[1] = c[2] = 0.02f;        /* dark grey: no facet (sky, or outside the model) */
+            c[0] = c[1] = c[2] = 0.02f; /* dark grey: no facet (sky, or outside the model) */
             continue;
         }
         raw->data[k] = (float)v[(size_t)id];

@@ -12,7 +12,7 @@
 /* The value that the PNGs show as full red (the ramp of rs_image_ramp): sky_filled is a share
  * (0..1); albedo_sigma_rel at 20 %, the scale of rhoscan-eval's error image, so the two compare. */
 #define RS_RENDER_SKY_FILLED_FULL 1.0
-#define RS_RENDER_SIGMA_REL_FULL 0.2
+#define RS_RENDER_SIGMA_REL_FULL  0.2
 
 /* When the face element of alb (read from file, nf faces) has both sky_filled and
  * albedo_sigma_rel: writes sky_filled.exr / .png and albedo_sigma.exr / .png into the work

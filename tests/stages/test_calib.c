@@ -15,16 +15,16 @@
 #include "stitch.h"
 #include "testutil.h"
 
-#define NCAM 6
+#define NCAM   6
 #define PANO_W 1024
 
-static const double true_gain[NCAM] = {1.03, 0.97, 1.02, 0.99, 1.01, 0.0};   /* last: geometric mean 1 */
+static const double true_gain[NCAM] = {1.03, 0.97, 1.02, 0.99, 1.01, 0.0}; /* last: geometric mean 1 */
 
 /* The known panorama: smooth colour patterns with detail down to about 20 pixels. */
 static float truth_value(rs_v3 d, int ch)
 {
     double v = 0.45 + 0.2 * sin(5 * d.x + 3 * d.y + ch) * cos(4 * d.z + 1) + 0.12 * sin(13 * d.x - 11 * d.y + 7 * d.z) +
-               0.06 * sin(40 * d.y + 25 * d.z - 2 * ch);
+        0.06 * sin(40 * d.y + 25 * d.z - 2 * ch);
     return (float)v;
 }
 
@@ -56,21 +56,27 @@ static void write_rig_file(const char *path, int count_declared)
         double r[9];
         camera_rotation(k, r);
         int fish = k == 5;
-        fprintf(f, "   - name: cam%d\n     image_width: %d\n     image_height: %d\n     model: %s\n", k,
-                640, fish ? 640 : 512, fish ? "fisheye" : "pinhole");
-        fprintf(f, "     camera_matrix: !!opencv-matrix\n        rows: 3\n        cols: 3\n        dt: d\n"
-                   "        data: [ %.1f, 0., 319.5, 0., %.1f, %.1f, 0., 0., 1. ]\n",
+        fprintf(f, "   - name: cam%d\n     image_width: %d\n     image_height: %d\n     model: %s\n", k, 640,
+                fish ? 640 : 512, fish ? "fisheye" : "pinhole");
+        fprintf(f,
+                "     camera_matrix: !!opencv-matrix\n        rows: 3\n        cols: 3\n        dt: d\n"
+                "        data: [ %.1f, 0., 319.5, 0., %.1f, %.1f, 0., 0., 1. ]\n",
                 fish ? 200.0 : 300.0, fish ? 200.0 : 300.0, fish ? 319.5 : 255.5);
         if (fish)
-            fprintf(f, "     distortion_coefficients: !!opencv-matrix\n        rows: 1\n        cols: 4\n        dt: d\n"
-                       "        data: [ 0.02, -0.004, 0.0005, 0. ]\n");
+            fprintf(f,
+                    "     distortion_coefficients: !!opencv-matrix\n        rows: 1\n        cols: 4\n        dt: d\n"
+                    "        data: [ 0.02, -0.004, 0.0005, 0. ]\n");
         else
-            fprintf(f, "     distortion_coefficients: !!opencv-matrix\n        rows: 1\n        cols: 5\n        dt: d\n"
-                       "        data: [ -0.08, 0.01, 0.0005, -0.0003, 0. ]\n");
-        fprintf(f, "     R_rig_cam: !!opencv-matrix\n        rows: 3\n        cols: 3\n        dt: d\n        data: [ ");
+            fprintf(f,
+                    "     distortion_coefficients: !!opencv-matrix\n        rows: 1\n        cols: 5\n        dt: d\n"
+                    "        data: [ -0.08, 0.01, 0.0005, -0.0003, 0. ]\n");
+        fprintf(f,
+                "     R_rig_cam: !!opencv-matrix\n        rows: 3\n        cols: 3\n        dt: d\n        data: [ ");
         for (int i = 0; i < 9; i++) fprintf(f, "%.17g%s", r[i], i < 8 ? ", " : " ]\n");
-        fprintf(f, "     t_rig_cam: !!opencv-matrix\n        rows: 3\n        cols: 1\n        dt: d\n"
-                   "        data: [ %g, %g, 0.05 ]\n", 0.04 * cos(k * 1.2566), 0.04 * sin(k * 1.2566));
+        fprintf(f,
+                "     t_rig_cam: !!opencv-matrix\n        rows: 3\n        cols: 1\n        dt: d\n"
+                "        data: [ %g, %g, 0.05 ]\n",
+                0.04 * cos(k * 1.2566), 0.04 * sin(k * 1.2566));
     }
     fclose(f);
 }
@@ -88,7 +94,7 @@ static void write_frames(const char *dir, const rs_rig *rig, const rs_image *tru
             for (int x = 0; x < c->width; x++) {
                 rs_v3 d;
                 float *px = rs_image_px(img, x, y);
-                if (!rs_rig_unproject(c, x, y, &d)) continue;   /* outside the lens's usable field: black */
+                if (!rs_rig_unproject(c, x, y, &d)) continue; /* outside the lens's usable field: black */
                 double u, v;
                 rs_pano_dir_to_uv(rs_m3_mul_v(c->r_rig_cam, d), &u, &v);
                 rs_pano_sample(truth, u, v, px);
@@ -113,9 +119,8 @@ static int run_calib(const char *config, char **out)
 static void write_config(const char *dir, const char *frames, const char *extra)
 {
     char text[4096];
-    snprintf(text, sizeof text,
-             "[pipeline]\nworkdir = out\n[rig]\nfile = rig.yaml\nframes = %s\nwidth = %d\n%s\n", frames, PANO_W,
-             extra ? extra : "");
+    snprintf(text, sizeof text, "[pipeline]\nworkdir = out\n[rig]\nfile = rig.yaml\nframes = %s\nwidth = %d\n%s\n",
+             frames, PANO_W, extra ? extra : "");
     rs_test_write(rs_test_path(dir, "calib.ini"), text);
 }
 
@@ -160,7 +165,7 @@ static void test_stitch_and_register(void **state)
         rs_v3 x = rs_v3_add(pose.position, rs_v3_scale(rs_pose_dir_to_world(&pose, dl), 15 + 10.0 * rand() / RAND_MAX));
         double u, v;
         rs_pano_dir_to_uv(dl, &u, &v);
-        if (i >= 20) u = fmod(u + 0.3, 1.0);   /* outliers */
+        if (i >= 20) u = fmod(u + 0.3, 1.0); /* outliers */
         fprintf(f, "%.4f %.4f %.6f %.6f %.6f\n", u * PANO_W - 0.5, v * PANO_W / 2 - 0.5, x.x, x.y, x.z);
     }
     fclose(f);
@@ -270,7 +275,7 @@ static void write_brackets(const char *dir, const rs_rig *rig, const double *tim
             rs_image *shot = rs_image_new(lin->width, lin->height, 3);
             for (size_t i = 0; i < (size_t)lin->width * lin->height * 3; i++) {
                 double code = floor(255 * pow(fmin(lin->data[i] * times[e] * 60, 1), 1 / 2.2) + 0.5);
-                shot->data[i] = rs_srgb_to_linear((float)(code / 255));   /* the PNG writer sRGB-encodes */
+                shot->data[i] = rs_srgb_to_linear((float)(code / 255)); /* the PNG writer sRGB-encodes */
             }
             snprintf(name, sizeof name, "cam%d_e%d.png", k, e);
             assert_int_equal(rs_image_write_png(shot, rs_test_path(dir, name), 1, &err), 0);
@@ -354,7 +359,8 @@ static void test_brackets(void **state)
     assert_true(sum_rel / m < 0.02);
     /* A linear curve in its place does not invert the gamma: the test can tell. */
     resp[0] = 0;
-    for (int i = 0; i < 256; i++) snprintf(resp + strlen(resp), sizeof resp - strlen(resp), "%.9g\n", (i + 0.25) / 255 / 60);
+    for (int i = 0; i < 256; i++)
+        snprintf(resp + strlen(resp), sizeof resp - strlen(resp), "%.9g\n", (i + 0.25) / 255 / 60);
     rs_test_write(rs_test_path(dir, "linear.txt"), resp);
     snprintf(extra, sizeof extra, "exposure_times_s = 0.005 0.02 0.08\nresponse_file = linear.txt\n");
     write_config(dir, list, extra);
@@ -426,8 +432,10 @@ static void test_facet_size_from_rig(void **state)
         for (int r = 0; r < 180; r++) {
             double az = 2 * M_PI * c / 360, el = (-80 + 160.0 * r / 179) * M_PI / 180;
             rs_v3 d = rs_v3_make(cos(az) * cos(el), sin(az) * cos(el), sin(el));
-            if (d.x > 0.5) fprintf(f, "%.5f %.5f %.5f 0.5\n", 5.0, 5 * d.y / d.x, 5 * d.z / d.x);
-            else fprintf(f, "0 0 0 0.5\n");
+            if (d.x > 0.5)
+                fprintf(f, "%.5f %.5f %.5f 0.5\n", 5.0, 5 * d.y / d.x, 5 * d.z / d.x);
+            else
+                fprintf(f, "0 0 0 0.5\n");
         }
     fclose(f);
     write_rig_file(rs_test_path(dir, "rig.yaml"), NCAM);

@@ -11,9 +11,9 @@
 #include "denoise.h"
 #include "mesh.h"
 
-#define H 0.05            /* grid spacing (m) */
-#define NOISE 0.0015      /* per-axis vertex noise (m), like a scan's millimetres */
-#define NY 20
+#define H     0.05   /* grid spacing (m) */
+#define NOISE 0.0015 /* per-axis vertex noise (m), like a scan's millimetres */
+#define NY    20
 
 /* The profile in x-z: floor (0,0)-(1,0), wall (1,0)-(1,1), roof (1,1)-(2,2). */
 static const double corner[4][2] = {{0, 0}, {1, 0}, {1, 1}, {2, 2}};
@@ -22,7 +22,7 @@ static int seg_steps[3], crease_at[2], nsteps;
 static rs_v3 seg_normal(int s)
 {
     rs_v3 d = rs_v3_norm(rs_v3_make(corner[s + 1][0] - corner[s][0], 0, corner[s + 1][1] - corner[s][1]));
-    return rs_v3_cross(d, rs_v3_make(0, 1, 0));   /* the winding's normal: floor +z, wall -x */
+    return rs_v3_cross(d, rs_v3_make(0, 1, 0)); /* the winding's normal: floor +z, wall -x */
 }
 
 static uint64_t rng = 88172645463325252ull;
@@ -33,7 +33,10 @@ static double uniform(void)
     rng ^= rng << 17;
     return ((rng >> 11) + 0.5) / 9007199254740992.0;
 }
-static double gauss(void) { return sqrt(-2 * log(uniform())) * cos(2 * M_PI * uniform()); }
+static double gauss(void)
+{
+    return sqrt(-2 * log(uniform())) * cos(2 * M_PI * uniform());
+}
 
 /* The strip extruded along y, exact (noise = 0) or noisy; face f lies on segment *seg[f]. */
 static rs_mesh *make_strip(double noise, int **seg)
@@ -75,7 +78,10 @@ static rs_mesh *make_strip(double noise, int **seg)
 }
 
 /* Profile step of face f (two faces per step and NY steps along y). */
-static int face_step(size_t f) { return (int)(f / (2 * NY)); }
+static int face_step(size_t f)
+{
+    return (int)(f / (2 * NY));
+}
 
 /* A face with a corner on a crease line. */
 static int on_crease(size_t f)
@@ -133,11 +139,12 @@ static void test_denoise_strip(void **state)
     normal_error(m, seg, flat, &flat1, &flatmax1);
     normal_error(m, seg, on_crease, &cr1, &crmax1);
     print_message("flat RMS %.2f -> %.2f deg (max %.2f -> %.2f); crease RMS %.2f -> %.2f deg (max %.2f -> %.2f); "
-                  "moved %zu, RMS %.2f mm, max %.2f mm\n", flat0, flat1, flatmax0, flatmax1, cr0, cr1, crmax0, crmax1,
-                  st.moved, 1e3 * st.rms_move_m, 1e3 * st.max_move_m);
-    assert_true(flat0 > 1.0);           /* the noise is there to remove */
+                  "moved %zu, RMS %.2f mm, max %.2f mm\n",
+                  flat0, flat1, flatmax0, flatmax1, cr0, cr1, crmax0, crmax1, st.moved, 1e3 * st.rms_move_m,
+                  1e3 * st.max_move_m);
+    assert_true(flat0 > 1.0); /* the noise is there to remove */
     assert_true(flat1 < flat0 / 3);
-    assert_true(cr1 < 3.0);             /* crease facets within a few degrees of truth */
+    assert_true(cr1 < 3.0); /* crease facets within a few degrees of truth */
     assert_true(crmax1 < 8.0);
     assert_true(st.moved > m->nverts / 2);
     double maxmove = 0;
@@ -184,7 +191,7 @@ static void test_denoise_exact(void **state)
     rs_err err = {0};
     assert_int_equal(rs_denoise_apply(m, &o, &st, &err), 0);
     print_message("exact strip: max move %.3g m\n", st.max_move_m);
-    assert_true(st.max_move_m < 1e-5);   /* the 45 degree turn leaks exp(-9.6) of weight: microns */
+    assert_true(st.max_move_m < 1e-5); /* the 45 degree turn leaks exp(-9.6) of weight: microns */
     free(seg);
     rs_mesh_free(m);
 }

@@ -14,12 +14,12 @@
 #define W 64
 #define H 32
 static const double FLOOR_RHO[3] = {0.5, 0.4, 0.3}, WALL_RHO[3] = {0.2, 0.6, 0.4};
-static const double E_SKY = 300, E_G = 40;          /* true irradiance on every model pixel */
+static const double E_SKY = 300, E_G = 40; /* true irradiance on every model pixel */
 
 typedef struct scene {
     const char *truth, *work;
-    size_t nfloor, nwall, nf;                        /* result facets: floor, wall, 1 straddling */
-    int id[W * H];                                   /* facet per pixel, -1 none */
+    size_t nfloor, nwall, nf; /* result facets: floor, wall, 1 straddling */
+    int id[W * H];            /* facet per pixel, -1 none */
 } scene;
 
 static void rects(rs_meshgen *g, int n)
@@ -177,7 +177,7 @@ static void test_albedo_statistics(void **state)
     /* area-weighted: floor 100 m2 at 2 %, wall 60 m2 at 10 % */
     assert_float_equal(rs_eval_get(d, "albedo.interior.mean_rel"), (100 * 0.02 + 60 * 0.1) / 160, 1e-6);
     assert_float_equal(rs_eval_get(d, "albedo.interior.bias_rel"), (100 * 0.02 - 60 * 0.1) / 160, 1e-6);
-    assert_float_equal(rs_eval_get(d, "albedo.interior.median_rel"), 0.02, 1e-6);   /* 100 of 160 m2 */
+    assert_float_equal(rs_eval_get(d, "albedo.interior.median_rel"), 0.02, 1e-6); /* 100 of 160 m2 */
     assert_float_equal(rs_eval_get(d, "albedo.interior.p95_rel"), 0.1, 1e-6);
     assert_float_equal(rs_eval_get(d, "parts.0.interior.mean_rel"), 0.02, 1e-6);
     assert_float_equal(rs_eval_get(d, "parts.1.interior.mean_rel"), 0.1, 1e-6);
@@ -200,8 +200,8 @@ static void test_albedo_statistics(void **state)
     assert_non_null(e);
     assert_float_equal(e->data[25 * W + 7], 0.02, 1e-5);
     assert_float_equal(e->data[10 * W + 7], 0.1, 1e-5);
-    assert_float_equal(e->data[20 * W + 3], -1, 0);     /* the hole */
-    assert_float_equal(e->data[2 * W + 7], 0, 0);       /* sky */
+    assert_float_equal(e->data[20 * W + 3], -1, 0); /* the hole */
+    assert_float_equal(e->data[2 * W + 7], 0, 0);   /* sky */
     rs_image_free(e);
     assert_true(rs_file_exists(rs_test_path(s.work, "eval_error.png")));
     assert_true(rs_file_exists(rs_test_path(s.work, "eval.json")));
@@ -222,7 +222,7 @@ static void test_albedo_statistics(void **state)
 /* Flagging a facet unobserved takes it out of the error but lowers the coverage by its pixels. */
 static void test_unobserved_lowers_coverage(void **state)
 {
-    scene s = make_scene(33, -1, 0);   /* a wall facet */
+    scene s = make_scene(33, -1, 0); /* a wall facet */
     int passed, lost = 0;
     for (int k = 9 * W; k < W * H; k++) lost += s.id[k] == 33;
     rs_json *d = evaluate(&s, 0.2, &passed);

@@ -24,11 +24,10 @@ static rs_skyenv uniform_env(int w, float L)
     return env;
 }
 
-static rs_facet_gather gather_one(const rs_scene *scene, const rs_skyenv *env, uint32_t f, int samples,
-                                  int sun_samples)
+static rs_facet_gather gather_one(const rs_scene *scene, const rs_skyenv *env, uint32_t f, int samples, int sun_samples)
 {
-    rs_gather_ctx g = {.scene = scene, .env = env, .samples = samples, .sky_samples = 64,
-                       .sun_samples = sun_samples, .seed = 1};
+    rs_gather_ctx g = {
+        .scene = scene, .env = env, .samples = samples, .sky_samples = 64, .sun_samples = sun_samples, .seed = 1};
     rs_gather_scratch *s = rs_gather_scratch_new((size_t)(samples > sun_samples ? samples : sun_samples));
     rs_facet_gather out;
     assert_int_equal(rs_gather_facet(&g, f, s, &out), 0);
@@ -72,7 +71,7 @@ static void test_sun_pixel(void **state)
     cap.pano = rs_image_new(w, h, 3);
     rs_m3_identity(cap.pose.rot);
     for (size_t k = 0; k < 3 * (size_t)w * h; k++) cap.pano->data[k] = 0.01f;
-    int sr = h / 3, sc = w / 2 + 10;                 /* polar angle ~60 degrees */
+    int sr = h / 3, sc = w / 2 + 10; /* polar angle ~60 degrees */
     float *px = rs_image_px(cap.pano, sc, sr);
     px[0] = px[1] = px[2] = 1e5f;
     float *ids = malloc((size_t)w * h * sizeof *ids);
@@ -125,8 +124,8 @@ static void test_floor_wall_view_factor(void **state)
         assert_true(out.entries[e].col >= wall);
         kwall += out.entries[e].k;
     }
-    print_message("view factor to the wall: %.5f (expected %.5f); E_sky/pi %.5f (expected %.5f)\n",
-                  kwall / M_PI, F, out.esky[0] / M_PI, 1 - F);
+    print_message("view factor to the wall: %.5f (expected %.5f); E_sky/pi %.5f (expected %.5f)\n", kwall / M_PI, F,
+                  out.esky[0] / M_PI, 1 - F);
     assert_true(fabs(kwall / M_PI - F) / F < 0.005);
     assert_true(fabs(out.esky[0] / M_PI - (1 - F)) / (1 - F) < 0.005);
     free(out.entries);
@@ -158,8 +157,12 @@ static void test_closed_cavity(void **state)
         assert_true(fabs(sum - M_PI) < 1e-5);
         ne += rows[f].nentries;
     }
-    rs_transport K = {nf, ne, calloc(nf + 1, sizeof(size_t)), malloc(ne * sizeof(uint32_t)),
-                      malloc(ne * sizeof(float)), malloc(ne * sizeof(float))};
+    rs_transport K = {nf,
+                      ne,
+                      calloc(nf + 1, sizeof(size_t)),
+                      malloc(ne * sizeof(uint32_t)),
+                      malloc(ne * sizeof(float)),
+                      malloc(ne * sizeof(float))};
     size_t e = 0;
     for (size_t f = 0; f < nf; f++) {
         for (uint32_t q = 0; q < rows[f].nentries; q++, e++) {
@@ -172,13 +175,13 @@ static void test_closed_cavity(void **state)
     }
     free(rows);
     const double rhos[3] = {0.5, 0.9, 0.99};
-    double *rho = malloc(3 * nf * sizeof *rho), *esky = malloc(3 * nf * sizeof *esky),
-           *L = malloc(3 * nf * sizeof *L), *G = malloc(3 * nf * sizeof *G);
+    double *rho = malloc(3 * nf * sizeof *rho), *esky = malloc(3 * nf * sizeof *esky), *L = malloc(3 * nf * sizeof *L),
+           *G = malloc(3 * nf * sizeof *G);
     for (int t = 0; t < 3; t++) {
         const double Ls = 1.0;
         for (size_t i = 0; i < 3 * nf; i++) {
             rho[i] = rhos[t];
-            esky[i] = M_PI * Ls / rhos[t];    /* so that L_s = rho E_sky / pi = Ls */
+            esky[i] = M_PI * Ls / rhos[t]; /* so that L_s = rho E_sky / pi = Ls */
         }
         double residual;
         int it = rs_transport_solve(&K, rho, esky, L, G, 1e-9, 100000, &residual);
@@ -204,8 +207,10 @@ static void test_closed_cavity(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_uniform_sky), cmocka_unit_test(test_sun_pixel),
-        cmocka_unit_test(test_floor_wall_view_factor), cmocka_unit_test(test_closed_cavity),
+        cmocka_unit_test(test_uniform_sky),
+        cmocka_unit_test(test_sun_pixel),
+        cmocka_unit_test(test_floor_wall_view_factor),
+        cmocka_unit_test(test_closed_cavity),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -7,8 +7,8 @@
 #include "meshgen.h"
 #include "testutil.h"
 
-enum { CELLS = 16 };                  /* floor cells per side (2 facets each), 0.5 m */
-static const double WALL_BOTTOM = 0.404, WALL_TOP = 6, WALL_X = 0.05;   /* wall faces x = +-0.05 */
+enum { CELLS = 16 };                                                  /* floor cells per side (2 facets each), 0.5 m */
+static const double WALL_BOTTOM = 0.404, WALL_TOP = 6, WALL_X = 0.05; /* wall faces x = +-0.05 */
 
 /* A uniform sky of radiance 1 with one sun pixel (1e6) at 30 degrees elevation toward +x, in
  * world axes; *sun its direction. */
@@ -19,7 +19,7 @@ static void sun_sky(rs_capture *cap, rs_skyenv *env, rs_v3 *sun)
     cap->pano = rs_image_new(w, h, 3);
     rs_m3_identity(cap->pose.rot);
     for (size_t k = 0; k < 3 * (size_t)w * h; k++) cap->pano->data[k] = 1.0f;
-    int sr = h / 3, sc = w / 2;                      /* polar angle 60 degrees, azimuth 0 */
+    int sr = h / 3, sc = w / 2; /* polar angle 60 degrees, azimuth 0 */
     float *px = rs_image_px(cap->pano, sc, sr);
     px[0] = px[1] = px[2] = 1e6f;
     *sun = rs_pano_pixel_dir(w, h, sc, sr);
@@ -63,8 +63,8 @@ static void test_adaptive_shadow_edge(void **state)
     rs_v3 sun;
     sun_sky(&cap, &env, &sun);
     const double target = 0.05;
-    rs_gather_ctx base = {.scene = scene, .env = &env, .samples = 32, .sky_samples = 32, .sun_samples = 32,
-                          .seed = 3, .skip_convex = 1};
+    rs_gather_ctx base = {
+        .scene = scene, .env = &env, .samples = 32, .sky_samples = 32, .sun_samples = 32, .seed = 3, .skip_convex = 1};
     rs_gather_ctx adapt = base, ref = base, off = base;
     adapt.target_error = target;
     off.target_error = 0;
@@ -83,7 +83,7 @@ static void test_adaptive_shadow_edge(void **state)
         assert_true(b.rounds <= RS_GATHER_MAX_ROUNDS);
         assert_int_equal(b.rays, a.rays << b.rounds);
         assert_int_equal(a.rounds, 0);
-        if (side > 0) {                              /* uniform light: the base counts suffice */
+        if (side > 0) { /* uniform light: the base counts suffice */
             lit++;
             lit_base += b.rounds == 0;
             if (b.rounds == 0) assert_memory_equal(a.esky, b.esky, sizeof a.esky);
@@ -104,8 +104,8 @@ static void test_adaptive_shadow_edge(void **state)
                   "RMS error on the edge %.4f (base) -> %.4f (adaptive)\n",
                   target, lit_base, lit, edge_refined, edge, rms_base, rms_adapt);
     assert_true(lit >= 64 && edge >= 16);
-    assert_int_equal(lit_base, lit);                /* every facet in uniform light stops at once */
-    assert_int_equal(edge_refined, edge);           /* every facet the edge crosses takes more rays */
+    assert_int_equal(lit_base, lit);      /* every facet in uniform light stops at once */
+    assert_int_equal(edge_refined, edge); /* every facet the edge crosses takes more rays */
     assert_true(rms_base > target);
     assert_true(rms_adapt < target);
 
@@ -142,7 +142,7 @@ static void test_adaptive_kernel_row(void **state)
     rs_meshgen mg = rs_meshgen_new(2000, 2000);
     rs_meshgen_rect(&mg, rs_v3_make(-2, -1, 0), rs_v3_make(4, 0, 0), rs_v3_make(0, 2, 0), 4, 2);
     size_t nfloor = mg.nf;
-    rs_meshgen_rect(&mg, rs_v3_make(-2, 1, 0), rs_v3_make(4, 0, 0), rs_v3_make(0, 0, 3), 4, 4);   /* wall */
+    rs_meshgen_rect(&mg, rs_v3_make(-2, 1, 0), rs_v3_make(4, 0, 0), rs_v3_make(0, 0, 3), 4, 4); /* wall */
     rs_mesh *m = rs_meshgen_done(&mg);
     rs_err err;
     rs_scene *scene = rs_scene_new(m, &err);
@@ -151,7 +151,7 @@ static void test_adaptive_kernel_row(void **state)
     rs_skyenv env;
     rs_v3 sun;
     sun_sky(&cap, &env, &sun);
-    for (size_t k = 0; k < 3 * (size_t)env.width * env.height; k++) env.radiance[k] *= 1e-9f;   /* dark */
+    for (size_t k = 0; k < 3 * (size_t)env.width * env.height; k++) env.radiance[k] *= 1e-9f; /* dark */
     double *rad = calloc(3 * m->nfaces, sizeof *rad);
     for (size_t f = nfloor; f < m->nfaces; f++) rad[3 * f] = rad[3 * f + 1] = rad[3 * f + 2] = 10;
     const double target = 0.05;
@@ -171,7 +171,7 @@ static void test_adaptive_kernel_row(void **state)
         double ksum = 0;
         for (uint32_t q = 0; q < b.nentries; q++) ksum += b.entries[q].k;
         assert_true(ksum > 0 && ksum <= M_PI * (1 + 1e-6));
-        double hits = ksum * ((double)adapt.samples * (1 << b.rounds)) / M_PI;   /* whole rays */
+        double hits = ksum * ((double)adapt.samples * (1 << b.rounds)) / M_PI; /* whole rays */
         assert_true(fabs(hits - floor(hits + 0.5)) < 1e-3 * hits);
         double gr = row_g(&r, rad), ea = (row_g(&a, rad) - gr) / gr, eb = (row_g(&b, rad) - gr) / gr;
         e2_base += ea * ea;
@@ -180,7 +180,8 @@ static void test_adaptive_kernel_row(void **state)
     }
     double rms_base = sqrt(e2_base / (double)nfloor), rms_adapt = sqrt(e2_adapt / (double)nfloor);
     print_message("dark sky, bright wall: %zu of %zu floor facets refined; RMS error of G %.4f (base) -> %.4f "
-                  "(adaptive)\n", refined, nfloor, rms_base, rms_adapt);
+                  "(adaptive)\n",
+                  refined, nfloor, rms_base, rms_adapt);
     assert_true(refined > 0);
     assert_true(rms_base > target);
     assert_true(rms_adapt < target);

@@ -22,10 +22,10 @@ static void random_sky(int w, rs_capture *cap, rs_skyenv *env)
     rs_m3_identity(cap->pose.rot);
     for (size_t k = 0; k < (size_t)w * h; k++) {
         float v = 0.05f + (rs_hash_u32((uint32_t)k) >> 8) / 16777216.0f;
-        if (k % 97 == 0) v = 0;                        /* pixels without power inside the map */
+        if (k % 97 == 0) v = 0; /* pixels without power inside the map */
         for (int ch = 0; ch < 3; ch++) cap->pano->data[3 * k + ch] = v;
     }
-    for (int c = 0; c < 6; c++)                        /* a sun of 6 x 3 pixels at about 40 degrees */
+    for (int c = 0; c < 6; c++) /* a sun of 6 x 3 pixels at about 40 degrees */
         for (int r = 0; r < 3; r++) {
             float *px = rs_image_px(cap->pano, w / 2 + 20 + c, h / 4 + r);
             px[0] = px[1] = px[2] = 1e4f;
@@ -57,8 +57,8 @@ static void test_pick_matches_binary_search(void **state)
         for (int sun = 0; sun < 2; sun++)
             for (uint32_t k = 0; k < 200000; k++) {
                 double x = (rs_hash_u32(k * 2 + (uint32_t)sun) >> 8) / 16777216.0;
-                if (k < 1000) x = k / 1000.0;              /* bucket edges and 0 */
-                if (k == 1000) x = nextafter(1.0, 0.0);   /* the last representable x */
+                if (k < 1000) x = k / 1000.0;           /* bucket edges and 0 */
+                if (k == 1000) x = nextafter(1.0, 0.0); /* the last representable x */
                 size_t a = rs_gather_pick(s, e, sun, x), b = sun ? rs_skyenv_pick_sun(e, x) : rs_skyenv_pick(e, x);
                 mismatches += a != b;
             }
@@ -73,8 +73,8 @@ static void test_pick_matches_binary_search(void **state)
 static rs_mesh *scene_mesh(size_t *first_hidden)
 {
     rs_meshgen g = rs_meshgen_new(4000, 4000);
-    rs_meshgen_rect(&g, rs_v3_make(0, 0, 0), rs_v3_make(4, 0, 0), rs_v3_make(0, 4, 0), 6, 6);    /* floor */
-    rs_meshgen_rect(&g, rs_v3_make(0, 4, 0), rs_v3_make(4, 0, 0), rs_v3_make(0, 0, 3), 6, 6);    /* wall, facing -y */
+    rs_meshgen_rect(&g, rs_v3_make(0, 0, 0), rs_v3_make(4, 0, 0), rs_v3_make(0, 4, 0), 6, 6); /* floor */
+    rs_meshgen_rect(&g, rs_v3_make(0, 4, 0), rs_v3_make(4, 0, 0), rs_v3_make(0, 0, 3), 6, 6); /* wall, facing -y */
     *first_hidden = g.nf;
     rs_meshgen_box(&g, rs_v3_make(1, 1, -5), rs_v3_make(2, 2, -4), 2, 0);
     return rs_meshgen_done(&g);
@@ -99,8 +99,8 @@ static void test_run_threads_and_closure(void **state)
     rs_skyenv env;
     random_sky(256, &cap, &env);
     size_t nf = m->nfaces;
-    rs_gather_ctx g = {.scene = scene, .env = &env, .samples = 64, .sky_samples = 64,
-                       .sun_samples = 16, .seed = 7, .skip_convex = 1};
+    rs_gather_ctx g = {
+        .scene = scene, .env = &env, .samples = 64, .sky_samples = 64, .sun_samples = 16, .seed = 7, .skip_convex = 1};
     rs_facet_gather *one = calloc(nf, sizeof *one), *two = calloc(nf, sizeof *two), *part = calloc(nf, sizeof *part);
     rs_gather_stats st;
 #ifdef _OPENMP
@@ -116,8 +116,8 @@ static void test_run_threads_and_closure(void **state)
     for (size_t f = 0; f < nf; f++) {
         rs_facet_gather ref;
         assert_int_equal(rs_gather_facet(&g, (uint32_t)f, s, &ref), 0);
-        same_rows(&one[f], &ref);                      /* the order of facets changes nothing */
-        same_rows(&one[f], &two[f]);                   /* nor the thread count */
+        same_rows(&one[f], &ref);    /* the order of facets changes nothing */
+        same_rows(&one[f], &two[f]); /* nor the thread count */
         free(ref.entries);
     }
     rs_gather_scratch_free(s);
@@ -207,10 +207,16 @@ static void test_sun_without_sun_rays(void **state)
     rs_skyenv env;
     random_sky(128, &cap, &env);
     rs_gather_scratch *s = rs_gather_scratch_new(1 << 18);
-    rs_gather_ctx with = {.scene = scene, .env = &env, .samples = 256, .sky_samples = 256,
-                          .sun_samples = 256, .seed = 3, .skip_convex = 1}, without = with;
+    rs_gather_ctx with = {.scene = scene,
+                          .env = &env,
+                          .samples = 256,
+                          .sky_samples = 256,
+                          .sun_samples = 256,
+                          .seed = 3,
+                          .skip_convex = 1},
+                  without = with;
     without.sun_samples = 0;
-    without.samples = 1 << 18;                         /* enough cosine rays to find the sun */
+    without.samples = 1 << 18; /* enough cosine rays to find the sun */
     rs_facet_gather a, b;
     assert_int_equal(rs_gather_facet(&with, 0, s, &a), 0);
     assert_int_equal(rs_gather_facet(&without, 0, s, &b), 0);
@@ -239,8 +245,14 @@ static void test_adaptive_sun(void **state)
     rs_skyenv env;
     random_sky(256, &cap, &env);
     rs_gather_scratch *s = rs_gather_scratch_new(1024);
-    rs_gather_ctx base = {.scene = scene, .env = &env, .samples = 64, .sky_samples = 64,
-                          .sun_samples = 16, .seed = 5, .skip_convex = 1}, adapt = base, ref = base;
+    rs_gather_ctx base = {.scene = scene,
+                          .env = &env,
+                          .samples = 64,
+                          .sky_samples = 64,
+                          .sun_samples = 16,
+                          .seed = 5,
+                          .skip_convex = 1},
+                  adapt = base, ref = base;
     adapt.sun_target_error = 0.01;
     ref.sun_samples = 256;
     int lit_only = 0, extra = 0;
@@ -251,8 +263,10 @@ static void test_adaptive_sun(void **state)
         assert_int_equal(rs_gather_facet(&adapt, f, s, &b), 0);
         assert_int_equal(rs_gather_facet(&ref, f, s, &r), 0);
         assert_true(b.rays >= a.rays && b.rays <= a.rays + 15 * 16);
-        if (b.rays > a.rays) extra++;
-        else lit_only++;
+        if (b.rays > a.rays)
+            extra++;
+        else
+            lit_only++;
         err_base += fabs(a.esky_lum - r.esky_lum) / r.esky_lum;
         err_adapt += fabs(b.esky_lum - r.esky_lum) / r.esky_lum;
         free(a.entries), free(b.entries), free(r.entries);
@@ -284,8 +298,14 @@ static void test_convex_skip(void **state)
     rs_skyenv env;
     random_sky(128, &cap, &env);
     rs_gather_scratch *s = rs_gather_scratch_new(64);
-    rs_gather_ctx on = {.scene = scene, .env = &env, .samples = 64, .sky_samples = 64,
-                        .sun_samples = 16, .seed = 9, .skip_convex = 1}, off = on;
+    rs_gather_ctx on = {.scene = scene,
+                        .env = &env,
+                        .samples = 64,
+                        .sky_samples = 64,
+                        .sun_samples = 16,
+                        .seed = 9,
+                        .skip_convex = 1},
+                  off = on;
     off.skip_convex = 0;
     size_t skipped = 0;
     for (uint32_t f = 0; f < m->nfaces; f++) {
@@ -304,7 +324,7 @@ static void test_convex_skip(void **state)
         skipped += a.sees_nothing;
         free(a.entries), free(b.entries);
     }
-    assert_int_equal(skipped, 16);     /* top and bottom: 2 x 2 cells of two triangles each */
+    assert_int_equal(skipped, 16); /* top and bottom: 2 x 2 cells of two triangles each */
     rs_gather_scratch_free(s);
     rs_skyenv_release(&env);
     rs_capture_release(&cap);

@@ -12,7 +12,7 @@
 #include "ply.h"
 #include "testutil.h"
 
-#define W 256
+#define W      256
 #define ALBEDO 0.18
 
 /* A 40 x 40 m grey floor at z = 0; the camera 1.5 m above its centre; a uniform sky of radiance
@@ -43,7 +43,8 @@ static int run(const char *dir, const char *region, char **out)
     snprintf(text, sizeof text,
              "[pipeline]\nworkdir = work\n[mesh]\ninput_mesh = mesh.ply\n[capture]\npanorama = pano.exr\n"
              "position = 0 0 1.5\n[irradiance]\nsamples = 64\nsky_samples = 64\nsun_samples = 0\n"
-             "[calib]\ngrey_card_region = %s\ngrey_card_albedo = %g\n", region, ALBEDO);
+             "[calib]\ngrey_card_region = %s\ngrey_card_albedo = %g\n",
+             region, ALBEDO);
     rs_test_write(rs_test_path(dir, "scene.ini"), text);
     snprintf(cmd, sizeof cmd, "cd '%s' && '%s/rhoscan' run scene.ini", dir, rs_test_bin_dir());
     return rs_test_run(cmd, out);
@@ -98,7 +99,8 @@ static void test_grey_card(void **state)
         assert_true(json_num(json, "pixels") > 1000);
     }
     /* The region in the sky sees no facet; one past the panorama; one malformed. */
-    const char *bad[3][2] = {{"0 0 256 10", "none of its pixels"}, {"0 0 300 10", "expected x1 <= 256"},
+    const char *bad[3][2] = {{"0 0 256 10", "none of its pixels"},
+                             {"0 0 300 10", "expected x1 <= 256"},
                              {"0 0 10", "expected 4 pixel indices"}};
     for (int i = 0; i < 3; i++) {
         assert_int_equal(run(dir, bad[i][0], &out), 1);

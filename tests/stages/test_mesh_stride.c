@@ -106,7 +106,7 @@ static void test_stride_and_coarse_cap(void **state)
     assert_int_equal(st.cells, (size_t)ncl * (nrl - 1));
     assert_int_equal(m->nfaces, 2 * st.cells);
     assert_int_equal(m->nverts, (size_t)ncl * nrl);
-    assert_int_equal(boundary_edges(m), 2 * (size_t)ncl);   /* the top and bottom rings */
+    assert_int_equal(boundary_edges(m), 2 * (size_t)ncl); /* the top and bottom rings */
     /* The annulus between the rays at -80 and -40 degrees, minus what its chords cut off. */
     double r0 = 2 / tan(80 * M_PI / 180), r1 = 2 / tan(40 * M_PI / 180);
     double annulus = M_PI * (r1 * r1 - r0 * r0), a = area(m);
@@ -125,8 +125,8 @@ static void test_stride_and_coarse_cap(void **state)
     for (size_t v = 0; v < cap->nverts; v++) assert_true(fabs(cap->verts[3 * v + 2]) < 1e-5);
     rs_mesh *both = rs_mesh_merge_welded(m, cap);
     assert_non_null(both);
-    assert_int_equal(both->nverts, m->nverts + cap->nverts - (size_t)ncl);   /* every rim point welded */
-    assert_int_equal(boundary_edges(both), (size_t)ncl);                     /* only the top ring left */
+    assert_int_equal(both->nverts, m->nverts + cap->nverts - (size_t)ncl); /* every rim point welded */
+    assert_int_equal(boundary_edges(both), (size_t)ncl);                   /* only the top ring left */
     double disc = M_PI * r1 * r1, ab = area(both);
     print_message("grid + cap: area %.5f m2 of the disc's %.5f\n", ab, disc);
     assert_true(ab < disc && ab > disc * (1 - 1e-4));

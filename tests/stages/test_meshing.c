@@ -55,7 +55,8 @@ static void assert_faces_scanner(const rs_mesh *m, const double o[3])
     for (size_t f = 0; f < m->nfaces; f++) {
         rs_v3 c, n;
         rs_mesh_face(m, f, &c, &n, NULL);
-        if (rs_v3_dot(n, rs_v3_sub(rs_v3_make(o[0], o[1], o[2]), c)) <= 0) fail_msg("face %zu faces away from the scanner", f);
+        if (rs_v3_dot(n, rs_v3_sub(rs_v3_make(o[0], o[1], o[2]), c)) <= 0)
+            fail_msg("face %zu faces away from the scanner", f);
     }
 }
 
@@ -78,7 +79,7 @@ static void test_plane_orientation(void **state)
     for (size_t f = 0; f < m->nfaces; f++) {
         rs_v3 n;
         rs_mesh_face(m, f, NULL, &n, NULL);
-        assert_true(n.z > 1 - 1e-9);   /* the floor's normal, up toward the scanner */
+        assert_true(n.z > 1 - 1e-9); /* the floor's normal, up toward the scanner */
     }
     rs_mesh_free(m);
 
@@ -119,7 +120,7 @@ static void test_depth_discontinuity(void **state)
         patch += on_patch;
         floor += !on_patch;
     }
-    assert_int_equal(patch, 2 * 9 * 4);   /* the patch's inner 9 x 4 cells */
+    assert_int_equal(patch, 2 * 9 * 4); /* the patch's inner 9 x 4 cells */
     /* The floor keeps two triangles per cell with no patch corner and one where a single
      * corner is on the patch (the other three make a triangle). */
     size_t want_floor = 0;
@@ -237,17 +238,20 @@ static void test_stages_synthetic(void **state)
     char *ptx = malloc(c->npoints * 80 + 1024);
     size_t len = (size_t)sprintf(ptx, "90\n30\n0 0 2\n1 0 0\n0 1 0\n0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 2 1\n");
     for (size_t i = 0; i < c->npoints; i++)
-        len += (size_t)sprintf(ptx + len, "%.9f %.9f %.9f 0.5\n", c->xyz[3 * i], c->xyz[3 * i + 1], c->xyz[3 * i + 2] - 2);
+        len +=
+            (size_t)sprintf(ptx + len, "%.9f %.9f %.9f 0.5\n", c->xyz[3 * i], c->xyz[3 * i + 1], c->xyz[3 * i + 2] - 2);
     rs_test_write(rs_test_path(dir, "scan.ptx"), ptx);
     free(ptx);
 
     rs_image *pano = rs_image_new(256, 128, 3);
     rs_err err = {0};
-    assert_int_equal(rs_image_write_exr(pano, rs_test_path(dir, "pano.exr"), (const char *const[]){"R", "G", "B"}, 1,
-                                        NULL, &err), 0);
+    assert_int_equal(
+        rs_image_write_exr(pano, rs_test_path(dir, "pano.exr"), (const char *const[]){"R", "G", "B"}, 1, NULL, &err),
+        0);
     rs_image_free(pano);
-    rs_config *cfg = config(dir, "[pipeline]\nworkdir = out\n[ingest]\nscan = scan.ptx\n"
-                                 "[capture]\npanorama = pano.exr\nposition = 3 0 1.5\n");
+    rs_config *cfg = config(dir,
+                            "[pipeline]\nworkdir = out\n[ingest]\nscan = scan.ptx\n"
+                            "[capture]\npanorama = pano.exr\nposition = 3 0 1.5\n");
     rs_report rep;
     report_init(&rep);
     /* Mesh before ingest: cloud.ply is missing, and the message says what to do. */
@@ -268,7 +272,7 @@ static void test_stages_synthetic(void **state)
     double *dist = malloc(grid->nverts * sizeof *dist);
     for (size_t v = 0; v < grid->nverts; v++)
         dist[v] = rs_v3_len(rs_v3_sub(rs_mesh_vert(grid, (uint32_t)v), rs_v3_make(3, 0, 1.5)));
-    for (size_t i = 1; i < grid->nverts; i++)   /* insertion sort: small */
+    for (size_t i = 1; i < grid->nverts; i++) /* insertion sort: small */
         for (size_t j = i; j > 0 && dist[j - 1] > dist[j]; j--) {
             double t = dist[j];
             dist[j] = dist[j - 1];
@@ -309,7 +313,7 @@ static void test_stages_synthetic(void **state)
     print_message("longest edge / (k distance) = %.3f\n", ratio_max);
     assert_true(ratio_max < 1.5);
     double me = metric(&rep, "mean_edge_m");
-    assert_float_equal(me, edge_sum / (3.0 * m->nfaces), 0.2 * me);   /* shared edges counted once there */
+    assert_float_equal(me, edge_sum / (3.0 * m->nfaces), 0.2 * me); /* shared edges counted once there */
     assert_true(me >= 0.5 * want);
     rs_ply_free(ply);
     rs_mesh_free(m);
@@ -347,7 +351,7 @@ static void test_input_mesh(void **state)
     report_free(&rep);
     report_init(&rep);
     if (rs_mesh_run(cfg, &rep, &err) != 0) fail_msg("%s", err.msg);
-    assert_float_equal(metric(&rep, "dropped_zero_area"), 2, 0);   /* collinear 0 2 3 and repeated 1 1 2 */
+    assert_float_equal(metric(&rep, "dropped_zero_area"), 2, 0); /* collinear 0 2 3 and repeated 1 1 2 */
     assert_float_equal(metric(&rep, "dropped_unused_vertices"), 2, 0);
     char path[4096];
     rs_mesh *m = rs_mesh_read(rs_work_path(cfg, "mesh.ply", path, sizeof path), NULL, &err);
@@ -386,7 +390,8 @@ static void test_programs_unorganized(void **state)
     rs_test_write(rs_test_path(dir, "pts.ply"),
                   "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
                   "end_header\n0 0 0\n1 0 0\n0 1 0\n");
-    rs_test_write(rs_test_path(dir, "c.ini"), "[pipeline]\nworkdir = out\n[ingest]\nscan = pts.ply\n[mesh]\nfacet_size = 0.5\n");
+    rs_test_write(rs_test_path(dir, "c.ini"),
+                  "[pipeline]\nworkdir = out\n[ingest]\nscan = pts.ply\n[mesh]\nfacet_size = 0.5\n");
     char cmd[8192], *out = NULL;
     snprintf(cmd, sizeof cmd, "'%s' '%s/c.ini'", ingest, dir);
     int rc = rs_test_run(cmd, &out);
@@ -395,8 +400,7 @@ static void test_programs_unorganized(void **state)
     snprintf(cmd, sizeof cmd, "'%s' '%s/c.ini'", mesh, dir);
     rc = rs_test_run(cmd, &out);
     assert_int_equal(rc, 1);
-    if (!strstr(out, "[ingest] scanner_position") || !strstr(out, "cloud.ply"))
-        fail_msg("unexpected message: %s", out);
+    if (!strstr(out, "[ingest] scanner_position") || !strstr(out, "cloud.ply")) fail_msg("unexpected message: %s", out);
     free(out);
     rs_test_rmtree(dir);
 }
@@ -471,14 +475,10 @@ static void test_two_planes_reference(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_plane_orientation),
-        cmocka_unit_test(test_depth_discontinuity),
-        cmocka_unit_test(test_open_sweep),
-        cmocka_unit_test(test_grazing),
-        cmocka_unit_test(test_stages_synthetic),
-        cmocka_unit_test(test_input_mesh),
-        cmocka_unit_test(test_programs_unorganized),
-        cmocka_unit_test(test_two_planes_reference),
+        cmocka_unit_test(test_plane_orientation),    cmocka_unit_test(test_depth_discontinuity),
+        cmocka_unit_test(test_open_sweep),           cmocka_unit_test(test_grazing),
+        cmocka_unit_test(test_stages_synthetic),     cmocka_unit_test(test_input_mesh),
+        cmocka_unit_test(test_programs_unorganized), cmocka_unit_test(test_two_planes_reference),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

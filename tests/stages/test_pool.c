@@ -49,7 +49,8 @@ static void test_noise_falls_mean_stays(void **state)
     double m0 = 0, m1 = 0, s0 = 0, s1 = 0;
     for (size_t f = 0; f < nfloor; f++) m0 += v[3 * f], m1 += p[3 * f];
     m0 /= nfloor, m1 /= nfloor;
-    for (size_t f = 0; f < nfloor; f++) s0 += (v[3 * f] - m0) * (v[3 * f] - m0), s1 += (p[3 * f] - m1) * (p[3 * f] - m1);
+    for (size_t f = 0; f < nfloor; f++)
+        s0 += (v[3 * f] - m0) * (v[3 * f] - m0), s1 += (p[3 * f] - m1) * (p[3 * f] - m1);
     s0 = sqrt(s0 / nfloor), s1 = sqrt(s1 / nfloor);
     print_message("floor: spread %.4f -> %.4f, mean %.4f -> %.4f\n", s0, s1, m0, m1);
     assert_true(s1 < 0.5 * s0);
@@ -84,7 +85,7 @@ static void test_planes_radius_and_unusable(void **state)
         rs_v3 c, n;
         double a;
         rs_mesh_face(m, f, &c, &n, &a);
-        inv[f] = f < nfloor ? 1 / fmax(0.05, 10 - c.x) : 1 / fmax(0.05, c.z);   /* the other plane's distance */
+        inv[f] = f < nfloor ? 1 / fmax(0.05, 10 - c.x) : 1 / fmax(0.05, c.z); /* the other plane's distance */
     }
     rs_pool pool;
     assert_int_equal(rs_pool_build(m, inv, usable, NULL, 0.2, &pool), 0);
@@ -105,8 +106,7 @@ static void test_planes_radius_and_unusable(void **state)
             assert_true(rs_v3_len(rs_v3_sub(cj, ci)) < 0.2 * R + 1e-9);
         }
     }
-    print_message("%zu of %zu facets pooled, %.1f facets per mean\n", with_others, nf,
-                  (double)pool.start[nf] / nf);
+    print_message("%zu of %zu facets pooled, %.1f facets per mean\n", with_others, nf, (double)pool.start[nf] / nf);
     assert_true(with_others > nf / 2);
     rs_pool_free(&pool);
     free(inv);

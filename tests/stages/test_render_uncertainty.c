@@ -66,8 +66,8 @@ static void check_image(const char *work, const char *name, const char *prop, do
                 break;
             }
     }
-    print_message("%s: %zu facet pixels (%zu with a value > 0), %zu raw and %zu PNG mismatches\n", name, seen,
-                  nonzero, bad_raw, bad_png);
+    print_message("%s: %zu facet pixels (%zu with a value > 0), %zu raw and %zu PNG mismatches\n", name, seen, nonzero,
+                  bad_raw, bad_png);
     assert_true(seen > 1000);
     assert_true(nonzero > 0);
     assert_int_equal(bad_raw, 0);
@@ -112,7 +112,8 @@ static void test_uncertainty_images(void **state)
     char cmd[8192], work[4096];
     snprintf(work, sizeof work, "%s/work", tmp);
     char *out = NULL;
-    snprintf(cmd, sizeof cmd, "%s/rhoscan run %s/configs/two_planes.ini --set pipeline.workdir=%s "
+    snprintf(cmd, sizeof cmd,
+             "%s/rhoscan run %s/configs/two_planes.ini --set pipeline.workdir=%s "
              "--set irradiance.samples=32 --set irradiance.sky_samples=64 --set irradiance.sun_samples=16",
              rs_test_bin_dir(), rs_test_source_dir(), work);
     int rc = rs_test_run(cmd, &out);
@@ -126,7 +127,8 @@ static void test_uncertainty_images(void **state)
 
     /* An older albedo.ply: render runs, writes its other images and none of these. */
     strip_props(work);
-    snprintf(cmd, sizeof cmd, "%s/rhoscan run --only render %s/configs/two_planes.ini --set pipeline.workdir=%s "
+    snprintf(cmd, sizeof cmd,
+             "%s/rhoscan run --only render %s/configs/two_planes.ini --set pipeline.workdir=%s "
              "--set irradiance.samples=32 --set irradiance.sky_samples=64 --set irradiance.sun_samples=16",
              rs_test_bin_dir(), rs_test_source_dir(), work);
     out = NULL;

@@ -24,7 +24,7 @@
 /* ---- helpers ---- */
 
 static uint64_t rng_state = 1;
-static double uniform(void)   /* deterministic, [0, 1) */
+static double uniform(void) /* deterministic, [0, 1) */
 {
     rng_state = rng_state * 6364136223846793005ULL + 1442695040888963407ULL;
     return (double)(rng_state >> 11) / 9007199254740992.0;
@@ -112,8 +112,8 @@ static size_t duplicated_facets(const rs_mesh *m)
 }
 
 typedef struct accuracy {
-    double mean_m, p95_m;      /* points sampled on the mesh to the true surface */
-    double within_2cm;         /* share of the scan points within 2 cm of the mesh */
+    double mean_m, p95_m; /* points sampled on the mesh to the true surface */
+    double within_2cm;    /* share of the scan points within 2 cm of the mesh */
 } accuracy;
 
 static int cmp_double(const void *a, const void *b)
@@ -146,8 +146,10 @@ static accuracy measure(const rs_mesh *m, const rs_mesh *truth, const rs_cloud *
         size_t lo = 0, hi = m->nfaces - 1;
         while (lo < hi) {
             size_t mid = (lo + hi) / 2;
-            if (cum[mid] < x) lo = mid + 1;
-            else hi = mid;
+            if (cum[mid] < x)
+                lo = mid + 1;
+            else
+                hi = mid;
         }
         double u = uniform(), v = uniform();
         if (u + v > 1) u = 1 - u, v = 1 - v;
@@ -232,7 +234,7 @@ static void shuffled_ply(const rs_cloud *c, const char *path)
             u->valid[k++] = 1;
         }
     rng_state = 3;
-    for (size_t i = n - 1; i > 0; i--) {   /* Fisher-Yates */
+    for (size_t i = n - 1; i > 0; i--) { /* Fisher-Yates */
         size_t j = (size_t)(uniform() * (double)(i + 1));
         double t[3];
         memcpy(t, u->xyz + 3 * i, sizeof t);
@@ -253,8 +255,9 @@ static void test_text_reader(void **state)
 {
     (void)state;
     const char *dir = rs_test_tmpdir("scanmesh");
-    rs_test_write(rs_test_path(dir, "a.csv"), "X,Y,Z,skip,I,R,G,B\n# comment\n1,2,3,9,0.5,255,0,10\n"
-                                              "4;5;6;9;0.25;0;128;0\n\n7 8 9 9 1 1 2 3\n");
+    rs_test_write(rs_test_path(dir, "a.csv"),
+                  "X,Y,Z,skip,I,R,G,B\n# comment\n1,2,3,9,0.5,255,0,10\n"
+                  "4;5;6;9;0.25;0;128;0\n\n7 8 9 9 1 1 2 3\n");
     rs_err err = {0};
     rs_cloud *c = rs_cloud_read_text(rs_test_path(dir, "a.csv"), "x y z - intensity r g b", &err);
     if (!c) fail_msg("%s", err.msg);
@@ -300,8 +303,8 @@ static void test_pcd_reader(void **state)
     rs_err err = {0};
     rs_cloud *c = rs_pcl_read_pcd(rs_test_path(dir, "a.pcd"), &err);
     if (!c) fail_msg("%s", err.msg);
-    assert_int_equal(c->npoints, 2);   /* the NaN point is dropped */
-    assert_true(c->xyz[0] == 500000.125 && c->xyz[1] == 5000000.5);   /* doubles kept */
+    assert_int_equal(c->npoints, 2);                                /* the NaN point is dropped */
+    assert_true(c->xyz[0] == 500000.125 && c->xyz[1] == 5000000.5); /* doubles kept */
     assert_true(c->intensity[1] == 0.75f);
     assert_int_equal(c->rgb[0], 255);
     assert_int_equal(c->rgb[1], 0);
@@ -361,7 +364,7 @@ static void test_georeferenced_text(void **state)
 {
     (void)state;
     const char *dir = rs_test_tmpdir("scanmesh");
-    const double E = 512345.678, N = 5412345.123, H = 310.5;   /* UTM-like */
+    const double E = 512345.678, N = 5412345.123, H = 310.5; /* UTM-like */
     size_t cap = 40000;
     char *text = malloc(cap * 80);
     size_t len = (size_t)sprintf(text, "x,y,z,red,green,blue\n");
@@ -369,19 +372,20 @@ static void test_georeferenced_text(void **state)
     size_t n = 0;
     for (int i = 0; i < 80; i++)
         for (int j = 0; j < 80; j++) {
-            double u = (i + uniform()) / 20.0, v = (j + uniform()) / 20.0;   /* 0..4 m */
+            double u = (i + uniform()) / 20.0, v = (j + uniform()) / 20.0; /* 0..4 m */
             /* wall y = 4 (u along x, v up) and floor z = 0 */
-            len += (size_t)sprintf(text + len, "%.4f,%.4f,%.4f,200,10,10\n", E + u, N + 4 + gauss() * 0.002,
-                                   H + v);
+            len += (size_t)sprintf(text + len, "%.4f,%.4f,%.4f,200,10,10\n", E + u, N + 4 + gauss() * 0.002, H + v);
             len += (size_t)sprintf(text + len, "%.4f,%.4f,%.4f,10,10,200\n", E + u, N + v, H + gauss() * 0.002);
             n += 2;
         }
-    len += (size_t)sprintf(text + len, "%.4f,%.4f,%.4f,0,0,0\n", E + 2, N + 2, H + 1.5);   /* a stray return */
+    len += (size_t)sprintf(text + len, "%.4f,%.4f,%.4f,0,0,0\n", E + 2, N + 2, H + 1.5); /* a stray return */
     rs_test_write(rs_test_path(dir, "pts.csv"), text);
     free(text);
     char cfg[2048];
-    snprintf(cfg, sizeof cfg, "[pipeline]\nworkdir = out\n[ingest]\nscan = pts.csv\ncolumns = x y z r g b\n"
-             "scanner_position = %.3f %.3f %.3f\n[mesh]\nfacet_size = 0.3\nsurface = greedy\n", E + 2, N + 1, H + 1.6);
+    snprintf(cfg, sizeof cfg,
+             "[pipeline]\nworkdir = out\n[ingest]\nscan = pts.csv\ncolumns = x y z r g b\n"
+             "scanner_position = %.3f %.3f %.3f\n[mesh]\nfacet_size = 0.3\nsurface = greedy\n",
+             E + 2, N + 1, H + 1.6);
     rs_report rep;
     rs_ply *ply = NULL;
     rs_mesh *m = run_stages(dir, cfg, &rep, &ply);
@@ -405,7 +409,7 @@ static void test_georeferenced_text(void **state)
         on += fmin(dw, df) <= 0.005;
     }
     print_message("georeferenced: %zu of %zu vertices within 5 mm of the planes\n", on, m->nverts);
-    assert_true(on >= 0.9 * (double)m->nverts);   /* unshifted floats: almost none */
+    assert_true(on >= 0.9 * (double)m->nverts); /* unshifted floats: almost none */
     /* Oriented toward the scanner: all but a few faces (greedy projection winds a face by its
      * corners' normals, which can disagree at the wall-floor corner). */
     double area_toward = 0, area_all = 0;
@@ -437,8 +441,10 @@ static void test_georeferenced_text(void **state)
     report_free(&rep);
 
     /* Without scanner_position the mesh stage says what it needs. */
-    rs_config *cf = rs_config_load_string("[pipeline]\nworkdir = out2\n[ingest]\nscan = pts.csv\ncolumns = x y z r g b\n"
-                                          "[mesh]\nfacet_size = 0.3\n", "t.ini", dir, NULL, &err);
+    rs_config *cf =
+        rs_config_load_string("[pipeline]\nworkdir = out2\n[ingest]\nscan = pts.csv\ncolumns = x y z r g b\n"
+                              "[mesh]\nfacet_size = 0.3\n",
+                              "t.ini", dir, NULL, &err);
     report_init(&rep);
     assert_int_equal(rs_ingest_run(cf, &rep, &err), 0);
     assert_int_equal(rs_mesh_run(cf, &rep, &err), -1);
@@ -452,8 +458,8 @@ static void test_georeferenced_text(void **state)
 
 typedef struct scene_case {
     const char *name;
-    size_t budget;             /* [mesh] facets */
-    double second_scanner[3];  /* a second station overlapping the first */
+    size_t budget;            /* [mesh] facets */
+    double second_scanner[3]; /* a second station overlapping the first */
 } scene_case;
 
 static const scene_case scenes[] = {
@@ -480,7 +486,8 @@ static int load_scene(const scene_case *sc, char *ptx, size_t n, rs_cloud **scan
 static void check(const char *what, const rs_mesh *m, accuracy a, size_t budget, double slack)
 {
     print_message("%s: %zu facets (budget %zu), mesh to truth mean %.2f mm p95 %.2f mm, %.2f%% of scan points "
-                  "within 2 cm\n", what, m->nfaces, budget, 1e3 * a.mean_m, 1e3 * a.p95_m, 100 * a.within_2cm);
+                  "within 2 cm\n",
+                  what, m->nfaces, budget, 1e3 * a.mean_m, 1e3 * a.p95_m, 100 * a.within_2cm);
     assert_true(a.mean_m <= slack * 1.5 * SCAN_NOISE);
     assert_true(a.p95_m <= slack * 4 * SCAN_NOISE);
     assert_true(a.within_2cm >= 1 - slack * 0.03);
@@ -522,8 +529,8 @@ static void test_georeferenced_ptx(void **state)
     double o[3];
     assert_int_equal(sscanf(org, "%lf %lf %lf", o, o + 1, o + 2), 3);
     for (int j = 0; j < 3; j++) {
-        assert_true(o[j] == floor(o[j]));                      /* whole metres: exact in the text */
-        assert_true(fabs(o[j] - utm[j]) < 10);                 /* the centre of the room, rounded */
+        assert_true(o[j] == floor(o[j]));      /* whole metres: exact in the text */
+        assert_true(fabs(o[j] - utm[j]) < 10); /* the centre of the room, rounded */
     }
     for (size_t v = 0; v < m->nverts; v++)
         for (int j = 0; j < 3; j++) m->verts[3 * v + j] += (float)(o[j] - utm[j]);
@@ -545,16 +552,20 @@ static void test_georeferenced_ptx(void **state)
     rs_cloud_free(c);
 
     /* The facet size from the panorama, with the camera at local coordinates (reference) ... */
-    snprintf(text, sizeof text, "[pipeline]\nworkdir = out_local\n[ingest]\nscan = local.ptx\n[capture]\n"
-             "panorama = pano.exr\nposition = %.17g %.17g %.17g\n", camera[0], camera[1], camera[2]);
+    snprintf(text, sizeof text,
+             "[pipeline]\nworkdir = out_local\n[ingest]\nscan = local.ptx\n[capture]\n"
+             "panorama = pano.exr\nposition = %.17g %.17g %.17g\n",
+             camera[0], camera[1], camera[2]);
     m = run_stages(dir, text, &rep, NULL);
     double size_local = metric(&rep, "facet_size_m");
     rs_mesh_free(m);
     report_free(&rep);
     /* ... refused in the georeferenced frame, naming the position to give ... */
     double cam_world[3] = {utm[0] + camera[0], utm[1] + camera[1], utm[2] + camera[2]};
-    snprintf(text, sizeof text, "[pipeline]\nworkdir = out_world\n[ingest]\nscan = utm.ptx\n[capture]\n"
-             "panorama = pano.exr\nposition = %.17g %.17g %.17g\n", cam_world[0], cam_world[1], cam_world[2]);
+    snprintf(text, sizeof text,
+             "[pipeline]\nworkdir = out_world\n[ingest]\nscan = utm.ptx\n[capture]\n"
+             "panorama = pano.exr\nposition = %.17g %.17g %.17g\n",
+             cam_world[0], cam_world[1], cam_world[2]);
     rs_config *cfg = rs_config_load_string(text, "t.ini", dir, NULL, &err);
     assert_non_null(cfg);
     report_init(&rep);
@@ -570,8 +581,10 @@ static void test_georeferenced_ptx(void **state)
     report_free(&rep);
     rs_config_free(cfg);
     /* ... and accepted in the recentred frame, where it gives the local run's facet size. */
-    snprintf(text, sizeof text, "[pipeline]\nworkdir = out_rec\n[ingest]\nscan = utm.ptx\n[capture]\n"
-             "panorama = pano.exr\nposition = %s\n", want);
+    snprintf(text, sizeof text,
+             "[pipeline]\nworkdir = out_rec\n[ingest]\nscan = utm.ptx\n[capture]\n"
+             "panorama = pano.exr\nposition = %s\n",
+             want);
     m = run_stages(dir, text, &rep, NULL);
     double size_rec = metric(&rep, "facet_size_m");
     print_message("facet size from the panorama: local %.6g m, georeferenced %.6g m\n", size_local, size_rec);
@@ -620,9 +633,10 @@ static void test_reference_single(void **state)
         shuffled_ply(scan, rs_test_path(dir, "shuffled.ply"));
         const double *o = scan->scans[0].position;
         for (int surf = 0; surf < (getenv("RHOSCAN_MEASURE_UNORGANIZED") ? 2 : 1); surf++) {
-            snprintf(text, sizeof text, "[pipeline]\nworkdir = out_u%d\n[ingest]\nscan = shuffled.ply\n"
-                     "scanner_position = %.17g %.17g %.17g\n[mesh]\nfacets = %zu\n%s", surf, o[0], o[1], o[2],
-                     scenes[s].budget, surf ? "surface = greedy\n" : "");
+            snprintf(text, sizeof text,
+                     "[pipeline]\nworkdir = out_u%d\n[ingest]\nscan = shuffled.ply\n"
+                     "scanner_position = %.17g %.17g %.17g\n[mesh]\nfacets = %zu\n%s",
+                     surf, o[0], o[1], o[2], scenes[s].budget, surf ? "surface = greedy\n" : "");
             m = run_stages(dir, text, &rep, NULL);
             a = measure(m, truth, scan);
             snprintf(what, sizeof what, "%s unorganized, %s", scenes[s].name, surf ? "greedy" : "poisson (default)");
@@ -682,8 +696,10 @@ static void test_reference_two_scans(void **state)
         rs_mesh_free(m);
         report_free(&rep);
 
-        snprintf(text, sizeof text, "[pipeline]\nworkdir = out_off\n[ingest]\nscan = %s second.ptx\n[mesh]\n"
-                 "facets = %zu\noverlap_tolerance = 0.0001\n", ptx, scenes[s].budget);
+        snprintf(text, sizeof text,
+                 "[pipeline]\nworkdir = out_off\n[ingest]\nscan = %s second.ptx\n[mesh]\n"
+                 "facets = %zu\noverlap_tolerance = 0.0001\n",
+                 ptx, scenes[s].budget);
         m = run_stages(dir, text, &rep, NULL);
         dup = duplicated_facets(m);
         print_message("%s, overlap test off: %zu duplicated facets\n", what, dup);

@@ -14,7 +14,7 @@
 static const double box_lo[2][3] = {{0, 0, 0}, {0, 0, 0}};
 static const double box_hi[2][3] = {{4, 1, 2}, {1, 4, 2}};
 #define L_VOLUME (2.0 * (4.0 + 3.0))
-#define L_SIZE 4.0
+#define L_SIZE   4.0
 
 static int inside_l(int i, int j, int k, double h)
 {
@@ -57,7 +57,8 @@ static rs_mesh *make_l(double h)
                             int p[3] = {base[0], base[1], base[2]};
                             p[u] += du[corner];
                             p[v] += dv[corner];
-                            size_t key = (size_t)p[0] + (size_t)(n[0] + 1) * ((size_t)p[1] + (size_t)(n[1] + 1) * (size_t)p[2]);
+                            size_t key =
+                                (size_t)p[0] + (size_t)(n[0] + 1) * ((size_t)p[1] + (size_t)(n[1] + 1) * (size_t)p[2]);
                             if (id[key] == UINT32_MAX) {
                                 for (int d = 0; d < 3; d++) verts[3 * nv + d] = (float)(p[d] * h);
                                 id[key] = (uint32_t)nv++;
@@ -135,12 +136,12 @@ static void assert_closed_manifold(const rs_mesh *m)
     size_t n = 3 * m->nfaces;
     uint64_t *e = malloc(n * sizeof *e);
     for (size_t f = 0; f < m->nfaces; f++)
-        for (int j = 0; j < 3; j++)
-            e[3 * f + j] = (uint64_t)m->tris[3 * f + j] << 32 | m->tris[3 * f + (j + 1) % 3];
+        for (int j = 0; j < 3; j++) e[3 * f + j] = (uint64_t)m->tris[3 * f + j] << 32 | m->tris[3 * f + (j + 1) % 3];
     qsort(e, n, sizeof *e, cmp_u64);
     for (size_t i = 0; i + 1 < n; i++)
-        if (e[i] == e[i + 1]) fail_msg("directed edge %llu -> %llu twice", (unsigned long long)(e[i] >> 32),
-                                       (unsigned long long)(e[i] & 0xffffffffu));
+        if (e[i] == e[i + 1])
+            fail_msg("directed edge %llu -> %llu twice", (unsigned long long)(e[i] >> 32),
+                     (unsigned long long)(e[i] & 0xffffffffu));
     for (size_t i = 0; i < n; i++) {
         uint64_t rev = (e[i] & 0xffffffffu) << 32 | e[i] >> 32;
         if (!bsearch(&rev, e, n, sizeof *e, cmp_u64))
@@ -187,7 +188,8 @@ static void test_l_block(void **state)
     for (int c = 0; c < 12; c++) {
         rs_v3 want = rs_v3_make(corners_xy[c % 6][0], corners_xy[c % 6][1], c < 6 ? 0 : 2);
         double best = 1e300;
-        for (size_t v = 0; v < m->nverts; v++) best = fmin(best, rs_v3_len(rs_v3_sub(rs_mesh_vert(m, (uint32_t)v), want)));
+        for (size_t v = 0; v < m->nverts; v++)
+            best = fmin(best, rs_v3_len(rs_v3_sub(rs_mesh_vert(m, (uint32_t)v), want)));
         if (best > 1e-3) fail_msg("corner (%g, %g, %g): nearest vertex %.4f m away", want.x, want.y, want.z, best);
     }
     /* Sharp edges kept: no facet bends across an edge of the block, so every normal is
@@ -197,7 +199,8 @@ static void test_l_block(void **state)
         double area;
         rs_mesh_face(m, f, NULL, &n, &area);
         double axis = fmax(fabs(n.x), fmax(fabs(n.y), fabs(n.z)));
-        if (axis < cos(1.0 * M_PI / 180)) fail_msg("face %zu: normal (%.3f, %.3f, %.3f) is off the axes", f, n.x, n.y, n.z);
+        if (axis < cos(1.0 * M_PI / 180))
+            fail_msg("face %zu: normal (%.3f, %.3f, %.3f) is off the axes", f, n.x, n.y, n.z);
     }
 
     /* Deterministic: the same input gives the same mesh. */
@@ -255,7 +258,7 @@ static void test_open_square(void **state)
         double a;
         rs_mesh_face(m, f, NULL, &nrm, &a);
         area += a;
-        assert_true(nrm.z > 0.999);   /* no face turned over */
+        assert_true(nrm.z > 0.999); /* no face turned over */
     }
     print_message("square: %zu -> %zu faces, area %.5f m^2, mean edge %.3f m\n", st.faces_in, st.faces_out, area,
                   mean_edge(m));

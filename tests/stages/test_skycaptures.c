@@ -7,9 +7,9 @@
 #include "skyenv.h"
 #include "testutil.h"
 
-#define W 512
-#define H 256
-#define WALL 0.1    /* radiance of the model that mixes into silhouette pixels */
+#define W    512
+#define H    256
+#define WALL 0.1 /* radiance of the model that mixes into silhouette pixels */
 
 /* A smooth sky without a sun (so that nothing is a bright pixel), ground 0.4 below the horizon. */
 static void truth_sky(rs_v3 d, double rgb[3])
@@ -17,8 +17,14 @@ static void truth_sky(rs_v3 d, double rgb[3])
     for (int ch = 0; ch < 3; ch++) rgb[ch] = d.z <= 0 ? 0.4 : (1.0 + 0.1 * ch) * (1 + 0.5 * d.z + 0.2 * d.x);
 }
 
-static double el_deg(rs_v3 d) { return asin(d.z) * 180 / M_PI; }
-static double az_deg(rs_v3 d) { return atan2(d.y, d.x) * 180 / M_PI; }
+static double el_deg(rs_v3 d)
+{
+    return asin(d.z) * 180 / M_PI;
+}
+static double az_deg(rs_v3 d)
+{
+    return atan2(d.y, d.x) * 180 / M_PI;
+}
 
 /* Chebyshev distance (pixels, azimuth wraps, up to 3) from pixel k to the nearest pixel with
  * hidden[] set. */
@@ -71,7 +77,7 @@ static rs_skyenv_opts opts(void)
 static double rel_err(const float *v, const rs_capture *truth_cap, size_t k)
 {
     return fabs(rs_skyenv_luminance(v) - rs_skyenv_luminance(truth_cap->pano->data + 3 * k)) /
-           rs_skyenv_luminance(truth_cap->pano->data + 3 * k);
+        rs_skyenv_luminance(truth_cap->pano->data + 3 * k);
 }
 
 /* Capture A (the [capture]) stands in a courtyard: walls up to 30 degrees all round. Capture B
@@ -208,7 +214,7 @@ static void test_coarse_loses(void **state)
     print_message("hidden band 0..30 degrees: light %.4f against the truth %.4f (%.2f %%)\n", got, truth,
                   100 * (got / truth - 1));
     assert_true(fabs(got / truth - 1) < 0.025);
-    assert_true(got > truth);     /* the coarse capture still counts */
+    assert_true(got > truth); /* the coarse capture still counts */
     rs_skyenv_release(&env);
     rs_capture_release(&a);
     rs_capture_release(&fine);

@@ -12,8 +12,8 @@
 /* The panorama's size: 512 x 256 but for test_cv_on_coarser_map. */
 static int W = 512, H = 256;
 
-static const double truth_perez[3][5] = {{-1, -0.30, 12, -3.2, 0.45}, {-1, -0.32, 10, -3.0, 0.45},
-                                         {-1, -0.36, 8, -2.8, 0.5}};
+static const double truth_perez[3][5] = {
+    {-1, -0.30, 12, -3.2, 0.45}, {-1, -0.32, 10, -3.0, 0.45}, {-1, -0.36, 8, -2.8, 0.5}};
 static const double truth_zenith[3] = {0.9, 1.0, 1.3};
 
 static rs_v3 sun_dir(double az_deg, double el_deg)
@@ -74,8 +74,8 @@ static float *courtyard_ids(double sun_az_deg)
 
 /* Irradiance of a facet with normal n from the map's directions flagged in `which` (NULL: all),
  * and the same from the truth (sun pixel as it is in the map). */
-static void irradiance_pair(const rs_skyenv *env, const rs_capture *cap, const uint8_t *which, rs_v3 n,
-                            double *e_map, double *e_truth)
+static void irradiance_pair(const rs_skyenv *env, const rs_capture *cap, const uint8_t *which, rs_v3 n, double *e_map,
+                            double *e_truth)
 {
     *e_map = *e_truth = 0;
     for (int r = 0; r < H; r++)
@@ -135,8 +135,8 @@ static void test_low_sun_courtyard(void **state)
         irradiance_pair(&env[1], &cap, env[1].filled, n, &em, &et);
         irradiance_pair(&env[0], &cap, env[0].filled, n, &er, &et2);
         double rm = fabs(em - et) / et, rr = fabs(er - et) / et;
-        print_message("wall facing %5.0f deg: hidden-sky E truth %.4f, model %.4f (%.2f %%), rows %.4f (%.2f %%)\n",
-                      az, et, em, 100 * rm, er, 100 * rr);
+        print_message("wall facing %5.0f deg: hidden-sky E truth %.4f, model %.4f (%.2f %%), rows %.4f (%.2f %%)\n", az,
+                      et, em, 100 * rm, er, 100 * rr);
         worst_model = fmax(worst_model, rm);
         worst_row = fmax(worst_row, rr);
         sum_model += rm;
@@ -181,7 +181,7 @@ static void test_ground_near_bands_and_model(void **state)
             double dep = -asin(rs_pano_pixel_dir(W, H, c, r).z) * 180 / M_PI;
             if (!env.filled[k] || dep <= 0) continue;
             const float *px = env.radiance + 3 * k;
-            if (dep < 13) {            /* within 10 degrees of the measured 0 to 4, a band's width aside */
+            if (dep < 13) { /* within 10 degrees of the measured 0 to 4, a band's width aside */
                 near++;
                 bad += env.filled[k] != 1 || fabs(px[1] - 0.4) > 1e-5;
             } else if (dep > 15) {
@@ -191,14 +191,14 @@ static void test_ground_near_bands_and_model(void **state)
             }
         }
     print_message("filled below the horizon: %zu copy the measured ground, %zu the ground model (%zu in all, E_h "
-                  "%.4f %.4f %.4f); %zu wrong\n", near, model, info.fill.ground_model_pixels, eh[0], eh[1], eh[2],
-                  bad);
+                  "%.4f %.4f %.4f); %zu wrong\n",
+                  near, model, info.fill.ground_model_pixels, eh[0], eh[1], eh[2], bad);
     assert_true(near > 0 && model > 0);
     assert_int_equal(bad, 0);
     assert_true(info.fill.ground_model_pixels >= model && !info.fill.ground_from_albedo);
     double before = env.total_power, rgb[3] = {0.5, 0.6, 0.7};
     assert_int_equal(rs_skyenv_set_ground(&env, rgb, 1), (long)info.fill.ground_model_pixels);
-    size_t k0 = (size_t)(H - 1) * W;   /* straight down: the ground model */
+    size_t k0 = (size_t)(H - 1) * W; /* straight down: the ground model */
     for (int ch = 0; ch < 3; ch++) assert_true(env.radiance[3 * k0 + ch] == (float)rgb[ch]);
     assert_true(env.total_power > before && env.cdf[(size_t)W * H] == env.total_power);
     /* Without an albedo for the model: the measured band (0.4) at any distance, as before it. */
@@ -250,8 +250,7 @@ static void test_fill_sigma_grows_with_distance(void **state)
                       env.fill_sigma_px[k]);
         assert_true(fabs(deg - (40 - el)) < 3.0);
         assert_true(env.filled[k] && env.fill_sigma_px[k] > prev && env.fill_sigma_px[k] <= 1);
-        if (env.fill_sigma_px[k] < 1)
-            assert_float_equal(env.fill_sigma_px[k], rate * sqrt(dist[k]), 0.02 * rate);
+        if (env.fill_sigma_px[k] < 1) assert_float_equal(env.fill_sigma_px[k], rate * sqrt(dist[k]), 0.02 * rate);
         prev = env.fill_sigma_px[k];
     }
     for (size_t k = 0; k < npx; k++)
@@ -272,8 +271,7 @@ static void test_fill_sigma_grows_with_distance(void **state)
                 et += om * cs * rs_skyenv_luminance(cap.pano->data + 3 * k);
                 sig += lm * env.fill_sigma_px[k];
             }
-        print_message("wall facing %5.0f deg: hidden-sky E error %+.4f, sigma %.4f\n", waz * 180 / M_PI, em - et,
-                      sig);
+        print_message("wall facing %5.0f deg: hidden-sky E error %+.4f, sigma %.4f\n", waz * 180 / M_PI, em - et, sig);
         assert_true(fabs(em - et) <= 2 * sig);
     }
     rs_skyenv_release(&env);
@@ -306,7 +304,7 @@ static void test_sky_panorama(void **state)
             int cc, rr;
             rs_pano_world_to_pixel(&cap.pose, W, H, d, &cc, &rr);
             for (int ch = 0; ch < 3; ch++) rs_image_px(sky.pano, c, r)[ch] = 0.5f * rs_image_px(cap.pano, cc, rr)[ch];
-            mask[(size_t)r * W + c] = d.z > -0.2;          /* its own model hides the low ground */
+            mask[(size_t)r * W + c] = d.z > -0.2; /* its own model hides the low ground */
         }
     rs_skyenv_opts o = opts(RS_SKYFILL_MODEL);
     o.sky = &sky;
@@ -334,7 +332,7 @@ static void test_sky_panorama(void **state)
         }
     assert_int_equal(filled_upper, 0);
     assert_int_equal(bad, 0);
-    assert_true(env.filled_pixels > 0);               /* the ground hidden from both */
+    assert_true(env.filled_pixels > 0); /* the ground hidden from both */
     rs_skyenv_release(&env);
     free(mask);
     free(ids);
@@ -383,7 +381,8 @@ static void test_two_captures(void **state)
         expect_other += !seen1 && seen2;
         if (seen1 || seen2)
             for (int ch = 0; ch < 3; ch++)
-                if (fabs(env.radiance[3 * k + ch] - cap.pano->data[3 * k + ch]) > 1e-3 * cap.pano->data[3 * k + ch]) bad++;
+                if (fabs(env.radiance[3 * k + ch] - cap.pano->data[3 * k + ch]) > 1e-3 * cap.pano->data[3 * k + ch])
+                    bad++;
     }
     assert_int_equal(info.other_pixels, expect_other);
     assert_int_equal(env.filled_pixels, expect_filled);
@@ -465,8 +464,8 @@ static void test_cv_on_coarser_map(void **state)
         rel[i] = info.fill.cv_rel_model;
         rate[i] = rs_skyfill_rate_used(&info.fill, RS_SKYFILL_MODEL);
         order[i] = info.fill.model.sh_order;
-        print_message("%d x %d: held-out error %.4f, rate %.4f per sqrt(radian), order %d (%d blocks)\n", W, H,
-                      rel[i], rate[i], order[i], info.fill.cv_folds);
+        print_message("%d x %d: held-out error %.4f, rate %.4f per sqrt(radian), order %d (%d blocks)\n", W, H, rel[i],
+                      rate[i], order[i], info.fill.cv_folds);
         assert_int_equal(info.fill.cv_folds, 9);
         rs_skyenv_release(&env);
         free(ids);

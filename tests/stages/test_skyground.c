@@ -19,11 +19,11 @@
 #include "ply.h"
 #include "testutil.h"
 
-#define W 512
-#define L_SKY 1.0
-#define L_FAR 0.3                /* measured ground beyond the model, seen at grazing angles */
+#define W      512
+#define L_SKY  1.0
+#define L_FAR  0.3 /* measured ground beyond the model, seen at grazing angles */
 #define L_WALL 0.25
-#define EDGE 10.0                /* the ground spans [-EDGE, EDGE]^2; the wall stands at x = EDGE */
+#define EDGE   10.0 /* the ground spans [-EDGE, EDGE]^2; the wall stands at x = EDGE */
 #define WALL_H 8.0
 
 static const double albedo[3] = {0.45, 0.4, 0.3};
@@ -71,7 +71,8 @@ static double wall_esky(const char *dir, size_t nf, size_t wall0)
     return sum;
 }
 
-#define SCENE "[pipeline]\nworkdir = work\n[mesh]\ninput_mesh = mesh.ply\n[capture]\npanorama = pano.exr\n" \
+#define SCENE                                                                                                     \
+    "[pipeline]\nworkdir = work\n[mesh]\ninput_mesh = mesh.ply\n[capture]\npanorama = pano.exr\n"                 \
     "position = 0 0 1.6\n[irradiance]\nsamples = 128\nsky_samples = 128\nsun_samples = 16\nskip_unseen = false\n" \
     "[sky]\nfill = model\n"
 
@@ -112,9 +113,9 @@ static void test_ground_albedo_from_scan(void **state)
     double used = rs_test_json_number(json, "sky_ground_albedo_facets");
     double left_out = rs_test_json_number(json, "sky_ground_albedo_left_out");
     print_message("from %g ground facets; %g left out for seeing facets no camera saw\n", used, left_out);
-    assert_true(left_out > 0 && used >= 30);     /* the wall's back, which the camera sees, is not observed */
-    print_message("ground albedo from the scan %.4f %.4f %.4f (true %g %g %g), %g map pixels of ground model\n",
-                  a[0], a[1], a[2], albedo[0], albedo[1], albedo[2], pixels);
+    assert_true(left_out > 0 && used >= 30); /* the wall's back, which the camera sees, is not observed */
+    print_message("ground albedo from the scan %.4f %.4f %.4f (true %g %g %g), %g map pixels of ground model\n", a[0],
+                  a[1], a[2], albedo[0], albedo[1], albedo[2], pixels);
     for (int ch = 0; ch < 3; ch++) assert_true(fabs(a[ch] - albedo[ch]) < 0.005 * albedo[ch]);
     assert_true(pixels > 0);
     double scan = wall_esky(dir, nf, wall0);

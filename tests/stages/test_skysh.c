@@ -10,7 +10,7 @@
 #include "skysh.h"
 #include "testutil.h"
 
-static const rs_v3 SUN = {0.59, 0.35, 0.7274};   /* about 46.7 degrees up; normalised below */
+static const rs_v3 SUN = {0.59, 0.35, 0.7274}; /* about 46.7 degrees up; normalised below */
 
 /* Constant + linear + quadratic per channel (order <= 2: the projection is exact for it), plus
  * a sun disc of half-angle sun_deg and radiance sun_L when sun_L > 0, in world axes. */
@@ -51,8 +51,9 @@ static double brute_max_error(const rs_skyenv *env, const rs_skysh *sh)
         double e[RS_SKYSH_CHANNELS], s[RS_SKYSH_CHANNELS];
         rs_v3 n = rs_skysh_normal(k, sh->normals);
         rs_skysh_exact(env, n, e);
-        assert_true(rs_skysh_eval(sh, n, s));       /* no sun set in these maps */
-        for (int ch = 0; ch < 3; ch++) ex[3 * k + ch] = e[ch], shv[3 * k + ch] = s[ch], emax[ch] = fmax(emax[ch], e[ch]);
+        assert_true(rs_skysh_eval(sh, n, s)); /* no sun set in these maps */
+        for (int ch = 0; ch < 3; ch++)
+            ex[3 * k + ch] = e[ch], shv[3 * k + ch] = s[ch], emax[ch] = fmax(emax[ch], e[ch]);
     }
     double worst = 0;
     for (int k = 0; k < sh->normals; k++)
@@ -139,13 +140,14 @@ static void test_sun(void **state)
     rs_capture cap;
     rs_skyenv whole, split;
     smooth_sky(512, 5e3, 1.0, &cap);
-    build_env(&cap, 0, &whole);                        /* no sun set: the sun is in the map */
+    build_env(&cap, 0, &whole); /* no sun set: the sun is in the map */
     build_env(&cap, 1, &split);
     rs_skysh a, b;
     rs_err err;
     assert_int_equal(rs_skysh_build(&whole, 0.01, 256, &a, &err), 0);
     assert_int_equal(rs_skysh_build(&split, 0.01, 256, &b, &err), 0);
-    print_message("sun in the map: worst error %.3f %%; sun set apart: %.4f %%\n", 100 * a.max_error, 100 * b.max_error);
+    print_message("sun in the map: worst error %.3f %%; sun set apart: %.4f %%\n", 100 * a.max_error,
+                  100 * b.max_error);
     assert_false(a.usable);
     assert_true(a.max_error > 0.01);
     assert_true(b.has_sun && b.usable);
@@ -158,7 +160,7 @@ static void test_sun(void **state)
         if (!rs_skysh_eval(&b, n, s)) {
             cut++;
             assert_false(rs_skysh_facet(&b, n, &fg));
-            assert_true(fabs(rs_v3_dot(n, rs_v3_norm(SUN))) < 0.1);   /* the plane passes near the sun */
+            assert_true(fabs(rs_v3_dot(n, rs_v3_norm(SUN))) < 0.1); /* the plane passes near the sun */
             continue;
         }
         used++;
@@ -238,7 +240,7 @@ static void test_gather_uses_it(void **state)
 {
     (void)state;
     rs_meshgen mg = rs_meshgen_new(2000, 2000);
-    rs_meshgen_rect(&mg, rs_v3_make(-5, -5, 0), rs_v3_make(10, 0, 0), rs_v3_make(0, 10, 0), 8, 8);   /* floor */
+    rs_meshgen_rect(&mg, rs_v3_make(-5, -5, 0), rs_v3_make(10, 0, 0), rs_v3_make(0, 10, 0), 8, 8); /* floor */
     size_t slab = mg.nf;
     rs_meshgen_box(&mg, rs_v3_make(-2, -2, 2), rs_v3_make(2, 2, 2.2), 2, 0);
     size_t box = mg.nf;
@@ -255,8 +257,8 @@ static void test_gather_uses_it(void **state)
     rs_skysh sh;
     assert_int_equal(rs_skysh_build(&env, 0.01, 256, &sh, &err), 0);
     assert_true(sh.usable);
-    rs_gather_ctx rays = {.scene = scene, .env = &env, .samples = 64, .sky_samples = 64, .sun_samples = 16,
-                          .seed = 11, .skip_convex = 1};
+    rs_gather_ctx rays = {
+        .scene = scene, .env = &env, .samples = 64, .sky_samples = 64, .sun_samples = 16, .seed = 11, .skip_convex = 1};
     rs_gather_ctx with = rays, many = rays;
     with.sky_sh = &sh;
     many.samples = many.sky_samples = 4096;
@@ -274,7 +276,7 @@ static void test_gather_uses_it(void **state)
         rs_mesh_face(m, f, &c, &n, &area);
         int top = f >= slab && f < box && n.z > 0.5;
         int under = f < slab && fabs(c.x) < 1.5 && fabs(c.y) < 1.5;
-        if (under) assert_true(!a.sky_sh && a.rays > 0 && a.nentries > 0);   /* sees the slab: rays */
+        if (under) assert_true(!a.sky_sh && a.rays > 0 && a.nentries > 0); /* sees the slab: rays */
         if (!a.sky_sh) {
             assert_true(a.rays > 0 || a.sees_nothing);
             free(a.entries);
@@ -295,7 +297,7 @@ static void test_gather_uses_it(void **state)
     }
     assert_int_equal(top_used, 8);  /* the slab's top: 2 x 2 cells of two triangles */
     assert_int_equal(used, convex); /* every facet that sees only sky: the sun set is above them all */
-    assert_int_equal(rs_skysh_candidates(scene), convex);   /* the count before the gather */
+    assert_int_equal(rs_skysh_candidates(scene), convex); /* the count before the gather */
     /* rs_gather_run: the same facets, fewer rays */
     rs_facet_gather *fa = calloc(nf, sizeof *fa), *fb = calloc(nf, sizeof *fb);
     rs_gather_stats sa, sb;
@@ -305,7 +307,7 @@ static void test_gather_uses_it(void **state)
     size_t nsh = 0;
     for (size_t f = 0; f < nf; f++) {
         nsh += fb[f].sky_sh;
-        if (!fb[f].sky_sh) {                          /* the rest is the gather of before */
+        if (!fb[f].sky_sh) { /* the rest is the gather of before */
             assert_memory_equal(fa[f].esky, fb[f].esky, sizeof fa[f].esky);
             assert_int_equal(fa[f].nentries, fb[f].nentries);
         }
@@ -323,11 +325,8 @@ static void test_gather_uses_it(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_smooth_sky_is_exact),
-        cmocka_unit_test(test_closed_form),
-        cmocka_unit_test(test_sun),
-        cmocka_unit_test(test_local_bound),
-        cmocka_unit_test(test_gather_uses_it),
+        cmocka_unit_test(test_smooth_sky_is_exact), cmocka_unit_test(test_closed_form),    cmocka_unit_test(test_sun),
+        cmocka_unit_test(test_local_bound),         cmocka_unit_test(test_gather_uses_it),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

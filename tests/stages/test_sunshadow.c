@@ -57,7 +57,7 @@ static void test_estimator(void **state)
         observed[f] = 1;
         const double rho[3] = {c.y > 2 ? 0.6 : 0.3, c.y > 2 ? 0.5 : 0.3, c.y > 2 ? 0.4 : 0.3};
         for (int ch = 0; ch < 3; ch++) {
-            E[3 * f + ch] = (3.0 + 0.05 * c.x + 0.2 * ch) * (1 + 0.1 * sin(c.y));   /* smooth, varies */
+            E[3 * f + ch] = (3.0 + 0.05 * c.x + 0.2 * ch) * (1 + 0.1 * sin(c.y)); /* smooth, varies */
             double lit = rho[ch] / M_PI * (E[3 * f + ch] + D[ch] * sin(el) * 1.0);
             double dark = rho[ch] / M_PI * E[3 * f + ch];
             mix[3 * f + ch] = 0.5 * (lit + dark);
@@ -67,13 +67,14 @@ static void test_estimator(void **state)
         if (fabs(c.x) < 0.15)
             for (int ch = 0; ch < 3; ch++) L[3 * f + ch] = mix[3 * f + ch];
     }
-    rs_sunshadow_input in = {.mesh = m, .vis = vis, .sun_dir = s, .E = E, .L = L, .observed = observed,
-                             .margin = 0.3, .radius = 0.9};
+    rs_sunshadow_input in = {
+        .mesh = m, .vis = vis, .sun_dir = s, .E = E, .L = L, .observed = observed, .margin = 0.3, .radius = 0.9};
     rs_sunshadow out;
     assert_int_equal(rs_sunshadow_estimate(&in, &out), 0);
     print_message("DNI %.4f %.4f %.4f (true %.1f %.1f %.1f), sigma %.4f; %zu lit (%zu paired), %zu shadowed, %zu "
-                  "blocks\n", out.dni[0], out.dni[1], out.dni[2], D[0], D[1], D[2], out.sigma_lum, out.lit,
-                  out.lit_used, out.shadowed, out.blocks);
+                  "blocks\n",
+                  out.dni[0], out.dni[1], out.dni[2], D[0], D[1], D[2], out.sigma_lum, out.lit, out.lit_used,
+                  out.shadowed, out.blocks);
     for (int ch = 0; ch < 3; ch++) assert_true(fabs(out.dni[ch] - D[ch]) < 0.02 * D[ch]);
     double dl = 0.2126 * D[0] + 0.7152 * D[1] + 0.0722 * D[2];
     assert_true(out.sigma_lum > 0 && out.sigma_lum < 0.05 * dl);
@@ -100,9 +101,9 @@ static void test_estimator(void **state)
     in.margin = 0.3;
     for (size_t f = 0; f < nf; f += 7) {
         E[3 * f + (f % 3)] = (f % 2) ? NAN : INFINITY;
-        L[3 * f + (f / 7) % 3] = (f % 3) ? 0 : -1;      /* one channel of the facet */
+        L[3 * f + (f / 7) % 3] = (f % 3) ? 0 : -1; /* one channel of the facet */
     }
-    for (size_t f = 0; f < nf; f += 2003) vis[f] = NAN;   /* few: unknown ones count as neither kind */
+    for (size_t f = 0; f < nf; f += 2003) vis[f] = NAN; /* few: unknown ones count as neither kind */
     double *nan_sigma = malloc(nf * sizeof *nan_sigma);
     for (size_t f = 0; f < nf; f++) nan_sigma[f] = (f % 11) ? 0.01 : NAN;
     in.E_sigma = nan_sigma;
@@ -149,18 +150,21 @@ static void test_fallback(void **state)
     uint8_t *observed = malloc(nf);
     rs_facet_gather *fg = calloc(nf, sizeof *fg);
     for (size_t f = 0; f < nf; f++) {
-        vis[f] = 1;                                   /* all in the sun */
+        vis[f] = 1; /* all in the sun */
         observed[f] = 1;
         for (int ch = 0; ch < 3; ch++) {
             L[3 * f + ch] = 1;
             fg[f].esky[ch] = 3;
         }
     }
-    rs_sunsource sun = {.active = 1, .from_shadows = 1, .dir_world = rs_v3_make(0.6, 0, 0.8),
-                        .removed_power = 6.0, .removed_rgb = {9.0, 5.5, 2.0}};
+    rs_sunsource sun = {.active = 1,
+                        .from_shadows = 1,
+                        .dir_world = rs_v3_make(0.6, 0, 0.8),
+                        .removed_power = 6.0,
+                        .removed_rgb = {9.0, 5.5, 2.0}};
     assert_int_equal(rs_sunsource_from_shadows(&sun, m, vis, fg, L, observed, rs_v3_make(0, 0, 1.6), 512), 0);
-    print_message("no shadow: rc %d, DNI %.3f, colour %.3f %.3f %.3f\n", sun.shadow_rc, sun.dni, sun.rgb[0],
-                  sun.rgb[1], sun.rgb[2]);
+    print_message("no shadow: rc %d, DNI %.3f, colour %.3f %.3f %.3f\n", sun.shadow_rc, sun.dni, sun.rgb[0], sun.rgb[1],
+                  sun.rgb[2]);
     assert_int_equal(sun.shadow_rc, 1);
     assert_true(sun.fell_back);
     assert_true(sun.dni == 6.0);
@@ -173,7 +177,7 @@ static void test_fallback(void **state)
     assert_true(fabs(fg[0].esky[0] - (3 + 6.0 * 1.5 * 0.8)) < 1e-9);
     assert_true(fg[0].filled_lum == 0 && fg[0].fill_sigma_lum == 0);
     rs_scene_free(scene);
-    sun.removed_power = 0;                            /* a hidden sun: nothing to fall back on */
+    sun.removed_power = 0; /* a hidden sun: nothing to fall back on */
     sun.fell_back = 0;
     assert_int_equal(rs_sunsource_from_shadows(&sun, m, vis, fg, L, observed, rs_v3_make(0, 0, 1.6), 512), 0);
     assert_true(!sun.fell_back && sun.dni == 0);
@@ -184,13 +188,13 @@ static void test_fallback(void **state)
     rs_mesh_free(m);
 }
 
-#define W 1024
+#define W          1024
 #define SUN_EL_DEG 30.0
-#define L_SKY 1.0
-#define L_FAR 0.3                /* the ground beyond the model */
-#define DNI 20.0
-#define WALL_X 3.0
-#define WALL_H 6.0
+#define L_SKY      1.0
+#define L_FAR      0.3 /* the ground beyond the model */
+#define DNI        20.0
+#define WALL_X     3.0
+#define WALL_H     6.0
 
 static const double albedo[3] = {0.5, 0.4, 0.3};
 
@@ -212,7 +216,7 @@ static double sky_radiance(rs_v3 d, int glow, double glow_az)
     double cosang = (d.x * cos(glow_az) + d.y * sin(glow_az)) * cos(el) + d.z * sin(el);
     if (!glow) return L_SKY;
     return L_SKY * rs_skymodel_perez(cie12, d.z, acos(fmax(-1, fmin(1, cosang)))) /
-           rs_skymodel_perez(cie12, 1, M_PI / 2 - el);
+        rs_skymodel_perez(cie12, 1, M_PI / 2 - el);
 }
 
 /* The panorama: sky, far ground, the black wall, and ground pixels at ground[3 f..] of the facet
@@ -228,7 +232,7 @@ static void write_pano(const char *dir, const rs_image *facet_id, const double *
             float *px = rs_image_px(img, c, r);
             for (int ch = 0; ch < 3; ch++) {
                 double v = d.z > 0 ? sky_radiance(d, glow, glow_az) : L_FAR;
-                if (what == 2) v = 0;                         /* the black wall */
+                if (what == 2) v = 0; /* the black wall */
                 if (what == 1) {
                     v = 0.2;
                     float id = facet_id ? facet_id->data[(size_t)r * W + c] : -1;
@@ -243,7 +247,8 @@ static void write_pano(const char *dir, const rs_image *facet_id, const double *
     rs_image_free(img);
 }
 
-#define SCENE_HEAD "[pipeline]\nworkdir = work\n[mesh]\ninput_mesh = mesh.ply\n[capture]\npanorama = pano.exr\n" \
+#define SCENE_HEAD                                                                                                \
+    "[pipeline]\nworkdir = work\n[mesh]\ninput_mesh = mesh.ply\n[capture]\npanorama = pano.exr\n"                 \
     "position = 0 0 1.6\n[irradiance]\nsamples = 128\nsky_samples = 128\nsun_samples = 16\nskip_unseen = false\n" \
     "[sky]\nfill = row\n"
 #define SUN_GIVEN "sun_azimuth_deg = 0\nsun_elevation_deg = 30\n"
@@ -356,7 +361,8 @@ static void test_searched_sun(void **state)
     double el = SUN_EL_DEG * M_PI / 180, ang = acos(fmin(1, d[0] * cos(el) + d[2] * sin(el))) * 180 / M_PI;
     double s1 = given_sunlit_ground(m, esky1), s2 = sunlit_ground(dir, m);
     print_message("searched sun %.2f deg from the true one, DNI %.4f (true %g); sunlit ground E_sky %.4f against "
-                  "%.4f\n", ang, dni, DNI, s2, s1);
+                  "%.4f\n",
+                  ang, dni, DNI, s2, s1);
     assert_true(ang < 2);
     assert_true(fabs(dni - DNI) < 0.05 * DNI);
     assert_true(fabs(s2 - s1) < 0.02 * s1);
@@ -386,9 +392,10 @@ static void test_searched_sun_refits_model(void **state)
     assert_int_equal(sscanf(p, "\"sun_direction\": [%lf, %lf, %lf]", &d[0], &d[1], &d[2]), 3);
     double el = SUN_EL_DEG * M_PI / 180, ang = acos(fmin(1, d[0] * cos(el) + d[2] * sin(el))) * 180 / M_PI;
     print_message("model fill: the glow put the sun %.1f deg from the searched one; the refitted model's sun is "
-                  "%.2f deg from the true one; DNI %.4f (true %g)\n", off, ang, dni, DNI);
+                  "%.2f deg from the true one; DNI %.4f (true %g)\n",
+                  off, ang, dni, DNI);
     assert_non_null(strstr(buf, "\"sun_source\": \"shadows\""));
-    assert_true(off > 4);          /* the first fit's sun was elsewhere: the refit moved it */
+    assert_true(off > 4); /* the first fit's sun was elsewhere: the refit moved it */
     assert_true(ang < 2);
     assert_true(fabs(dni - DNI) < 0.02 * DNI);
     free(esky1);
@@ -409,7 +416,7 @@ static void test_no_sun_to_find(void **state)
         const char *buf = rs_test_read_text(rs_test_path(dir, "work/irradiance.json"));
         assert_null(strstr(buf, "\"explicit_sun\""));
         assert_true(!model || strstr(buf, "no circumsolar glow"));
-        if (model) continue;       /* the model fills the hidden sky its own way: only the row fill compares */
+        if (model) continue; /* the model fills the hidden sky its own way: only the row fill compares */
         double s1 = given_sunlit_ground(m, esky1), s2 = sunlit_ground(dir, m);
         print_message("overcast, row fill: no sun; open ground E_sky %.4f against %.4f\n", s2, s1);
         assert_true(fabs(s2 - s1) < 0.01 * s1);

@@ -13,13 +13,13 @@
 #include "ply.h"
 #include "testutil.h"
 
-#define W 1024
+#define W          1024
 #define SUN_EL_DEG 40.0
-#define L_SKY 1.0
-#define L_GROUND 0.3
-#define L_SUN 15000.0            /* true radiance of the disc (1 deg radius, widened for the grid) */
-#define L_HALO 200.0             /* 1 to 2 deg: bright, below the clip level, real light */
-#define CLIP 500.0               /* the sensor's ceiling: the disc reads this */
+#define L_SKY      1.0
+#define L_GROUND   0.3
+#define L_SUN      15000.0 /* true radiance of the disc (1 deg radius, widened for the grid) */
+#define L_HALO     200.0   /* 1 to 2 deg: bright, below the clip level, real light */
+#define CLIP       500.0   /* the sensor's ceiling: the disc reads this */
 
 static rs_v3 sun_dir(void)
 {
@@ -102,8 +102,8 @@ static void run(const char *dir, const char *sets, double **esky, rs_v3 **centro
 }
 
 /* Mean E over the facets whose centroid lies in the box. */
-static double mean_in(const double *e, const rs_v3 *c, size_t nf, double x0, double x1, double y0, double y1,
-                      double z0, double z1)
+static double mean_in(const double *e, const rs_v3 *c, size_t nf, double x0, double x1, double y0, double y1, double z0,
+                      double z1)
 {
     double sum = 0;
     int n = 0;
@@ -136,10 +136,10 @@ static void test_clipped_sun(void **state)
     double dni, clipped;
     write_scene(dir, &dni, &clipped);
     double s = sin(SUN_EL_DEG * M_PI / 180);
-    double e_true = M_PI * L_SKY + dni * s;             /* open horizontal facet: sky + sun and halo */
+    double e_true = M_PI * L_SKY + dni * s; /* open horizontal facet: sky + sun and halo */
     double e_clipped = clipped * s;
     print_message("DNI %.4f, clipped %.4f; roof E_sky analytic %.4f\n", dni, clipped, e_true);
-    assert_true(e_clipped > 0.5 * e_true);             /* the clip matters */
+    assert_true(e_clipped > 0.5 * e_true); /* the clip matters */
 
     double *e0, *e1, *e2;
     rs_v3 *c;
@@ -147,8 +147,10 @@ static void test_clipped_sun(void **state)
     run(dir, "", &e0, &c, &nf);
     free(c);
     char sets[512];
-    snprintf(sets, sizeof sets, "--set sky.sun_irradiance=%.9g --set sky.sun_azimuth_deg=0 --set "
-             "sky.sun_elevation_deg=%g", dni, SUN_EL_DEG);
+    snprintf(sets, sizeof sets,
+             "--set sky.sun_irradiance=%.9g --set sky.sun_azimuth_deg=0 --set "
+             "sky.sun_elevation_deg=%g",
+             dni, SUN_EL_DEG);
     run(dir, sets, &e1, &c, &nf);
     const char *json = rs_test_read_text(rs_test_path(dir, "work/irradiance.json"));
     assert_non_null(strstr(json, "\"direction_from\": \"config\""));
@@ -177,8 +179,10 @@ static void test_clipped_sun(void **state)
     /* Ground in the roof's shadow (x + cot 40 deg within the roof: x in [-3.19, -2.19]) gets no
      * sun term: the key changes it by much less than the sun would add; open ground gains the
      * clipped energy. */
-    double sh0 = mean_in(e0, c, nf, -3, -2.5, -0.9, 0.9, -0.5, 0.5), sh1 = mean_in(e1, c, nf, -3, -2.5, -0.9, 0.9, -0.5, 0.5);
-    double op0 = mean_in(e0, c, nf, 2, 3.5, -1.9, 1.9, -0.5, 0.5), op1 = mean_in(e1, c, nf, 2, 3.5, -1.9, 1.9, -0.5, 0.5);
+    double sh0 = mean_in(e0, c, nf, -3, -2.5, -0.9, 0.9, -0.5, 0.5),
+           sh1 = mean_in(e1, c, nf, -3, -2.5, -0.9, 0.9, -0.5, 0.5);
+    double op0 = mean_in(e0, c, nf, 2, 3.5, -1.9, 1.9, -0.5, 0.5),
+           op1 = mean_in(e1, c, nf, 2, 3.5, -1.9, 1.9, -0.5, 0.5);
     print_message("shadowed ground: %.4f -> %.4f; open ground: %.4f -> %.4f\n", sh0, sh1, op0, op1);
     assert_true(fabs(sh1 - sh0) < 0.01 * dni * s);
     assert_true(sh1 < 0.5 * op1);
@@ -201,8 +205,10 @@ static void test_sun_color(void **state)
     const double col[3] = {2.0, 1.0, 0.5}, lum = 0.2126 * col[0] + 0.7152 * col[1] + 0.0722 * col[2];
     double s = sin(SUN_EL_DEG * M_PI / 180);
     char sets[512];
-    snprintf(sets, sizeof sets, "--set sky.sun_irradiance=%.9g --set sky.sun_azimuth_deg=0 --set "
-             "sky.sun_elevation_deg=%g --set 'sky.sun_color=%g %g %g'", dni, SUN_EL_DEG, col[0], col[1], col[2]);
+    snprintf(sets, sizeof sets,
+             "--set sky.sun_irradiance=%.9g --set sky.sun_azimuth_deg=0 --set "
+             "sky.sun_elevation_deg=%g --set 'sky.sun_color=%g %g %g'",
+             dni, SUN_EL_DEG, col[0], col[1], col[2]);
     for (int ch = 0; ch < 3; ch++) {
         double *e;
         rs_v3 *c;

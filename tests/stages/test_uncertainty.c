@@ -46,7 +46,7 @@ static void write_noisy_scene(const char *dir, int pano_w, double noise_rel, int
         size_t row = k / 3 / (size_t)pano_w;
         /* sky above the horizon (camera at 1.5 m: the upper half sees sky or the wall's top) */
         img->data[k] = (float)(0.5 * (1 + noise_rel * normal((uint32_t)k)));
-        if (row < (size_t)pano_h / 8) img->data[k] = 1.0f;   /* zenith sky: no model there */
+        if (row < (size_t)pano_h / 8) img->data[k] = 1.0f; /* zenith sky: no model there */
     }
     static const char *const rgb[] = {"R", "G", "B"};
     assert_int_equal(rs_image_write_exr(img, rs_test_path(dir, "pano.exr"), rgb, 0, NULL, &err), 0);
@@ -184,8 +184,13 @@ static void test_mc_sigma(void **state)
         double sum = 0, sum_sq = 0, rep = 0;
         const int seeds = 128;
         for (int seed = 0; seed < seeds; seed++) {
-            rs_gather_ctx g = {.scene = scene, .env = &env, .samples = counts[c], .sky_samples = counts[c],
-                               .sun_samples = counts[c] / 4, .seed = (uint32_t)seed, .skip_convex = 1};
+            rs_gather_ctx g = {.scene = scene,
+                               .env = &env,
+                               .samples = counts[c],
+                               .sky_samples = counts[c],
+                               .sun_samples = counts[c] / 4,
+                               .seed = (uint32_t)seed,
+                               .skip_convex = 1};
             rs_facet_gather r;
             assert_int_equal(rs_gather_facet(&g, 2, s, &r), 0);
             double e = r.esky_lum;
@@ -239,8 +244,13 @@ static void test_mc_calibration(void **state)
     rs_facet_gather *fg = calloc(nf, sizeof *fg);
     rs_gather_stats st;
     for (int seed = 0; seed < SEEDS; seed++) {
-        rs_gather_ctx g = {.scene = scene, .env = &env, .samples = 64, .sky_samples = 64,
-                           .sun_samples = 16, .seed = (uint32_t)(100 + seed), .skip_convex = 1};
+        rs_gather_ctx g = {.scene = scene,
+                           .env = &env,
+                           .samples = 64,
+                           .sky_samples = 64,
+                           .sun_samples = 16,
+                           .seed = (uint32_t)(100 + seed),
+                           .skip_convex = 1};
         assert_int_equal(rs_gather_run(&g, nf, NULL, fg, NULL, NULL, &st), 0);
         double fac;
         size_t used;

@@ -7,8 +7,8 @@
  * through K = 0.5 sr. Its true light on the wall is 0.5 x 0.2 / pi. */
 #include "../stress/stress.h"
 
-#define RHO_GROUND 0.2
-#define RHO_WALL 0.8
+#define RHO_GROUND    0.2
+#define RHO_WALL      0.8
 #define K_WALL_GROUND 0.5
 
 static void put_tri(rs_mesh *m, size_t f, const double v[9])
@@ -24,9 +24,9 @@ static void run_case(const char *extra, double *wall, double *hidden, double fil
     rs_mesh *m = rs_mesh_new(9, 3);
     assert_non_null(m);
     double s2 = sqrt(2.0), s20 = sqrt(20.0);
-    const double ground[9] = {0, 0, 0, s2, 0, 0, 0, s2, 0};          /* +z, 1 m^2 */
-    const double wallv[9] = {5, 0, 0, 5, s20, 0, 5, 0, s20};          /* +x, toward the hidden ground, 10 m^2 */
-    const double hiddenv[9] = {10, 0, 0, 10 + s2, 0, 0, 10, s2, 0};   /* +z, 1 m^2 */
+    const double ground[9] = {0, 0, 0, s2, 0, 0, 0, s2, 0};         /* +z, 1 m^2 */
+    const double wallv[9] = {5, 0, 0, 5, s20, 0, 5, 0, s20};        /* +x, toward the hidden ground, 10 m^2 */
+    const double hiddenv[9] = {10, 0, 0, 10 + s2, 0, 0, 10, s2, 0}; /* +z, 1 m^2 */
     put_tri(m, 0, ground);
     put_tri(m, 1, wallv);
     put_tri(m, 2, hiddenv);
@@ -36,11 +36,11 @@ static void run_case(const char *extra, double *wall, double *hidden, double fil
         for (int f = 0; f < 3; f++) esky[3 * f + ch] = 1;
         L[ch] = RHO_GROUND / M_PI;
         L[3 + ch] = RHO_WALL * (1 + G_wall) / M_PI;
-        L[6 + ch] = 0;                     /* not observed: the stage must not read it */
+        L[6 + ch] = 0; /* not observed: the stage must not read it */
     }
     size_t row_start[4] = {0, 0, 1, 1};
     uint32_t col[1] = {2};
-    float k[1] = {K_WALL_GROUND}, ku[1] = {K_WALL_GROUND};   /* the camera sees no hit point */
+    float k[1] = {K_WALL_GROUND}, ku[1] = {K_WALL_GROUND}; /* the camera sees no hit point */
     rs_transport K = {3, 1, row_start, col, k, ku};
     const char *dir = rs_test_tmpdir("unobserved_fill");
     stress_write_reflectance_inputs(dir, m, L, esky, observed, &K);
@@ -70,10 +70,11 @@ static void test_fill_by_orientation(void **state)
     double rho_wall_est = wall, mean_all = (1 * RHO_GROUND + 10 * rho_wall_est) / 11;
     double want_up = (1 * RHO_GROUND + 0.11 * mean_all) / (1 + 0.11);
     print_message("orientation: wall %.5f (true %.2f), hidden ground %.5f, up fill %.5f (want %.5f), "
-                  "mean of all %.5f\n", wall, RHO_WALL, hidden, up[1], want_up, all[1]);
+                  "mean of all %.5f\n",
+                  wall, RHO_WALL, hidden, up[1], want_up, all[1]);
     assert_true(fabs(all[1] - mean_all) < 1e-5);
     assert_true(fabs(up[1] - want_up) < 1e-5);
-    assert_true(fabs(hidden - up[1]) < 1e-5);   /* albedo.ply carries the class's fill */
+    assert_true(fabs(hidden - up[1]) < 1e-5); /* albedo.ply carries the class's fill */
     assert_true(fabs(wall - RHO_WALL) < 0.01 * RHO_WALL);
 
     /* One mean for all: the hidden ground lights the wall as if it were mostly wall. */

@@ -50,7 +50,7 @@ static inline rs_transport *stress_gather_K(const rs_mesh *m, int samples, uint3
         for (uint32_t q = 0; q < rows[f].nentries; q++, e++) {
             K->col[e] = rows[f].entries[q].col;
             K->k[e] = rows[f].entries[q].k;
-            K->k_unseen[e] = rows[f].entries[q].k;    /* no camera: every hit goes through K */
+            K->k_unseen[e] = rows[f].entries[q].k; /* no camera: every hit goes through K */
         }
         K->row_start[f + 1] = e;
         free(rows[f].entries);
@@ -79,8 +79,8 @@ static inline double stress_row_sum(const rs_transport *K, size_t i)
 
 /* A face PLY of the mesh with per-facet rgb properties and float scalars (NULL ends a list). */
 static inline void stress_write_faces(const char *path, const rs_mesh *m, const char *const *prefixes,
-                               const double *const *values, const char *const *scalars,
-                               const double *const *svalues)
+                                      const double *const *values, const char *const *scalars,
+                                      const double *const *svalues)
 {
     rs_ply *ply = rs_ply_new();
     rs_ply_element *faces = rs_mesh_to_ply(m, ply);
@@ -97,8 +97,7 @@ static inline void stress_write_faces(const char *path, const rs_mesh *m, const 
  * observed unless observed is given), irradiance.ply (E_sky, nothing read from a panorama at
  * hit points) and transport.ply (K). */
 static inline void stress_write_reflectance_inputs(const char *dir, const rs_mesh *m, const double *L,
-                                            const double *esky, const double *observed,
-                                            const rs_transport *K)
+                                                   const double *esky, const double *observed, const rs_transport *K)
 {
     size_t nf = m->nfaces;
     rs_err err;

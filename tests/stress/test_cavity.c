@@ -4,7 +4,7 @@
 #include "linsolve.h"
 #include "stress.h"
 
-#define NCELL 6                /* cells per side of the unit box */
+#define NCELL 6 /* cells per side of the unit box */
 
 /* The inward unit box with the lid's cell at (NCELL/2, NCELL/2) removed: a hole of 1/36 of the
  * lid, so about 0.5 % of the inside surface is open to the sky. */
@@ -52,8 +52,8 @@ static void direct_solve(const rs_transport *K, const double *rho, const double 
  * the recovered albedo of the channels in mask against rhos: no estimable facet lost, the
  * area-weighted mean within 0.5 % (no bias), and with per_facet the rms within 2 % and every
  * facet within 6 % (the sampling error of a 256-ray gather, about 1 %, with margin). */
-static void inverse(const rs_mesh *m, const double *L, const double *esky, const rs_transport *K,
-                    const double *rhos, const char *label, int mask, int per_facet)
+static void inverse(const rs_mesh *m, const double *L, const double *esky, const rs_transport *K, const double *rhos,
+                    const char *label, int mask, int per_facet)
 {
     size_t nf = m->nfaces;
     const char *dir = rs_test_tmpdir("cavity");
@@ -81,8 +81,8 @@ static void inverse(const rs_mesh *m, const double *L, const double *esky, const
     for (int ch = 0; ch < 3; ch++) {
         wmean[ch] /= area_sum;
         werr[ch] = sqrt(werr[ch] / area_sum);
-        print_message("%s, rho %.2f: recovered mean %.5f, rms relative error %.4f, worst %.4f%s\n", label,
-                      rhos[ch], wmean[ch], werr[ch], maxerr[ch], mask >> ch & 1 ? "" : " (not checked)");
+        print_message("%s, rho %.2f: recovered mean %.5f, rms relative error %.4f, worst %.4f%s\n", label, rhos[ch],
+                      wmean[ch], werr[ch], maxerr[ch], mask >> ch & 1 ? "" : " (not checked)");
         if (!(mask >> ch & 1)) continue;
         assert_true(fabs(wmean[ch] / rhos[ch] - 1) < 0.005);
         if (!per_facet) continue;
@@ -117,7 +117,7 @@ static void test_nearly_closed_cavity(void **state)
         open += (M_PI - rs) / M_PI / (double)nf;
     }
     print_message("cavity: %zu facets, mean share of the sky seen %.4f\n", nf, open);
-    assert_true(open > 0.001 && open < 0.02);   /* nearly closed: the hole is small */
+    assert_true(open > 0.001 && open < 0.02); /* nearly closed: the hole is small */
 
     /* Forward: Jacobi until the relative change is below 1e-12, against the direct solution.
      * With contraction factor q = max rho, the error after the stop is at most
@@ -133,8 +133,8 @@ static void test_nearly_closed_cavity(void **state)
             mean[ch] += L[3 * i + ch] / (double)nf;
         }
     print_message("forward: %d iterations, residual %.2g; mean radiance %.4g %.4g %.4g; worst relative "
-                  "difference to the direct solve %.2g %.2g %.2g\n", it, residual, mean[0], mean[1], mean[2],
-                  worst[0], worst[1], worst[2]);
+                  "difference to the direct solve %.2g %.2g %.2g\n",
+                  it, residual, mean[0], mean[1], mean[2], worst[0], worst[1], worst[2]);
     assert_true(residual < 1e-12);
     assert_true(it < 1000000);
     for (int ch = 0; ch < 3; ch++) assert_true(worst[ch] < 1e-9);

@@ -16,30 +16,32 @@
 #include "mesh.h"
 
 enum { ZERO_AREA, DUPLICATE, SLIVER, FLIPPED, FIN, SEALED, EDGE_ON, NKINDS };
-static const char *kind_name[NKINDS] = {"zero-area", "duplicate vertices", "sliver", "flipped plate",
-                                        "non-manifold fin", "sealed cavity", "edge-on"};
+static const char *kind_name[NKINDS] = {"zero-area",        "duplicate vertices", "sliver", "flipped plate",
+                                        "non-manifold fin", "sealed cavity",      "edge-on"};
 
 /* Appends the bad facets to the truth mesh; first[k] is kind k's first face, count[k] its faces. */
 static rs_mesh *bad_mesh(const rs_mesh *truth, size_t *first, size_t *count)
 {
     static const float v[][3] = {
-        {1, 1, 0.001f},                                                    /* 0 zero area */
-        {1, 2, 0.001f}, {1, 2, 0.001f}, {2, 2, 0.001f},                    /* 1-3 duplicates */
-        {-2, 0, 0.001f}, {-1, 0, 0.001f}, {-1.5f, 1e-7f, 0.001f},          /* 4-6 sliver */
-        {-3, -2, 0.5f}, {-2, -2, 0.5f}, {-2, -1, 0.5f}, {-3, -1, 0.5f},    /* 7-10 plate */
-        {2, -2, 0}, {3, -2, 0}, {2.5f, -2, 1}, {2.5f, -2.5f, 1}, {2.5f, -1.5f, 1}, /* 11-15 fins */
-        {0, 0, -2}, {1, 0, -2}, {0, 1, -2}, {0, 0, -1},                    /* 16-19 tetrahedron */
-        {0, -3, 0.001f}, {0, -2, 0.001f}, {0, -2.5f, 1},                   /* 20-22 edge-on */
+        {1, 1, 0.001f},                                             /* 0 zero area */
+        {1, 2, 0.001f},   {1, 2, 0.001f},   {2, 2, 0.001f},         /* 1-3 duplicates */
+        {-2, 0, 0.001f},  {-1, 0, 0.001f},  {-1.5f, 1e-7f, 0.001f}, /* 4-6 sliver */
+        {-3, -2, 0.5f},   {-2, -2, 0.5f},   {-2, -1, 0.5f},
+        {-3, -1, 0.5f}, /* 7-10 plate */
+        {2, -2, 0},       {3, -2, 0},       {2.5f, -2, 1},
+        {2.5f, -2.5f, 1}, {2.5f, -1.5f, 1}, /* 11-15 fins */
+        {0, 0, -2},       {1, 0, -2},       {0, 1, -2},
+        {0, 0, -1},                                        /* 16-19 tetrahedron */
+        {0, -3, 0.001f},  {0, -2, 0.001f},  {0, -2.5f, 1}, /* 20-22 edge-on */
     };
     static const uint32_t t[][3] = {
-        {0, 0, 0}, {1, 2, 3}, {4, 5, 6},
-        {7, 9, 8}, {7, 10, 9},                           /* normal -z: faces the floor */
-        {11, 12, 13}, {12, 11, 14}, {11, 12, 15},        /* three faces on edge 11-12 */
-        {16, 17, 18}, {16, 19, 17}, {16, 18, 19}, {17, 19, 18}, /* normals inward */
+        {0, 0, 0},    {1, 2, 3},    {4, 5, 6},    {7, 9, 8},    {7, 10, 9}, /* normal -z: faces the floor */
+        {11, 12, 13}, {12, 11, 14}, {11, 12, 15},                           /* three faces on edge 11-12 */
+        {16, 17, 18}, {16, 19, 17}, {16, 18, 19}, {17, 19, 18},             /* normals inward */
         {20, 21, 22},
     };
-    static const int kind_of[] = {ZERO_AREA, DUPLICATE, SLIVER, FLIPPED, FLIPPED, FIN, FIN, FIN,
-                                  SEALED, SEALED, SEALED, SEALED, EDGE_ON};
+    static const int kind_of[] = {ZERO_AREA, DUPLICATE, SLIVER, FLIPPED, FLIPPED, FIN,    FIN,
+                                  FIN,       SEALED,    SEALED, SEALED,  SEALED,  EDGE_ON};
     size_t nv = sizeof v / sizeof *v, nt = sizeof t / sizeof *t;
     rs_mesh *m = rs_mesh_new(truth->nverts + nv, truth->nfaces + nt);
     memcpy(m->verts, truth->verts, 3 * truth->nverts * sizeof *m->verts);
@@ -103,9 +105,11 @@ static void test_bad_facets_flagged_never_nan(void **state)
     rs_ply_free(ply);
 
     char *out = NULL;
-    snprintf(cmd, sizeof cmd, "%s/rhoscan run %s/configs/two_planes.ini --set pipeline.workdir=%s/work "
+    snprintf(cmd, sizeof cmd,
+             "%s/rhoscan run %s/configs/two_planes.ini --set pipeline.workdir=%s/work "
              "--set mesh.input_mesh=%s --set irradiance.samples=64 --set irradiance.sky_samples=64 "
-             "--set irradiance.sun_samples=16", rs_test_bin_dir(), rs_test_source_dir(), tmp, mesh_path);
+             "--set irradiance.sun_samples=16",
+             rs_test_bin_dir(), rs_test_source_dir(), tmp, mesh_path);
     int rc = rs_test_run(cmd, &out);
     if (rc != 0) fail_msg("rhoscan run on the bad mesh: exit %d\n%s", rc, out);
     free(out);

@@ -5,7 +5,7 @@
 #include "paper.h"
 #include "stress.h"
 
-static const double facet = 0.01;   /* facet size s (m) */
+static const double facet = 0.01; /* facet size s (m) */
 
 /* The facet (two triangles, normal +z) at x in [-gap - s, -gap], and the plane: from the edge
  * line x = z = 0 in direction u = (-cos a, 0, sin a), 1000 s long and wide, facing the facet. */
@@ -13,10 +13,10 @@ static rs_mesh *wedge(double angle_deg, double gap)
 {
     double a = angle_deg * M_PI / 180, len = 1000 * facet;
     rs_meshgen g = rs_meshgen_new(16, 8);
-    rs_meshgen_rect(&g, rs_v3_make(-gap - facet, -facet / 2, 0), rs_v3_make(facet, 0, 0),
-                    rs_v3_make(0, facet, 0), 1, 1);
-    rs_meshgen_rect(&g, rs_v3_make(0, -len / 2, 0), rs_v3_make(-cos(a) * len, 0, sin(a) * len),
-                    rs_v3_make(0, len, 0), 1, 1);
+    rs_meshgen_rect(&g, rs_v3_make(-gap - facet, -facet / 2, 0), rs_v3_make(facet, 0, 0), rs_v3_make(0, facet, 0), 1,
+                    1);
+    rs_meshgen_rect(&g, rs_v3_make(0, -len / 2, 0), rs_v3_make(-cos(a) * len, 0, sin(a) * len), rs_v3_make(0, len, 0),
+                    1, 1);
     return rs_meshgen_done(&g);
 }
 
@@ -41,7 +41,7 @@ static void test_view_factor_angles_gaps(void **state)
             for (uint32_t f = 0; f < 2; f++) {
                 double toward_plane = 0;
                 for (size_t e = K->row_start[f]; e < K->row_start[f + 1]; e++) {
-                    assert_true(K->col[e] >= 2);          /* the facet never sees itself */
+                    assert_true(K->col[e] >= 2); /* the facet never sees itself */
                     assert_true(isfinite(K->k[e]) && K->k[e] >= 0);
                     toward_plane += K->k[e];
                 }
@@ -53,12 +53,12 @@ static void test_view_factor_angles_gaps(void **state)
                  * light, never gain it. */
                 int resolved = angles[ai] >= 60 || gaps[gi] >= 1;
                 if (getenv("RS_STRESS_TABLE"))
-                    print_message("angle %g gap %g tri %u: F %.5f expected %.5f bound %.5f\n", angles[ai],
-                                  gaps[gi], f, toward_plane / M_PI, F, bound);
+                    print_message("angle %g gap %g tri %u: F %.5f expected %.5f bound %.5f\n", angles[ai], gaps[gi], f,
+                                  toward_plane / M_PI, F, bound);
                 if (resolved) worst = fmax(worst, err / bound);
                 if (resolved ? err > bound : toward_plane / M_PI > F + bound)
-                    fail_msg("angle %g deg, gap %g s, triangle %u: view factor %.5f, expected %.5f +- %.5f",
-                             angles[ai], gaps[gi], f, toward_plane / M_PI, F, bound);
+                    fail_msg("angle %g deg, gap %g s, triangle %u: view factor %.5f, expected %.5f +- %.5f", angles[ai],
+                             gaps[gi], f, toward_plane / M_PI, F, bound);
             }
             stress_transport_free(K);
             rs_mesh_free(m);

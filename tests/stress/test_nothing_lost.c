@@ -14,8 +14,9 @@
 #include "fileio.h"
 
 /* Fewer rays and facets than the sample's config: the same code paths, in a fraction of the time. */
-#define SMALL "--set mesh.pixels_per_facet=12 --set irradiance.samples=32 " \
-              "--set irradiance.sky_samples=32 --set irradiance.sun_samples=8"
+#define SMALL                                                     \
+    "--set mesh.pixels_per_facet=12 --set irradiance.samples=32 " \
+    "--set irradiance.sky_samples=32 --set irradiance.sun_samples=8"
 
 static char cmd_base[8192];
 

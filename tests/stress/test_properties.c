@@ -41,9 +41,9 @@ static rs_mesh *random_scene(void)
     rs_v3 c, n;
     double a;
     rs_mesh_face(m, 0, &c, &n, &a);
-    assert_true(n.z > 0.5);                                  /* terrain faces up */
+    assert_true(n.z > 0.5); /* terrain faces up */
     rs_mesh_face(m, m->nfaces - 1, &c, &n, &a);
-    assert_true(n.x < -0.99);                                /* the last wall faces inward */
+    assert_true(n.x < -0.99); /* the last wall faces inward */
     return m;
 }
 
@@ -78,7 +78,8 @@ static void test_kernel_properties(void **state)
             }
         double rel = fabs(st - ts) / (0.5 * (st + ts)), sigma = 2 / sqrt(hits);
         worst = fmax(worst, rel / sigma);
-        if (rel > 5 * sigma) fail_msg("trial %d: transfer S->T %.6g, T->S %.6g (%.2g apart, sigma %.2g)", trial, st, ts, rel, sigma);
+        if (rel > 5 * sigma)
+            fail_msg("trial %d: transfer S->T %.6g, T->S %.6g (%.2g apart, sigma %.2g)", trial, st, ts, rel, sigma);
     }
     print_message("reciprocity: worst difference %.2f sigma over 8 random halvings\n", worst);
 
@@ -107,7 +108,7 @@ static void test_kernel_properties(void **state)
     print_message("energy: in %.6g, absorbed %.6g, escaped %.6g; imbalance %.2g (%d iterations)\n", in, absorbed,
                   escaped, imbalance, it);
     assert_true(residual < 1e-12);
-    assert_true(imbalance < 0.005);  /* a few times 1 / sqrt(hits) over the scene (~0.1 %) */
+    assert_true(imbalance < 0.005); /* a few times 1 / sqrt(hits) over the scene (~0.1 %) */
 
     /* Gain: albedo from (L, E_sky) and from (c L, c E_sky), c = 1e-3 and 1e4, is the same up to
      * float rounding, and so are the flags. */
@@ -133,8 +134,8 @@ static void test_kernel_properties(void **state)
         for (int gi = 1; gi < 3; gi++) {
             assert_true(est[gi][i] == est[0][i]);
             for (int ch = 0; ch < 3; ch++)
-                worst_gain = fmax(worst_gain, fabs(alb[gi][3 * i + ch] - alb[0][3 * i + ch]) /
-                                                  fmax(alb[0][3 * i + ch], 1e-30));
+                worst_gain =
+                    fmax(worst_gain, fabs(alb[gi][3 * i + ch] - alb[0][3 * i + ch]) / fmax(alb[0][3 * i + ch], 1e-30));
         }
     }
     print_message("gain: %zu estimable facets; albedo changes by at most %.2g relative under gains 1e-3 and 1e4\n",

@@ -14,7 +14,8 @@ static double exact_E(const rs_image *pano)
     for (int r = 0; r < pano->height; r++)
         for (int c = 0; c < pano->width; c++) {
             rs_v3 d = rs_pano_pixel_dir(pano->width, pano->height, c, r);
-            if (d.z > 0) E += rs_image_px(pano, c, r)[0] * rs_pano_pixel_solid_angle(pano->width, pano->height, r) * d.z;
+            if (d.z > 0)
+                E += rs_image_px(pano, c, r)[0] * rs_pano_pixel_solid_angle(pano->width, pano->height, r) * d.z;
         }
     return E;
 }
@@ -37,8 +38,7 @@ static double gather_E(const rs_image *src, float scale, double *expect)
     rs_meshgen_rect(&g, rs_v3_make(0, 0, 0), rs_v3_make(1, 0, 0), rs_v3_make(0, 1, 0), 1, 1);
     rs_mesh *m = rs_meshgen_done(&g);
     rs_scene *scene = rs_scene_new(m, &err);
-    rs_gather_ctx gc = {.scene = scene, .env = &env, .samples = 256, .sky_samples = 512, .sun_samples = 64,
-                        .seed = 1};
+    rs_gather_ctx gc = {.scene = scene, .env = &env, .samples = 256, .sky_samples = 512, .sun_samples = 64, .seed = 1};
     rs_gather_scratch *s = rs_gather_scratch_new(512);
     rs_facet_gather out;
     assert_int_equal(rs_gather_facet(&gc, 0, s, &out), 0);
@@ -85,7 +85,7 @@ static void test_sun_over_shadows(void **state)
     double Ebig = gather_E(pano, 1e33f, &expect_big);
     print_message("scaled by 1e33: E = %.6g, exact %.6g\n", Ebig, expect_big);
     assert_true(isfinite(Ebig));
-    assert_true(fabs(Ebig / expect_big - E / expect) < 1e-6);   /* the same relative result */
+    assert_true(fabs(Ebig / expect_big - E / expect) < 1e-6); /* the same relative result */
     rs_image_free(pano);
 }
 

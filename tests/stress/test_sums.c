@@ -24,7 +24,7 @@ static void test_million_facet_sums(void **state)
         v[3] = (float)(x + side), v[4] = (float)y, v[5] = 0;
         v[6] = (float)x, v[7] = (float)(y + side), v[8] = 0;
         for (int j = 0; j < 3; j++) m->tris[3 * k + j] = (uint32_t)(3 * k + j);
-        double e = pow(10.0, -3.0 + 8.0 * ((seed >> 16) & 0xffff) / 65535.0);   /* 1e-3 .. 1e5 */
+        double e = pow(10.0, -3.0 + 8.0 * ((seed >> 16) & 0xffff) / 65535.0); /* 1e-3 .. 1e5 */
         for (int ch = 0; ch < 3; ch++) {
             double rho = 0.1 + 0.8 * ((rs_hash_u32(seed + (uint32_t)ch) & 0xffff) / 65535.0);
             E[3 * k + ch] = e;
@@ -39,7 +39,8 @@ static void test_million_facet_sums(void **state)
         fail_msg("reflectance: %s", err.msg);
 
     /* Reference from the values the stage read (float in the PLY files), compensated sums. */
-    rs_ply *obs = rs_ply_read(rs_test_path(dir, "observe.ply"), &err), *irr = rs_ply_read(rs_test_path(dir, "irradiance.ply"), &err);
+    rs_ply *obs = rs_ply_read(rs_test_path(dir, "observe.ply"), &err),
+           *irr = rs_ply_read(rs_test_path(dir, "irradiance.ply"), &err);
     assert_non_null(obs);
     assert_non_null(irr);
     double *Lf = malloc(3 * (size_t)NFACETS * sizeof *Lf), *Ef = malloc(3 * (size_t)NFACETS * sizeof *Ef);
@@ -50,7 +51,7 @@ static void test_million_facet_sums(void **state)
         rs_v3 c, n;
         double a;
         rs_mesh_face(m, k, &c, &n, &a);
-        long double y = (long double)a - dcomp, t = den + y;   /* Kahan */
+        long double y = (long double)a - dcomp, t = den + y; /* Kahan */
         dcomp = (t - den) - y;
         den = t;
         for (int ch = 0; ch < 3; ch++) {

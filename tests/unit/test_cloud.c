@@ -10,12 +10,11 @@
 #include "cloud.h"
 
 /* Two scans (3 x 2 with colour and one no-return cell, 1 x 2) as PTX text. */
-static const char *ptx_text =
-    "3\n2\n1 2 3\n1 0 0\n0 1 0\n0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n1 2 3 1\n"
-    "0.1 0.2 0.3 0.5 1 2 3\n0.4 0.5 0.6 0.25 4 5 6\n0 0 0 0.5 0 0 0\n"
-    "1.1 1.2 1.3 0.125 7 8 9\n2.1 2.2 2.3 1 10 11 12\n3.1 3.2 3.3 0 13 14 15\n"
-    "1\n2\n-5 0 0.5\n1 0 0\n0 1 0\n0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n-5 0 0.5 1\n"
-    "0.123456789012345 9 8 0.5\n7 6 5 0.75\n";
+static const char *ptx_text = "3\n2\n1 2 3\n1 0 0\n0 1 0\n0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n1 2 3 1\n"
+                              "0.1 0.2 0.3 0.5 1 2 3\n0.4 0.5 0.6 0.25 4 5 6\n0 0 0 0.5 0 0 0\n"
+                              "1.1 1.2 1.3 0.125 7 8 9\n2.1 2.2 2.3 1 10 11 12\n3.1 3.2 3.3 0 13 14 15\n"
+                              "1\n2\n-5 0 0.5\n1 0 0\n0 1 0\n0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n-5 0 0.5 1\n"
+                              "0.123456789012345 9 8 0.5\n7 6 5 0.75\n";
 
 static rs_cloud *sample_cloud(void)
 {
@@ -38,7 +37,7 @@ static void assert_same_cloud(const rs_cloud *a, const rs_cloud *b)
     for (size_t i = 0; i < a->npoints; i++) {
         assert_int_equal(a->valid[i], b->valid[i]);
         if (!a->valid[i]) continue;
-        for (int j = 0; j < 3; j++) assert_true(a->xyz[3 * i + j] == b->xyz[3 * i + j]);   /* doubles, exact */
+        for (int j = 0; j < 3; j++) assert_true(a->xyz[3 * i + j] == b->xyz[3 * i + j]); /* doubles, exact */
         assert_float_equal(a->intensity[i], b->intensity[i], 0);
         if (a->rgb)
             for (int j = 0; j < 3; j++) assert_int_equal(a->rgb[3 * i + j], b->rgb[3 * i + j]);
@@ -144,7 +143,7 @@ static void expect_bad_ply(const char *dir, const char *text, const char *phrase
     if (!strstr(err.msg, phrase)) fail_msg("message \"%s\" lacks \"%s\"", err.msg, phrase);
 }
 
-#define GRID_HEADER(comment, n) \
+#define GRID_HEADER(comment, n)                                                                                 \
     "ply\nformat ascii 1.0\ncomment " comment "\nelement vertex " #n "\nproperty double x\nproperty double y\n" \
     "property double z\nproperty int scan\nproperty int row\nproperty int col\nend_header\n"
 
@@ -152,7 +151,8 @@ static void test_corrupt(void **state)
 {
     (void)state;
     const char *dir = rs_test_tmpdir("cloud");
-    expect_bad_ply(dir, GRID_HEADER("rhoscan_scan 0 2 2 0 0 0", 2) "1 1 1 0 0 0\n2 2 2 0 0 0\n", "holds a point already");
+    expect_bad_ply(dir, GRID_HEADER("rhoscan_scan 0 2 2 0 0 0", 2) "1 1 1 0 0 0\n2 2 2 0 0 0\n",
+                   "holds a point already");
     expect_bad_ply(dir, GRID_HEADER("rhoscan_scan 0 2 2 0 0 0", 1) "1 1 1 0 2 0\n", "outside the grids");
     expect_bad_ply(dir, GRID_HEADER("rhoscan_scan 0 2 2 0 0 0", 1) "1 1 1 1 0 0\n", "outside the grids");
     expect_bad_ply(dir, GRID_HEADER("rhoscan_scan 0 0 2 0 0 0", 1) "1 1 1 0 0 0\n", "COLS and ROWS >= 1");
@@ -160,8 +160,10 @@ static void test_corrupt(void **state)
     expect_bad_ply(dir, GRID_HEADER("rhoscan_scan 0 2 2 0 0 nan", 1) "1 1 1 0 0 0\n", "finite position");
     expect_bad_ply(dir, GRID_HEADER("rhoscan_scan 0 100000 100000 0 0 0", 1) "1 1 1 0 0 0\n", "corrupt");
     expect_bad_ply(dir, GRID_HEADER("rhoscan_scan 0 2 2 0 0 0", 1) "nan 1 1 0 0 0\n", "expected finite coordinates");
-    expect_bad_ply(dir, "ply\nformat ascii 1.0\ncomment rhoscan_scan 0 1 1 0 0 0\nelement vertex 1\nproperty double x\n"
-                        "property double y\nproperty double z\nend_header\n1 1 1\n", "lack scan, row and col");
+    expect_bad_ply(dir,
+                   "ply\nformat ascii 1.0\ncomment rhoscan_scan 0 1 1 0 0 0\nelement vertex 1\nproperty double x\n"
+                   "property double y\nproperty double z\nend_header\n1 1 1\n",
+                   "lack scan, row and col");
     expect_bad_ply(dir, "ply\nformat ascii 1.0\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n",
                    "no vertex element");
     rs_test_rmtree(dir);

@@ -90,8 +90,8 @@ static int read_truth(const char *path, truth_pose *t, int max)
     while (n < max && fgets(line, sizeof line, f)) {
         double *r = t[n].pose.rot;
         if (sscanf(line, "%63s %lf %lf %lf %lf %lf %lf %lf %lf %lf %lf %lf %lf", t[n].name, &t[n].pose.position.x,
-                   &t[n].pose.position.y, &t[n].pose.position.z, &r[0], &r[1], &r[2], &r[3], &r[4], &r[5], &r[6],
-                   &r[7], &r[8]) == 13)
+                   &t[n].pose.position.y, &t[n].pose.position.z, &r[0], &r[1], &r[2], &r[3], &r[4], &r[5], &r[6], &r[7],
+                   &r[8]) == 13)
             n++;
     }
     fclose(f);
@@ -116,7 +116,7 @@ static void test_real_model(void **state)
     snprintf(path, sizeof path, "%s/points3D.txt", model);
     assert_int_equal(m.npoints, header_count(path, "Number of points:"));
     assert_string_equal(m.cameras[0].model, "PINHOLE");
-    assert_true(m.nimages >= 24);   /* of the 32 views cut; the mapper may leave a few out */
+    assert_true(m.nimages >= 24); /* of the 32 views cut; the mapper may leave a few out */
 
     rs_colmap_view *views = NULL;
     rs_colmap_control *cps = NULL;
@@ -151,9 +151,10 @@ static void test_real_model(void **state)
         double dpos = rs_v3_len(rs_v3_sub(pp.pose.position, truth[i].pose.position));
         double drot = rs_calib_rot_angle(pp.pose.rot, truth[i].pose.rot) * 180 / M_PI;
         print_message("  %s: %d/%d views, centre off by %.4f m, rotation by %.4f deg; views agree within %.4f deg, "
-                      "%.4f m\n", truth[i].name, pp.views, pp.views_listed, dpos, drot, pp.spread_deg, pp.spread_m);
+                      "%.4f m\n",
+                      truth[i].name, pp.views, pp.views_listed, dpos, drot, pp.spread_deg, pp.spread_m);
         assert_true(pp.views >= 4);
-        assert_true(dpos < 0.02);   /* pano3 is not a control point: this is a prediction */
+        assert_true(dpos < 0.02); /* pano3 is not a control point: this is a prediction */
         assert_true(drot < 0.3);
         assert_true(pp.spread_deg < 1.0);
     }
@@ -163,8 +164,8 @@ static void test_real_model(void **state)
 }
 
 /* A bad model file: the error names the file, the line and the field. */
-static void expect_model_error(const char *cams, const char *imgs, const char *pts, const char *file,
-                               long line, const char *text)
+static void expect_model_error(const char *cams, const char *imgs, const char *pts, const char *file, long line,
+                               const char *text)
 {
     const char *dir = rs_test_tmpdir("colmap_bad");
     rs_test_write(rs_test_path(dir, "cameras.txt"), cams);
@@ -196,7 +197,7 @@ static void test_bad_files(void **state)
     assert_int_equal(m.images[0].points2d, 2);
     assert_int_equal(m.images[0].points2d_with_3d, 1);
     assert_int_equal(m.images[1].points2d, 0);
-    assert_true(fabs(m.images[1].centre.x + 1) < 1e-12);   /* C = -R^T t */
+    assert_true(fabs(m.images[1].centre.x + 1) < 1e-12); /* C = -R^T t */
     rs_colmap_release(&m);
     rs_test_rmtree(dir);
 
@@ -263,10 +264,12 @@ static void test_stage(void **state)
     const char *dir = rs_test_tmpdir("colmap_stage");
     const char *src = rs_test_source_dir();
     char text[4096], cmd[4096], *out = NULL;
-    snprintf(text, sizeof text, "[pipeline]\nworkdir = out\n[colmap]\nmodel = %s/sample_data/colmap_courtyard/model\n"
+    snprintf(text, sizeof text,
+             "[pipeline]\nworkdir = out\n[colmap]\nmodel = %s/sample_data/colmap_courtyard/model\n"
              "views = %s/sample_data/colmap_courtyard/views.txt\n"
              "control_points = %s/sample_data/colmap_courtyard/control_points.txt\n"
-             "[capture]\ncolmap_panorama = pano3\n[capture.b]\ncolmap_panorama = pano1\n", src, src, src);
+             "[capture]\ncolmap_panorama = pano3\n[capture.b]\ncolmap_panorama = pano1\n",
+             src, src, src);
     rs_test_write(rs_test_path(dir, "c.ini"), text);
     snprintf(cmd, sizeof cmd, "cd '%s' && '%s/rhoscan-calib' c.ini", dir, rs_test_bin_dir());
     int rc = rs_test_run(cmd, &out);
@@ -291,11 +294,8 @@ static void test_stage(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_umeyama_synthetic),
-        cmocka_unit_test(test_real_model),
-        cmocka_unit_test(test_bad_files),
-        cmocka_unit_test(test_pose_file),
-        cmocka_unit_test(test_stage),
+        cmocka_unit_test(test_umeyama_synthetic), cmocka_unit_test(test_real_model), cmocka_unit_test(test_bad_files),
+        cmocka_unit_test(test_pose_file),         cmocka_unit_test(test_stage),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

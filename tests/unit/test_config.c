@@ -25,8 +25,8 @@ static rs_config *load(const char *text, const char *const *overrides)
 }
 
 /* Loading must fail with an input error at file:line whose message contains needle. */
-static void expect_error(const char *text, const char *const *overrides, const char *file,
-                         long line, const char *needle)
+static void expect_error(const char *text, const char *const *overrides, const char *file, long line,
+                         const char *needle)
 {
     rs_err err;
     rs_err_clear(&err);
@@ -50,7 +50,7 @@ static void test_defaults(void **state)
     assert_int_equal(rs_config_int(cfg, "irradiance", "samples"), 256);
     assert_true(rs_config_real(cfg, "mesh", "max_depth_ratio") == 0.05);
     assert_true(rs_config_real(cfg, "render", "tolerance") == 1e-6);
-    assert_true(isnan(rs_config_real(cfg, "mesh", "facet_size")));   /* no default */
+    assert_true(isnan(rs_config_real(cfg, "mesh", "facet_size"))); /* no default */
     assert_false(rs_config_has(cfg, "mesh", "facet_size"));
     assert_false(rs_config_has(cfg, "irradiance", "samples"));
     assert_string_equal(rs_config_string(cfg, "reflectance", "method"), "interreflection");
@@ -71,9 +71,10 @@ static void test_file_values_and_comments(void **state)
 {
     const char *dir = rs_test_tmpdir("config");
     const char *file = rs_test_path(dir, "tower.ini");
-    rs_test_write(file, "; a comment\n# another\n[mesh]\n  facet_size = 0.5 ; half a metre\n"
-                        "max_grazing_deg=80   # degrees\n[ reflectance ]\nmethod = direct\n"
-                        "[irradiance]\r\nsamples = 100\r\n");
+    rs_test_write(file,
+                  "; a comment\n# another\n[mesh]\n  facet_size = 0.5 ; half a metre\n"
+                  "max_grazing_deg=80   # degrees\n[ reflectance ]\nmethod = direct\n"
+                  "[irradiance]\r\nsamples = 100\r\n");
     rs_err err;
     rs_config *cfg = rs_config_load(file, NULL, &err);
     assert_non_null(cfg);
@@ -91,16 +92,16 @@ static void test_file_values_and_comments(void **state)
 static void test_precedence(void **state)
 {
     const char *text = "[irradiance]\nsamples = 100\nseed = 5\n";
-    const char *ov[] = {"irradiance.samples=7", "irradiance.sun_samples = 3 ",
-                        "irradiance.seed=8", "irradiance.seed=9", NULL};
+    const char *ov[] = {"irradiance.samples=7", "irradiance.sun_samples = 3 ", "irradiance.seed=8", "irradiance.seed=9",
+                        NULL};
     rs_config *cfg = load(text, ov);
-    assert_int_equal(rs_config_int(cfg, "irradiance", "samples"), 7);       /* --set over file */
-    assert_int_equal(rs_config_int(cfg, "irradiance", "sun_samples"), 3);   /* --set over default */
-    assert_int_equal(rs_config_int(cfg, "irradiance", "seed"), 9);          /* the last --set wins */
-    assert_true(rs_config_real(cfg, "irradiance", "sun_threshold") == 50);  /* default */
+    assert_int_equal(rs_config_int(cfg, "irradiance", "samples"), 7);      /* --set over file */
+    assert_int_equal(rs_config_int(cfg, "irradiance", "sun_samples"), 3);  /* --set over default */
+    assert_int_equal(rs_config_int(cfg, "irradiance", "seed"), 9);         /* the last --set wins */
+    assert_true(rs_config_real(cfg, "irradiance", "sun_threshold") == 50); /* default */
     rs_config_free(cfg);
     cfg = load(text, NULL);
-    assert_int_equal(rs_config_int(cfg, "irradiance", "samples"), 100);     /* file over default */
+    assert_int_equal(rs_config_int(cfg, "irradiance", "samples"), 100); /* file over default */
     assert_int_equal(rs_config_int(cfg, "irradiance", "sun_samples"), 64);
     rs_config_free(cfg);
 }
@@ -118,10 +119,9 @@ static void test_unknown_names(void **state)
                  "the keys of [mesh] are input_mesh, facet_size, pixels_per_facet");
     expect_error("[pipeline]\nthreads = 1\n[meshh]\nfacet_size = 1\n", NULL, "tower.ini", 3,
                  "unknown section [meshh]; did you mean [mesh]?");
-    expect_error("[mesh]\n[nothing_like_it]\n", NULL, "tower.ini", 2,   /* a section with no keys */
+    expect_error("[mesh]\n[nothing_like_it]\n", NULL, "tower.ini", 2, /* a section with no keys */
                  "the sections are [pipeline], [ingest], [mesh]");
-    expect_error("[captur.north]\npanorama = a.exr\n", NULL, "tower.ini", 1,
-                 "did you mean [capture.north]?");
+    expect_error("[captur.north]\npanorama = a.exr\n", NULL, "tower.ini", 1, "did you mean [capture.north]?");
     expect_error("[mesh.fine]\nfacet_size = 1\n", NULL, "tower.ini", 1, "only [capture.NAME]");
     expect_error("[capture.]\n", NULL, "tower.ini", 1, "expected [capture.NAME]");
     expect_error("threads = 1\n[pipeline]\n", NULL, "tower.ini", 1, "outside any section");
@@ -142,16 +142,14 @@ static void test_bad_values(void **state)
     expect_error("[pipeline]\nthreads = 4097\n", NULL, "tower.ini", 2, "expected an integer");
     expect_error("[reflectance]\nmethod = fast\n", NULL, "tower.ini", 2,
                  "method = \"fast\": expected one of interreflection, direct, paper");
-    expect_error("[capture]\nposition = 1 2\n", NULL, "tower.ini", 2,
-                 "expected 3 finite reals (m); found 2 numbers");
+    expect_error("[capture]\nposition = 1 2\n", NULL, "tower.ini", 2, "expected 3 finite reals (m); found 2 numbers");
     expect_error("[capture]\nposition = 1 2 nan\n", NULL, "tower.ini", 2, "\"nan\" is not a finite real");
     expect_error("[capture]\nrotation = 1 0 0 0 1 0 0 0\n", NULL, "tower.ini", 2,
                  "expected 9 finite reals (a rotation matrix, row-major); found 8 numbers");
     expect_error("[mesh]\ninput_mesh =\n", NULL, "tower.ini", 2, "expected a path");
     expect_error("[ingest]\nscan = ; nothing\n", NULL, "tower.ini", 2, "expected one or more paths");
     /* Lines libinih cannot read at all. */
-    expect_error("[mesh]\n\nfacet_size\n", NULL, "tower.ini", 3,
-                 "\"facet_size\": expected \"key = value\"");
+    expect_error("[mesh]\n\nfacet_size\n", NULL, "tower.ini", 3, "\"facet_size\": expected \"key = value\"");
     expect_error("[pipeline]\nthreads = 1\n[mesh\n", NULL, "tower.ini", 3, "expected \"key = value\"");
     expect_error("[mesh]\nfacet_size = 1\n  continued\n", NULL, "tower.ini", 3, "\"  continued\"");
 }
@@ -160,8 +158,8 @@ static void test_duplicates(void **state)
 {
     expect_error("[mesh]\nfacet_size = 1\n\nfacet_size = 2\n", NULL, "tower.ini", 4,
                  "[mesh] facet_size is given twice, on lines 2 and 4");
-    expect_error("[mesh]\nfacet_size = 1\n[pipeline]\nthreads=1\n[mesh]\nfacet_size = 1\n", NULL,
-                 "tower.ini", 6, "on lines 2 and 6");
+    expect_error("[mesh]\nfacet_size = 1\n[pipeline]\nthreads=1\n[mesh]\nfacet_size = 1\n", NULL, "tower.ini", 6,
+                 "on lines 2 and 6");
     /* The same key in two captures is no duplicate. */
     rs_config *cfg = load("[capture]\nposition = 1 2 3\n[capture.b]\nposition = 4 5 6\n", NULL);
     rs_config_free(cfg);
@@ -184,7 +182,7 @@ static void test_missing_and_binary_files(void **state)
     assert_null(rs_config_load(file, NULL, &err));
     assert_int_equal(err.line, 2);
     assert_non_null(strstr(err.msg, "NUL byte"));
-    assert_null(rs_config_load(dir, NULL, &err));   /* a folder */
+    assert_null(rs_config_load(dir, NULL, &err)); /* a folder */
     assert_string_equal(err.file, dir);
     rs_test_rmtree(dir);
 }
@@ -210,13 +208,14 @@ static void test_capture_sections(void **state)
 {
     const char *ov[] = {"capture.east.position=7 8 9", "capture.north.panorama=n2.exr", NULL};
     rs_config *cfg = load("[capture]\npanorama = main.exr\n[capture.north]\nposition = 1 2 3\n"
-                          "panorama = n.exr\n[capture.south]\n[mesh]\n", ov);
+                          "panorama = n.exr\n[capture.south]\n[mesh]\n",
+                          ov);
     const char *names[8];
     assert_int_equal(rs_config_sections(cfg, "capture", names, 8), 4);
     assert_string_equal(names[0], "capture");
     assert_string_equal(names[1], "capture.north");
-    assert_string_equal(names[2], "capture.south");   /* present though empty */
-    assert_string_equal(names[3], "capture.east");    /* named only by --set */
+    assert_string_equal(names[2], "capture.south"); /* present though empty */
+    assert_string_equal(names[3], "capture.east");  /* named only by --set */
     assert_int_equal(rs_config_sections(cfg, "capture", names, 1), 4);
     assert_int_equal(rs_config_sections(cfg, "mesh", names, 8), 1);
     double p[3];
@@ -224,15 +223,15 @@ static void test_capture_sections(void **state)
     assert_true(p[0] == 1 && p[1] == 2 && p[2] == 3);
     assert_int_equal(rs_config_reals(cfg, "capture.east", "position", p), 0);
     assert_true(p[0] == 7 && p[1] == 8 && p[2] == 9);
-    assert_int_equal(rs_config_reals(cfg, "capture", "position", p), -1);   /* unset, no default */
+    assert_int_equal(rs_config_reals(cfg, "capture", "position", p), -1); /* unset, no default */
     char path[RS_CFG_PATH_MAX];
     assert_string_equal(rs_config_path(cfg, "capture.north", "panorama", path, sizeof path), "/base/n2.exr");
     assert_string_equal(rs_config_path(cfg, "capture", "panorama", path, sizeof path), "/base/main.exr");
     assert_null(rs_config_path(cfg, "capture.south", "panorama", path, sizeof path));
     assert_false(rs_config_has(cfg, "capture.south", "position"));
     rs_config_free(cfg);
-    expect_error("[capture.north]\nposition = 1 2 3\nrotaton = 1 0 0 0 1 0 0 0 1\n", NULL,
-                 "tower.ini", 3, "[capture.north] rotaton: unknown key; did you mean rotation?");
+    expect_error("[capture.north]\nposition = 1 2 3\nrotaton = 1 0 0 0 1 0 0 0 1\n", NULL, "tower.ini", 3,
+                 "[capture.north] rotaton: unknown key; did you mean rotation?");
 }
 
 static void test_rotation(void **state)
@@ -262,11 +261,11 @@ static void test_long_lines(void **state)
     const char *sin30 = "0.5000000000000000000000000000000000000000";
     const char *zero = "0.0000000000000000000000000000000000000000";
     char text[2048], line[1024];
-    snprintf(line, sizeof line, "rotation = %s -%s %s %s %s %s %s %s 1.%s", cos30, sin30, zero,
-             sin30, cos30, zero, zero, zero, zero + 2);
+    snprintf(line, sizeof line, "rotation = %s -%s %s %s %s %s %s %s 1.%s", cos30, sin30, zero, sin30, cos30, zero,
+             zero, zero, zero + 2);
     assert_true(strlen(line) > 300);
     snprintf(text, sizeof text, "[capture]\n%s\nposition = 1 2 3\n[mesh]\nfacet_sise = 1\n", line);
-    expect_error(text, NULL, "tower.ini", 5, "did you mean facet_size?");   /* lines still counted */
+    expect_error(text, NULL, "tower.ini", 5, "did you mean facet_size?"); /* lines still counted */
     snprintf(text, sizeof text, "[capture]\n%s\nposition = 1 2 3\n", line);
     rs_config *cfg = load(text, NULL);
     double r[9], p[3];
@@ -294,8 +293,9 @@ static void test_paths(void **state)
     snprintf(sub, sizeof sub, "%s/sub", dir);
     assert_int_equal(mkdir(sub, 0755), 0);
     snprintf(file, sizeof file, "%s/./c.ini", sub);
-    rs_test_write(file, "[mesh]\ninput_mesh = ../meshes/m.ply\n[ingest]\n"
-                        "scan = a.ptx   ./b/c.ply /abs/d.ply\n[capture]\npanorama = /x/../p.exr\n");
+    rs_test_write(file,
+                  "[mesh]\ninput_mesh = ../meshes/m.ply\n[ingest]\n"
+                  "scan = a.ptx   ./b/c.ply /abs/d.ply\n[capture]\npanorama = /x/../p.exr\n");
     const char *ov[] = {"pipeline.workdir=work", NULL};
     rs_err err;
     rs_config *cfg = rs_config_load(file, ov, &err);
@@ -310,7 +310,7 @@ static void test_paths(void **state)
     assert_string_equal(rs_config_path_at(cfg, "ingest", "scan", 1, path, sizeof path), want);
     assert_string_equal(rs_config_path_at(cfg, "ingest", "scan", 2, path, sizeof path), "/abs/d.ply");
     assert_string_equal(rs_config_path(cfg, "capture", "panorama", path, sizeof path), "/p.exr");
-    snprintf(want, sizeof want, "%s/work", sub);   /* --set paths: relative to the config too */
+    snprintf(want, sizeof want, "%s/work", sub); /* --set paths: relative to the config too */
     assert_string_equal(rs_config_path(cfg, "pipeline", "workdir", path, sizeof path), want);
     rs_config_free(cfg);
     /* load_string: relative base_dir is taken from the current folder. */
@@ -334,22 +334,24 @@ static void test_section_text(void **state)
     const char *ov[] = {"irradiance.samples=512", NULL};
     rs_config *cfg = load("[mesh]\ninput_mesh = m.ply\nmax_depth_ratio = 5e-2\npixels_per_facet = 6.50\n"
                           "[ingest]\nscan = a.ptx b.ptx\n[capture.north]\nposition = 1, 2.5, -3\n"
-                          "rotation = 0 -1 0 1 0 0 0 0 1\n[reflectance]\nunobserved_albedo = 0.3\n", ov);
+                          "rotation = 0 -1 0 1 0 0 0 0 1\n[reflectance]\nunobserved_albedo = 0.3\n",
+                          ov);
     char *mesh = rs_config_section_text(cfg, "mesh");
     /* Table order, canonical numbers, absolute paths, unset keys without default left out. */
-    assert_string_equal(mesh, "[mesh]\ninput_mesh = /base/m.ply\npixels_per_facet = 6.5\n"
-                              "max_depth_ratio = 0.05\nmax_grazing_deg = 85\nsurface = poisson\nnormal_neighbours = 16\n"
-                              "poisson_depth = 10\noverlap_tolerance = 0.03\nreport_points = 200000\n"
-                              "fill_nadir = true\nnadir_max_rms = 0.02\ndenoise = true\ndenoise_iterations = 3\n"
-                              "denoise_vertex_iterations = 10\ndenoise_sigma_r_deg = 1e+01\ndenoise_sigma_s = 1\n"
-                              "denoise_max_move = 0.005\n");
+    assert_string_equal(mesh,
+                        "[mesh]\ninput_mesh = /base/m.ply\npixels_per_facet = 6.5\n"
+                        "max_depth_ratio = 0.05\nmax_grazing_deg = 85\nsurface = poisson\nnormal_neighbours = 16\n"
+                        "poisson_depth = 10\noverlap_tolerance = 0.03\nreport_points = 200000\n"
+                        "fill_nadir = true\nnadir_max_rms = 0.02\ndenoise = true\ndenoise_iterations = 3\n"
+                        "denoise_vertex_iterations = 10\ndenoise_sigma_r_deg = 1e+01\ndenoise_sigma_s = 1\n"
+                        "denoise_max_move = 0.005\n");
     free(mesh);
     char *north = rs_config_section_text(cfg, "capture.north");
     assert_string_equal(north, "[capture.north]\nposition = 1 2.5 -3\nrotation = 0 -1 0 1 0 0 0 0 1\n");
     free(north);
     /* Every section reads back in elsewhere with the same values (so the same text again). */
-    const char *sections[] = {"pipeline", "ingest", "mesh", "capture", "capture.north", "observe",
-                              "irradiance", "reflectance", "render", NULL};
+    const char *sections[] = {"pipeline", "ingest",     "mesh",        "capture", "capture.north",
+                              "observe",  "irradiance", "reflectance", "render",  NULL};
     for (int i = 0; sections[i]; i++) {
         char *text = rs_config_section_text(cfg, sections[i]);
         assert_non_null(text);
@@ -364,8 +366,7 @@ static void test_section_text(void **state)
             assert_true(rs_config_real(back, "mesh", "max_depth_ratio") == 0.05);
             assert_true(rs_config_has(back, "mesh", "max_grazing_deg"));
         }
-        if (strcmp(sections[i], "irradiance") == 0)
-            assert_int_equal(rs_config_int(back, "irradiance", "samples"), 512);
+        if (strcmp(sections[i], "irradiance") == 0) assert_int_equal(rs_config_int(back, "irradiance", "samples"), 512);
         if (strcmp(sections[i], "ingest") == 0) {
             char path[RS_CFG_PATH_MAX];
             assert_string_equal(rs_config_path_at(back, "ingest", "scan", 1, path, sizeof path), "/base/b.ptx");
@@ -428,9 +429,9 @@ static void test_getter_misuse_aborts(void **state)
         if (pid == 0) {
             if (!freopen("/dev/null", "w", stderr)) _exit(2);
             char path[8];
-            if (which == 0) rs_config_int(cfg, "mesh", "facet_size");         /* wrong type */
-            if (which == 1) rs_config_real(cfg, "mesh", "no_such_key");       /* not in the table */
-            if (which == 2) rs_config_has(cfg, "nosection", "x");             /* unknown section */
+            if (which == 0) rs_config_int(cfg, "mesh", "facet_size");                      /* wrong type */
+            if (which == 1) rs_config_real(cfg, "mesh", "no_such_key");                    /* not in the table */
+            if (which == 2) rs_config_has(cfg, "nosection", "x");                          /* unknown section */
             if (which == 3) rs_config_path(cfg, "pipeline", "workdir", path, sizeof path); /* short buffer */
             _exit(0);
         }
@@ -444,9 +445,9 @@ static void test_getter_misuse_aborts(void **state)
 /* Garbage never crashes: random lines built from INI punctuation and real key names. */
 static void test_garbage(void **state)
 {
-    static const char *parts[] = {"[", "]", "=", ";", "#", " ", "\n", ".", "mesh", "capture",
-                                  "facet_size", "rotation", "1", "-0.5", "nan", "1e999", "\t", "\r",
-                                  "capture.x", "scan", "..", "/", "\xEF\xBB\xBF", "position"};
+    static const char *parts[] = {
+        "[", "]",    "=",   ";",     "#",  " ",  "\n",        ".",    "mesh", "capture", "facet_size",   "rotation",
+        "1", "-0.5", "nan", "1e999", "\t", "\r", "capture.x", "scan", "..",   "/",       "\xEF\xBB\xBF", "position"};
     unsigned seed = 12345;
     char text[512];
     for (int iter = 0; iter < 3000; iter++) {
@@ -501,7 +502,8 @@ static void test_keys_md(void **state)
     free(md);
     if (!same)
         fail_msg("%s differs from the key table (common/config_keys.c); rerun test_config with "
-                 "RHOSCAN_UPDATE_KEYS_MD=1 to regenerate it, and review the diff", path);
+                 "RHOSCAN_UPDATE_KEYS_MD=1 to regenerate it, and review the diff",
+                 path);
 }
 
 int main(void)

@@ -25,7 +25,10 @@ static rs_mesh *street(void)
     return rs_meshgen_done(&g);
 }
 
-static double fract(double x) { return x - floor(x); }
+static double fract(double x)
+{
+    return x - floor(x);
+}
 
 /* Radiance of a point with normal n: albedo with darker windows on walls and tiles on the
  * ground (image edges the model does not have), lit by a sun and a uniform sky. */
@@ -37,7 +40,7 @@ static void shade(rs_v3 x, rs_v3 n, float rgb[3])
     } else {
         double along = fabs(n.x) > 0.5 ? x.y : x.x;
         int window = n.z < 0.5 && fract(along / 2.5) > 0.3 && fract(along / 2.5) < 0.7 && fract(x.z / 3) > 0.35 &&
-                     fract(x.z / 3) < 0.75;
+            fract(x.z / 3) < 0.75;
         albedo = window ? 0.12 : 0.45;
     }
     rs_v3 sun = rs_v3_norm(rs_v3_make(0.5, -0.3, 0.6));
@@ -60,8 +63,8 @@ static rs_image *render(const rs_scene *s, const rs_pose *pose, int w, int h)
             for (int k = 0; k < 4; k++) {
                 rs_ray *ray = &rays[4 * c + k];
                 ray->org = pose->position;
-                ray->dir = rs_pose_dir_to_world(pose, rs_pano_uv_to_dir((c + 0.25 + 0.5 * (k % 2)) / w,
-                                                                        (r + 0.25 + 0.5 * (k / 2)) / h));
+                ray->dir = rs_pose_dir_to_world(
+                    pose, rs_pano_uv_to_dir((c + 0.25 + 0.5 * (k % 2)) / w, (r + 0.25 + 0.5 * (k / 2)) / h));
                 ray->tnear = 0;
                 ray->tfar = INFINITY;
             }
@@ -136,7 +139,7 @@ static rs_pose perturbed(const rs_pose *truth, rs_v3 axis, double angle_deg, rs_
 /* Bounds from what the refinement reaches on this scene (see docs/PIPELINE.md): about 9 and 5
  * times the measured 0.011 deg and 6 mm, far below the 2 deg and 0.3 m of the start. */
 #define TURN_BOUND_DEG 0.1
-#define SHIFT_BOUND_M 0.03
+#define SHIFT_BOUND_M  0.03
 
 static void check_recovery(fixture *f, rs_v3 axis, rs_v3 dir)
 {
@@ -149,10 +152,11 @@ static void check_recovery(fixture *f, rs_v3 axis, rs_v3 dir)
     assert_int_equal(rs_edge_refine(f->scene, f->pano, &start, &o, &res, &err), 0);
     double turn = rs_calib_rot_angle(res.pose.rot, f->truth.rot) * 180 / M_PI;
     double shift = rs_v3_len(rs_v3_sub(res.pose.position, f->truth.position));
-    printf("edge refine: %.1f s, %d iterations, %ld model / %ld image edges, cost %.3f -> %.3f, median %.2f -> %.2f px, "
-           "error %.4f deg %.4f m (start 2 deg 0.3 m; moved %.3f deg %.3f m)\n", rs_now() - t0, res.iterations,
-           res.model_edges, res.image_edges, res.cost_before, res.cost_after, res.median_px_before,
-           res.median_px_after, turn, shift, res.turn_deg, res.shift_m);
+    printf(
+        "edge refine: %.1f s, %d iterations, %ld model / %ld image edges, cost %.3f -> %.3f, median %.2f -> %.2f px, "
+        "error %.4f deg %.4f m (start 2 deg 0.3 m; moved %.3f deg %.3f m)\n",
+        rs_now() - t0, res.iterations, res.model_edges, res.image_edges, res.cost_before, res.cost_after,
+        res.median_px_before, res.median_px_after, turn, shift, res.turn_deg, res.shift_m);
     /* The start is outside the bounds: a refinement that did nothing fails. */
     assert_true(rs_calib_rot_angle(start.rot, f->truth.rot) * 180 / M_PI > 10 * TURN_BOUND_DEG);
     assert_true(turn < TURN_BOUND_DEG);
@@ -220,7 +224,8 @@ static const char *write_run(fixture *f, const char *tag, const rs_image *pano, 
     static const char *const names[] = {"R", "G", "B"};
     assert_int_equal(rs_image_write_exr(pano, rs_test_path(dir, "pano.exr"), names, 0, NULL, &err), 0);
     const double *r = start->rot;
-    snprintf(text, sizeof text, "[pipeline]\nworkdir = out\n[capture]\npanorama = pano.exr\nposition = %.17g %.17g "
+    snprintf(text, sizeof text,
+             "[pipeline]\nworkdir = out\n[capture]\npanorama = pano.exr\nposition = %.17g %.17g "
              "%.17g\nrotation = %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g\nrefine_edges = true\n",
              start->position.x, start->position.y, start->position.z, r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7],
              r[8]);
@@ -284,12 +289,9 @@ static void test_calib_stage_featureless(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_recovers_perturbed_pose),
-        cmocka_unit_test(test_recovers_other_perturbation),
-        cmocka_unit_test(test_featureless_refused),
-        cmocka_unit_test(test_model_out_of_sight_refused),
-        cmocka_unit_test(test_calib_stage_refines),
-        cmocka_unit_test(test_calib_stage_featureless),
+        cmocka_unit_test(test_recovers_perturbed_pose), cmocka_unit_test(test_recovers_other_perturbation),
+        cmocka_unit_test(test_featureless_refused),     cmocka_unit_test(test_model_out_of_sight_refused),
+        cmocka_unit_test(test_calib_stage_refines),     cmocka_unit_test(test_calib_stage_featureless),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -30,10 +30,10 @@ static void test_hash_file_changes(void **state)
         uint64_t h = hash_of(a, d, n);
         assert_true(hash_of(b, d, n) == h);
         d[n] = 0;
-        assert_true(hash_of(b, d, n + 1) != h);                /* one more byte */
+        assert_true(hash_of(b, d, n + 1) != h); /* one more byte */
         size_t pos[] = {0, 7, n / 2, n > 0 ? n - 1 : 0};
         for (size_t p = 0; p < 4; p++) {
-            if (pos[p] >= n) continue;          /* short files: position 7 lies past the end */
+            if (pos[p] >= n) continue; /* short files: position 7 lies past the end */
             for (int bit = 0; bit < 8; bit += 7) {
                 d[pos[p]] ^= (unsigned char)(1u << bit);
                 assert_true(hash_of(b, d, n) != h);

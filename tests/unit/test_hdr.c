@@ -24,7 +24,7 @@ static void test_merge_and_clipped_sun(void **state)
     for (int i = 0; i < N; i++) {
         shots[i] = rs_image_new(W, H, 3);
         for (size_t k = 0; k < (size_t)W * H * 3; k++) {
-            double e = truth->data[k] * times[i] * 2.0;   /* sensor exposure, 1 = full scale */
+            double e = truth->data[k] * times[i] * 2.0; /* sensor exposure, 1 = full scale */
             double code = floor(255 * pow(fmin(e, 1), 1 / 2.2) + 0.5);
             shots[i]->data[k] = (float)(code / 255);
         }
@@ -38,7 +38,7 @@ static void test_merge_and_clipped_sun(void **state)
     double *ratio = malloc(n * sizeof *ratio);
     for (size_t k = 0; k < n; k++)
         if (truth->data[k] < 1e4) ratio[m++] = hdr->data[k] / truth->data[k];
-    for (size_t i = 1; i < m; i++)   /* insertion sort: small */
+    for (size_t i = 1; i < m; i++) /* insertion sort: small */
         for (size_t j = i; j > 0 && ratio[j - 1] > ratio[j]; j--) {
             double t = ratio[j];
             ratio[j] = ratio[j - 1];
@@ -53,7 +53,7 @@ static void test_merge_and_clipped_sun(void **state)
     assert_true(bad < m / 50);
     assert_int_equal(rep.sun_clipped, 1);
     assert_true(hypot(rep.sun_x - sun_x, rep.sun_y - sun_y) < 1.0);
-    assert_true(rep.sun_px >= 20 && rep.sun_px <= 40);   /* the disc: pi 3^2 = 28 pixels */
+    assert_true(rep.sun_px >= 20 && rep.sun_px <= 40); /* the disc: pi 3^2 = 28 pixels */
     free(ratio);
     rs_image_free(hdr);
     /* Too few exposures. */

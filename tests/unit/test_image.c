@@ -12,7 +12,7 @@
 #include <dirent.h>
 #include <omp.h>
 #include <openexr.h>
-#include <stb_image.h>       /* both implemented in common/image.c */
+#include <stb_image.h> /* both implemented in common/image.c */
 #include <stb_image_write.h>
 
 #include "fileio.h"
@@ -111,8 +111,7 @@ static void test_exr_round_trip(void **state)
             assert_non_null(img);
             for (int y = 0; y < 5; y++)
                 for (int x = 0; x < 7; x++)
-                    for (int c = 0; c < nc; c++)
-                        rs_image_px(img, x, y)[c] = test_value(x, y, c) * 1.001f;
+                    for (int c = 0; c < nc; c++) rs_image_px(img, x, y)[c] = test_value(x, y, c) * 1.001f;
             rs_image_px(img, 3, 2)[0] = 12345.0f;
             rs_image_px(img, 4, 2)[0] = 1e5f; /* beyond half's range: Inf in half files */
             const char *path = rs_test_path(tmp, half ? "half.exr" : "float.exr");
@@ -128,8 +127,7 @@ static void test_exr_round_trip(void **state)
                 if (half && img->data[i] > 65504.0f)
                     assert_true(isinf(back->data[i]));
                 else if (half)
-                    assert_float_equal(back->data[i], img->data[i],
-                                       1e-3 * fabsf(img->data[i]) + 1e-6);
+                    assert_float_equal(back->data[i], img->data[i], 1e-3 * fabsf(img->data[i]) + 1e-6);
                 else
                     assert_true(back->data[i] == img->data[i]);
             }
@@ -200,8 +198,8 @@ static uint32_t exr_value(int k, int x, int y)
     return (uint32_t)(1000 * (k + 1) + 40 * (y + 20) + (x + 20));
 }
 
-static void write_core(const char *path, int tiled, exr_attr_box2i_t disp, exr_attr_box2i_t dw,
-                       const tchan *ch, int nch, exr_compression_t comp)
+static void write_core(const char *path, int tiled, exr_attr_box2i_t disp, exr_attr_box2i_t dw, const tchan *ch,
+                       int nch, exr_compression_t comp)
 {
     exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
     init.error_handler_fn = ignore_exr_error;
@@ -211,14 +209,11 @@ static void write_core(const char *path, int tiled, exr_attr_box2i_t disp, exr_a
     assert_int_equal(exr_start_write(&ctx, path, EXR_WRITE_FILE_DIRECTLY, &init), 0);
     exr_storage_t storage = tiled ? EXR_STORAGE_TILED : EXR_STORAGE_SCANLINE;
     assert_int_equal(exr_add_part(ctx, "p", storage, &part), 0);
-    assert_int_equal(exr_initialize_required_attr(ctx, part, &disp, &dw, 1.0f, &centre, 1.0f,
-                                                  EXR_LINEORDER_INCREASING_Y, comp), 0);
+    assert_int_equal(
+        exr_initialize_required_attr(ctx, part, &disp, &dw, 1.0f, &centre, 1.0f, EXR_LINEORDER_INCREASING_Y, comp), 0);
     for (int k = 0; k < nch; k++)
-        assert_int_equal(exr_add_channel(ctx, part, ch[k].name, ch[k].type,
-                                         EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1), 0);
-    if (tiled)
-        assert_int_equal(exr_set_tile_descriptor(ctx, part, 4, 4, EXR_TILE_ONE_LEVEL,
-                                                 EXR_TILE_ROUND_DOWN), 0);
+        assert_int_equal(exr_add_channel(ctx, part, ch[k].name, ch[k].type, EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1), 0);
+    if (tiled) assert_int_equal(exr_set_tile_descriptor(ctx, part, 4, 4, EXR_TILE_ONE_LEVEL, EXR_TILE_ROUND_DOWN), 0);
     assert_int_equal(exr_write_header(ctx), 0);
     int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
     int32_t lines = 0;
@@ -234,7 +229,10 @@ static void write_core(const char *path, int tiled, exr_attr_box2i_t disp, exr_a
                 assert_int_equal(exr_write_scanline_chunk_info(ctx, part, y0, &ci), 0);
             exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
             assert_int_equal(exr_encoding_initialize(ctx, part, &ci, &enc), 0);
-            union { uint32_t u; float f; } *buf = calloc((size_t)ci.width * ci.height * nch, 4);
+            union {
+                uint32_t u;
+                float f;
+            } *buf = calloc((size_t)ci.width * ci.height * nch, 4);
             for (int c = 0; c < enc.channel_count; c++) {
                 int k = 0;
                 while (strcmp(ch[k].name, enc.channels[c].channel_name) != 0) k++;
@@ -242,11 +240,12 @@ static void write_core(const char *path, int tiled, exr_attr_box2i_t disp, exr_a
                     for (int q = 0; q < ci.width; q++) {
                         uint32_t v = exr_value(k, x0 + q, y0 + r);
                         size_t i = (size_t)k * ci.width * ci.height + (size_t)r * ci.width + q;
-                        if (ch[k].type == EXR_PIXEL_UINT) buf[i].u = v;
-                        else buf[i].f = (float)v;
+                        if (ch[k].type == EXR_PIXEL_UINT)
+                            buf[i].u = v;
+                        else
+                            buf[i].f = (float)v;
                     }
-                enc.channels[c].encode_from_ptr =
-                    (const uint8_t *)(buf + (size_t)k * ci.width * ci.height);
+                enc.channels[c].encode_from_ptr = (const uint8_t *)(buf + (size_t)k * ci.width * ci.height);
                 enc.channels[c].user_pixel_stride = 4;
                 enc.channels[c].user_line_stride = 4 * ci.width;
                 enc.channels[c].user_bytes_per_element = 4;
@@ -278,8 +277,7 @@ static void check_windows(const char *path, exr_attr_box2i_t disp, exr_attr_box2
             for (int k = 0; k < nc; k++) {
                 /* Channels were declared R, G, B, A: k is also the declaration index. */
                 float want = inside ? (float)exr_value(k, x, y) : 0.0f;
-                if (px[k] != want)
-                    fail_msg("%s (%d,%d)[%d] = %g, want %g", path, x, y, k, px[k], want);
+                if (px[k] != want) fail_msg("%s (%d,%d)[%d] = %g, want %g", path, x, y, k, px[k], want);
             }
         }
     rs_image_free(img);
@@ -287,8 +285,8 @@ static void check_windows(const char *path, exr_attr_box2i_t disp, exr_attr_box2
 
 static void test_exr_windows_tiles_types(void **state)
 {
-    const tchan rgba[] = {{"R", EXR_PIXEL_FLOAT}, {"G", EXR_PIXEL_FLOAT},
-                          {"B", EXR_PIXEL_FLOAT}, {"A", EXR_PIXEL_FLOAT}};
+    const tchan rgba[] = {
+        {"R", EXR_PIXEL_FLOAT}, {"G", EXR_PIXEL_FLOAT}, {"B", EXR_PIXEL_FLOAT}, {"A", EXR_PIXEL_FLOAT}};
     const tchan depth[] = {{"depth", EXR_PIXEL_UINT}};
     exr_attr_box2i_t disp = box(0, 0, 7, 5);
     exr_attr_box2i_t dw = box(2, 1, 5, 3);
@@ -322,8 +320,8 @@ static void test_exr_windows_tiles_types(void **state)
     check_windows(p, disp, disp, 1);
 
     /* The other compressions the C library writes and reads. */
-    const exr_compression_t others[] = {EXR_COMPRESSION_ZIPS, EXR_COMPRESSION_PXR24,
-                                        EXR_COMPRESSION_B44, EXR_COMPRESSION_B44A};
+    const exr_compression_t others[] = {EXR_COMPRESSION_ZIPS, EXR_COMPRESSION_PXR24, EXR_COMPRESSION_B44,
+                                        EXR_COMPRESSION_B44A};
     for (int i = 0; i < 4; i++) {
         p = rs_test_path(tmp, "other.exr");
         write_core(p, 0, disp, dw, rgba, 3, others[i]);
@@ -579,8 +577,7 @@ static void test_jpeg_and_stb_guards(void **state)
     void *b[2] = {NULL, &n};
     assert_true(stbi_write_png_to_func(collect, b, 16, 16, 3, grey, 48));
     unsigned char *png = malloc(n + 12);
-    static const unsigned char empty_idat[12] = {0, 0, 0, 0, 'I', 'D', 'A', 'T',
-                                                 0x35, 0xaf, 0x06, 0x1e};
+    static const unsigned char empty_idat[12] = {0, 0, 0, 0, 'I', 'D', 'A', 'T', 0x35, 0xaf, 0x06, 0x1e};
     memcpy(png, b[0], 33); /* signature and IHDR */
     memcpy(png + 33, empty_idat, 12);
     memcpy(png + 45, (unsigned char *)b[0] + 33, n - 33);
@@ -681,7 +678,7 @@ static void test_exr_many_chunks(void **state)
 {
     (void)state;
     static const char *rgb[] = {"R", "G", "B"};
-    enum { W = 96, H = 640 };                      /* 40 chunks of 16 ZIP lines */
+    enum { W = 96, H = 640 }; /* 40 chunks of 16 ZIP lines */
     rs_image *img = rs_image_new(W, H, 3);
     for (size_t i = 0; i < (size_t)W * H * 3; i++) img->data[i] = (float)((i * 7919) % 1013) * 0.01f;
     const char *p = rs_test_path(tmp, "many.exr");
@@ -697,7 +694,7 @@ static void test_exr_many_chunks(void **state)
     size_t n;
     unsigned char *good = slurp(p, &n), *bad = malloc(n);
     int failed = 0;
-    for (int trial = 0; trial < 200; trial++) {    /* bytes of chunks in the file's second half */
+    for (int trial = 0; trial < 200; trial++) { /* bytes of chunks in the file's second half */
         memcpy(bad, good, n);
         size_t at = n / 2 + (size_t)trial * (n / 2 - 1) / 200;
         bad[at] ^= 0x5a;
@@ -707,7 +704,7 @@ static void test_exr_many_chunks(void **state)
         failed += !back;
         rs_image_free(back);
     }
-    assert_true(failed > 20);                     /* damaged deflate streams do not decode */
+    assert_true(failed > 20); /* damaged deflate streams do not decode */
     free(bad);
     free(good);
     rs_image_free(img);

@@ -31,7 +31,7 @@ static void test_read_polygons(void **state)
     rs_mesh *m = mesh_from_text(dir, quad_ply, &err);
     if (!m) fail_msg("%s", err.msg);
     assert_int_equal(m->nverts, 5);
-    assert_int_equal(m->nfaces, 3);   /* the quad becomes a fan of two */
+    assert_int_equal(m->nfaces, 3); /* the quad becomes a fan of two */
     const uint32_t want[9] = {0, 1, 2, 0, 2, 3, 0, 4, 1};
     assert_memory_equal(m->tris, want, sizeof want);
 
@@ -39,10 +39,10 @@ static void test_read_polygons(void **state)
     double area;
     rs_mesh_face(m, 0, &c, &n, &area);
     assert_float_equal(area, 0.5, 1e-12);
-    assert_float_equal(n.z, 1.0, 1e-12);          /* counter-clockwise seen from +z */
+    assert_float_equal(n.z, 1.0, 1e-12); /* counter-clockwise seen from +z */
     assert_float_equal(c.x, 2.0 / 3.0, 1e-7);
     rs_mesh_face(m, 2, NULL, &n, &area);
-    assert_float_equal(n.y, 1.0, 1e-12);          /* (0,0,0) (0,0,1) (1,0,0): normal +y */
+    assert_float_equal(n.y, 1.0, 1e-12); /* (0,0,0) (0,0,1) (1,0,0): normal +y */
     assert_float_equal(rs_mesh_extent(m), sqrt(3.0), 1e-7);
 
     /* Distinct edges: 0-1 1-2 2-3 3-0 0-2 0-4 4-1 = 7, lengths 1 1 1 1 sqrt2 1 sqrt2. */
@@ -69,7 +69,7 @@ static void test_round_trip(void **state)
     rs_ply_element *fe = rs_mesh_to_ply(m, ply);
     assert_non_null(fe);
     assert_string_equal(fe->name, "face");
-    assert_non_null(rs_ply_add_scalar(fe, "albedo_r", RS_PLY_FLOAT32, NULL));   /* callers add face properties */
+    assert_non_null(rs_ply_add_scalar(fe, "albedo_r", RS_PLY_FLOAT32, NULL)); /* callers add face properties */
     rs_err err = {0};
     const char *path = rs_test_path(dir, "rt.ply");
     assert_int_equal(rs_ply_write(ply, path, 1, &err), 0);
@@ -100,7 +100,7 @@ static void expect_bad(const char *dir, const char *text, const char *phrase)
     assert_int_equal(err.kind, RS_ERR_INPUT);
 }
 
-#define HEAD(nv, nf) \
+#define HEAD(nv, nf)                                                                                        \
     "ply\nformat ascii 1.0\nelement vertex " #nv "\nproperty float x\nproperty float y\nproperty float z\n" \
     "element face " #nf "\nproperty list uchar int vertex_indices\nend_header\n"
 
@@ -108,15 +108,19 @@ static void test_errors(void **state)
 {
     (void)state;
     const char *dir = rs_test_tmpdir("mesh");
-    expect_bad(dir, HEAD(3, 1) "0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", "face 0: vertex index 3; expected an integer from 0 to 2");
+    expect_bad(dir, HEAD(3, 1) "0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n",
+               "face 0: vertex index 3; expected an integer from 0 to 2");
     expect_bad(dir, HEAD(3, 2) "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 -1 2\n", "face 1: vertex index -1");
     expect_bad(dir, HEAD(3, 1) "0 0 0\n1 0 0\n0 1 0\n2 0 1\n", "face 0 has 2 vertices; expected 3 or more");
     expect_bad(dir, HEAD(3, 1) "0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n", "vertex 1: coordinates");
-    expect_bad(dir, "ply\nformat ascii 1.0\nelement vertex 3\nproperty double x\nproperty double y\nproperty double z\n"
-                    "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1e300 0\n3 0 1 2\n",
+    expect_bad(dir,
+               "ply\nformat ascii 1.0\nelement vertex 3\nproperty double x\nproperty double y\nproperty double z\n"
+               "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1e300 0\n3 0 1 2\n",
                "within the float range");
-    expect_bad(dir, "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
-                    "end_header\n0 0 0\n", "no face element");
+    expect_bad(dir,
+               "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+               "end_header\n0 0 0\n",
+               "no face element");
     expect_bad(dir, "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n0 0\n",
                "no vertex element with scalar x, y and z");
     rs_test_rmtree(dir);

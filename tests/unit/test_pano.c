@@ -70,13 +70,13 @@ static void test_bilinear(void **state)
     rs_image *img = rs_image_new(4, 2, 1);
     for (int k = 0; k < 8; k++) img->data[k] = (float)k;
     float v;
-    rs_pano_sample(img, 1.5 / 4, 0.5 / 2, &v);        /* centre of pixel (1, 0) */
+    rs_pano_sample(img, 1.5 / 4, 0.5 / 2, &v); /* centre of pixel (1, 0) */
     assert_float_equal(v, 1, 1e-6);
-    rs_pano_sample(img, 2.0 / 4, 0.5 / 2, &v);        /* between pixels 1 and 2 */
+    rs_pano_sample(img, 2.0 / 4, 0.5 / 2, &v); /* between pixels 1 and 2 */
     assert_float_equal(v, 1.5, 1e-6);
-    rs_pano_sample(img, 0.0, 0.5 / 2, &v);            /* wraps: halfway between pixels 3 and 0 */
+    rs_pano_sample(img, 0.0, 0.5 / 2, &v); /* wraps: halfway between pixels 3 and 0 */
     assert_float_equal(v, 1.5, 1e-6);
-    rs_pano_sample(img, 0.5 / 4, 0.0, &v);            /* clamps at the pole */
+    rs_pano_sample(img, 0.5 / 4, 0.0, &v); /* clamps at the pole */
     assert_float_equal(v, 0, 1e-6);
     rs_image_free(img);
 }
@@ -84,8 +84,10 @@ static void test_bilinear(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_axes), cmocka_unit_test(test_round_trip),
-        cmocka_unit_test(test_solid_angle_sums_to_sphere), cmocka_unit_test(test_pose),
+        cmocka_unit_test(test_axes),
+        cmocka_unit_test(test_round_trip),
+        cmocka_unit_test(test_solid_angle_sums_to_sphere),
+        cmocka_unit_test(test_pose),
         cmocka_unit_test(test_bilinear),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -29,10 +29,9 @@ static void expect_fail_mem(const char *data, size_t size, const char *part1, co
     rs_err_clear(&err);
     rs_ply *ply = rs_ply_read_mem(data, size, "bad.ply", &err);
     rs_err_format(&err, msg, sizeof msg);
-    if (ply || !strstr(msg, "bad.ply") || (part1 && !strstr(msg, part1)) ||
-        (part2 && !strstr(msg, part2)))
-        fail_msg("expected failure with '%s' and '%s', got %s: '%s'", part1 ? part1 : "",
-                 part2 ? part2 : "", ply ? "success" : "failure", msg);
+    if (ply || !strstr(msg, "bad.ply") || (part1 && !strstr(msg, part1)) || (part2 && !strstr(msg, part2)))
+        fail_msg("expected failure with '%s' and '%s', got %s: '%s'", part1 ? part1 : "", part2 ? part2 : "",
+                 ply ? "success" : "failure", msg);
     assert_int_equal(err.kind, RS_ERR_INPUT);
 }
 
@@ -112,8 +111,7 @@ static rs_ply *mixed_mesh(void)
     return ply;
 }
 
-static void check_prop(const rs_ply_element *el, const char *name, rs_ply_type type,
-                       const double *expect, int as_float)
+static void check_prop(const rs_ply_element *el, const char *name, rs_ply_type type, const double *expect, int as_float)
 {
     rs_ply_prop *p = rs_ply_find_prop(el, name);
     assert_non_null(p);
@@ -175,8 +173,14 @@ static void roundtrip(int binary)
     rs_test_rmtree(dir);
 }
 
-static void test_roundtrip_ascii(void **state) { roundtrip(0); }
-static void test_roundtrip_binary(void **state) { roundtrip(1); }
+static void test_roundtrip_ascii(void **state)
+{
+    roundtrip(0);
+}
+static void test_roundtrip_binary(void **state)
+{
+    roundtrip(1);
+}
 
 /* The exact ascii text: header names and enough digits to round-trip. */
 static void test_ascii_text(void **state)
@@ -195,9 +199,10 @@ static void test_ascii_text(void **state)
     rs_ply_free(ply);
     size_t size;
     char *text = slurp(path, &size);
-    assert_string_equal(text, "ply\nformat ascii 1.0\ncomment hello world\nelement vertex 1\n"
-                              "property float x\nproperty double y\nproperty uchar c\nend_header\n"
-                              "0.100000001 0.10000000000000001 7\n");
+    assert_string_equal(text,
+                        "ply\nformat ascii 1.0\ncomment hello world\nelement vertex 1\n"
+                        "property float x\nproperty double y\nproperty uchar c\nend_header\n"
+                        "0.100000001 0.10000000000000001 7\n");
     free(text);
     rs_test_rmtree(dir);
 }
@@ -265,8 +270,7 @@ static void test_big_endian(void **state)
     if (!ply) fail_msg("%s", err.msg);
     assert_string_equal(ply->comments[0], "big");
     rs_ply_element *v = rs_ply_find_element(ply, "vertex");
-    const double x[2] = {1.5, -0.125}, s[2] = {-2, 300}, u[2] = {16909060, 4000000000.0},
-                 d[2] = {2.0, -1e-300};
+    const double x[2] = {1.5, -0.125}, s[2] = {-2, 300}, u[2] = {16909060, 4000000000.0}, d[2] = {2.0, -1e-300};
     check_prop(v, "x", RS_PLY_FLOAT32, x, 0);
     check_prop(v, "s", RS_PLY_INT16, s, 0);
     check_prop(v, "u", RS_PLY_UINT32, u, 0);
@@ -313,7 +317,7 @@ static void test_foreign_header(void **state)
 
 /* ---- errors ---- */
 
-#define HDR "ply\nformat ascii 1.0\n"
+#define HDR  "ply\nformat ascii 1.0\n"
 #define BHDR "ply\nformat binary_little_endian 1.0\n"
 
 static void test_header_errors(void **state)
@@ -337,15 +341,14 @@ static void test_header_errors(void **state)
                 "expected 'property <type> <name>'");
     expect_fail(HDR "property float x\nend_header\n", "bad.ply:3", "before any 'element'");
     expect_fail(HDR "element vertex -3\nend_header\n", "bad.ply:3", "not a non-negative integer");
-    expect_fail(HDR "element vertex 99999999999999999999999\nend_header\n", "bad.ply:3",
-                "not a non-negative integer");
+    expect_fail(HDR "element vertex 99999999999999999999999\nend_header\n", "bad.ply:3", "not a non-negative integer");
     expect_fail(HDR "element vertex 1 2\nend_header\n", "bad.ply:3", "expected 'element <name>");
     expect_fail(HDR "element v 1\nproperty int a\nproperty float a\nend_header\n", "bad.ply:5",
                 "property 'a' declared twice");
     expect_fail(HDR "element v 1\nelement v 1\nend_header\n", "bad.ply:4", "declared twice");
     expect_fail(HDR "elephant v 1\nend_header\n", "bad.ply:3", "unknown header line 'elephant'");
-    expect_fail_mem(HDR "comment a\0b\nend_header\n", sizeof(HDR "comment a\0b\nend_header\n") - 1,
-                    "bad.ply:3", "NUL byte");
+    expect_fail_mem(HDR "comment a\0b\nend_header\n", sizeof(HDR "comment a\0b\nend_header\n") - 1, "bad.ply:3",
+                    "NUL byte");
 }
 
 static void test_ascii_data_errors(void **state)
@@ -355,22 +358,20 @@ static void test_ascii_data_errors(void **state)
                 "bad.ply:8", "element 'vertex' 1, property 'y': expected a number (float), found 'abc'");
     expect_fail(HDR "element vertex 1\nproperty uchar c\nend_header\n300\n", "bad.ply:6",
                 "expected an integer in 0..255 (uchar), found '300'");
-    expect_fail(HDR "element vertex 1\nproperty int c\nend_header\n1.5\n", "bad.ply:6",
-                "expected an integer");
+    expect_fail(HDR "element vertex 1\nproperty int c\nend_header\n1.5\n", "bad.ply:6", "expected an integer");
     expect_fail(HDR "element vertex 3\nproperty float x\nproperty float y\nend_header\n1 2\n3 4\n5",
-                "element 'vertex' 2, property 'y'",
-                "data ends after 2 of 3 'vertex' elements (truncated file?)");
+                "element 'vertex' 2, property 'y'", "data ends after 2 of 3 'vertex' elements (truncated file?)");
     /* A count far beyond the data: fails once the tokens run out, without a huge allocation. */
     expect_fail(HDR "element vertex 1000000000000\nproperty float x\nend_header\n1 2 3\n",
                 "data ends after 3 of 1000000000000", NULL);
-    expect_fail(HDR "element face 1\nproperty list char int vi\nend_header\n-1 4\n",
-                "element 'face' 0, list 'vi'", "negative item count -1");
+    expect_fail(HDR "element face 1\nproperty list char int vi\nend_header\n-1 4\n", "element 'face' 0, list 'vi'",
+                "negative item count -1");
     expect_fail(HDR "element face 1\nproperty list uchar int vi\nend_header\n-1 4\n",
                 "list count: expected an integer in 0..255", NULL);
     expect_fail(HDR "element face 1\nproperty list uint int vi\nend_header\n4000000000 1 2 3\n",
                 "4000000000 items announced", NULL);
-    expect_fail(HDR "element face 2\nproperty list uchar int vi\nend_header\n3 0 1 2\n3 0 1\n",
-                "element 'face' 1", "data ends after 1 of 2");
+    expect_fail(HDR "element face 2\nproperty list uchar int vi\nend_header\n3 0 1 2\n3 0 1\n", "element 'face' 1",
+                "data ends after 1 of 2");
     expect_fail(HDR "element face 1\nproperty list uchar int vi\nend_header\n3 0 x 2\n",
                 "list item: expected an integer", "found 'x'");
 }
@@ -584,8 +585,7 @@ static void test_shared_truth(void **state)
     assert_non_null(vi);
     for (size_t k = 0; k < f->count; k++) {
         assert_int_equal(vi->offsets[k + 1] - vi->offsets[k], 3);
-        for (size_t j = vi->offsets[k]; j < vi->offsets[k + 1]; j++)
-            assert_true(vi->data[j] >= 0 && vi->data[j] < 16);
+        for (size_t j = vi->offsets[k]; j < vi->offsets[k + 1]; j++) assert_true(vi->data[j] >= 0 && vi->data[j] < 16);
     }
     rs_ply_free(ply);
 }
@@ -593,20 +593,13 @@ static void test_shared_truth(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_roundtrip_ascii),
-        cmocka_unit_test(test_roundtrip_binary),
-        cmocka_unit_test(test_ascii_text),
-        cmocka_unit_test(test_convert_saturate),
-        cmocka_unit_test(test_big_endian),
-        cmocka_unit_test(test_foreign_header),
-        cmocka_unit_test(test_header_errors),
-        cmocka_unit_test(test_ascii_data_errors),
-        cmocka_unit_test(test_binary_data_errors),
-        cmocka_unit_test(test_truncated_binary),
-        cmocka_unit_test(test_mutations),
-        cmocka_unit_test(test_builders),
-        cmocka_unit_test(test_write_errors),
-        cmocka_unit_test(test_large_binary),
+        cmocka_unit_test(test_roundtrip_ascii),    cmocka_unit_test(test_roundtrip_binary),
+        cmocka_unit_test(test_ascii_text),         cmocka_unit_test(test_convert_saturate),
+        cmocka_unit_test(test_big_endian),         cmocka_unit_test(test_foreign_header),
+        cmocka_unit_test(test_header_errors),      cmocka_unit_test(test_ascii_data_errors),
+        cmocka_unit_test(test_binary_data_errors), cmocka_unit_test(test_truncated_binary),
+        cmocka_unit_test(test_mutations),          cmocka_unit_test(test_builders),
+        cmocka_unit_test(test_write_errors),       cmocka_unit_test(test_large_binary),
         cmocka_unit_test(test_shared_truth),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

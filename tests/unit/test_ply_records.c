@@ -13,7 +13,7 @@
 #include "transport.h"
 
 /* More records than one read block (1 MiB / 18 bytes per record) holds, so blocks join. */
-#define NBIG 150000
+#define NBIG   150000
 #define NPROPS 4
 
 static const rs_ply_type BIG_TYPES[NPROPS] = {RS_PLY_UINT32, RS_PLY_INT16, RS_PLY_FLOAT32, RS_PLY_FLOAT64};
@@ -122,7 +122,8 @@ static int compare_record(void *ctx, const rs_ply_element *el, size_t k, double 
     compare_ctx *c = ctx;
     const rs_ply_element *w = rs_ply_find_element(c->whole, el->name);
     int e = (int)(w - c->whole->elements);
-    if (!w || k != c->seen[e]++ || w->nprops != el->nprops) c->bad++;
+    if (!w || k != c->seen[e]++ || w->nprops != el->nprops)
+        c->bad++;
     else
         for (int i = 0; i < el->nprops; i++)
             if (memcmp(&v[i], &w->props[i].data[k], sizeof *v) != 0) c->bad++;
@@ -148,7 +149,7 @@ static void check_read_same(const char *path, int expect_list)
         assert_int_equal(h->count, w->count);
         int list = 0;
         for (int i = 0; i < w->nprops; i++) list |= w->props[i].is_list;
-        if (list) {   /* kept in the header, with its data */
+        if (list) { /* kept in the header, with its data */
             assert_int_equal(c.seen[e], 0);
             assert_true(expect_list);
             assert_memory_equal(h->props[0].data, w->props[0].data, w->props[0].offsets[w->count] * sizeof(double));
@@ -172,7 +173,7 @@ static void test_read_same_values(void **state)
     assert_int_equal(rs_ply_write(ply, pb, 1, &err), 0);
     assert_int_equal(rs_ply_write(ply, pa, 0, &err), 0);
     check_read_same(pb, 0);
-    check_read_same(pa, 0);     /* ascii: read whole, handed over */
+    check_read_same(pa, 0); /* ascii: read whole, handed over */
     /* A list element (faces) before the scalars: the whole-file way, the list kept. */
     rs_ply *m = rs_ply_new();
     rs_ply_element *v = rs_ply_add_element(m, "vertex", 3);
@@ -273,7 +274,8 @@ static void test_transport_read(void **state)
     rs_err err;
     rs_err_clear(&err);
     /* Facets 0 and 3 have rows, 1, 2 and 4 none. */
-    double row[] = {0, 0, 3, 3, 3}, col[] = {1, 4, 0, 1, 2}, k[] = {0.5, 0.25, 1, 0.125, 2}, ku[] = {0, 0.25, 0.5, 0, 1};
+    double row[] = {0, 0, 3, 3, 3}, col[] = {1, 4, 0, 1, 2}, k[] = {0.5, 0.25, 1, 0.125, 2},
+           ku[] = {0, 0.25, 0.5, 0, 1};
     write_transport(p, 5, row, col, k, ku, 1);
     rs_transport *t = rs_transport_read(p, 5, &err);
     if (!t) fail_msg("%s", err.msg);

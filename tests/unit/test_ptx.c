@@ -63,7 +63,7 @@ static void test_pdal_with_color(void **state)
     assert_int_equal(c->rgb[0], 68);
     assert_int_equal(c->rgb[1], 77);
     assert_int_equal(c->rgb[2], 88);
-    assert_point(c, 1064, 637342.85, 853240.32, 423.92, 1e-6);   /* column 14, row 70: the last line */
+    assert_point(c, 1064, 637342.85, 853240.32, 423.92, 1e-6); /* column 14, row 70: the last line */
     assert_int_equal(c->rgb[3 * 1064], 138);
     assert_int_equal(c->rgb[3 * 1064 + 2], 136);
     for (int j = 0; j < 3; j++) assert_float_equal(c->scans[0].position[j], 0.0, 0);
@@ -111,7 +111,8 @@ static void test_pdal_multiple_and_transform(void **state)
     assert_null(c->rgb);
     assert_point(c, 0, 637012.24, 849028.31, 431.66, 1e-6);
     assert_point(c, 3, 636699.38, 848991.01, 425.39, 1e-6);
-    for (int k = 0; k < 4; k++) assert_point(c, (size_t)k, c->xyz[3 * (4 + k)], c->xyz[3 * (4 + k) + 1], c->xyz[3 * (4 + k) + 2], 1e-6);
+    for (int k = 0; k < 4; k++)
+        assert_point(c, (size_t)k, c->xyz[3 * (4 + k)], c->xyz[3 * (4 + k) + 1], c->xyz[3 * (4 + k) + 2], 1e-6);
     assert_float_equal(c->intensity[1], 0.004395, 1e-7);
     assert_float_equal(c->scans[0].position[0], 600000.0, 0);
     assert_float_equal(c->scans[0].position[1], 800000.0, 0);
@@ -154,11 +155,11 @@ static void test_synthetic_two_scans(void **state)
     /* (2, 4, 6): x' = 2*0 + 4*(-0.5) + 6*0 + 10 = 8, y' = 2*0.5 + 20 = 21, z' = 6*0.5 + 30 = 33. */
     assert_point(c, 0, 8, 21, 33, 1e-12);
     assert_int_equal(c->valid[0], 1);
-    assert_int_equal(c->valid[1], 0);           /* 0 0 0: no return, placed at the scanner */
+    assert_int_equal(c->valid[1], 0); /* 0 0 0: no return, placed at the scanner */
     assert_point(c, 1, 10, 20, 30, 0);
     assert_point(c, 2, 1.5, -2.5, 300, 0);
     assert_non_null(c->rgb);
-    assert_int_equal(c->rgb[0], 0);             /* the first scan had no colour */
+    assert_int_equal(c->rgb[0], 0); /* the first scan had no colour */
     assert_int_equal(c->rgb[6], 10);
     assert_int_equal(c->rgb[8], 255);
     assert_float_equal(c->intensity[2], 0.75, 1e-7);
@@ -197,8 +198,8 @@ static void test_errors(void **state)
     expect_error("1\n2\n0 0\n", 3, "scanner position: found 2 tokens; expected 3");
     expect_error("1\n1\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n0 0 0 0\n0 0 0 0\n0 0 0 0\n0 0 0 1\n1 1 1 1\n", 7, "singular");
     /* Counts that would need terabytes: refused before any allocation, no overflow. */
-    expect_error("2000000000\n2000000000\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n1 2 3 4\n", 10,
-                 "truncated or the counts are wrong");
+    expect_error("2000000000\n2000000000\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n1 2 3 4\n",
+                 10, "truncated or the counts are wrong");
     expect_error("99999999999999999999\n1\n", 1, "expected an integer from 1");
     expect_error("", 0, "no scan found");
     expect_error(" \n\n", 0, "no scan found");
@@ -218,12 +219,14 @@ static void test_every_truncation(void **state)
         memcpy(copy, two_scans, len);
         rs_err err = {0};
         rs_cloud *c = rs_ptx_read_mem(copy, len, "cut.ptx", &err);
-        if (c) ok++;
-        else assert_true(err.msg[0] != 0);
+        if (c)
+            ok++;
+        else
+            assert_true(err.msg[0] != 0);
         rs_cloud_free(c);
         free(copy);
     }
-    assert_true(ok >= 1);   /* at least the whole file */
+    assert_true(ok >= 1); /* at least the whole file */
 }
 
 static void test_read_file(void **state)

@@ -155,8 +155,9 @@ static void test_pairs_file(void **state)
     (void)state;
     const char *dir = rs_test_tmpdir("pairs");
     const char *good = rs_test_path(dir, "good.txt");
-    rs_test_write(good, "# column row X Y Z\n10 20 1 2 3\n\n  -0.5 0 4 5 6 # a comment\n2047.4 1023.5 7 8 9\n"
-                        "100.25 50.75 -1 -2 -3\n");
+    rs_test_write(good,
+                  "# column row X Y Z\n10 20 1 2 3\n\n  -0.5 0 4 5 6 # a comment\n2047.4 1023.5 7 8 9\n"
+                  "100.25 50.75 -1 -2 -3\n");
     rs_pair *p = NULL;
     int n = 0;
     rs_err err = {0};
@@ -185,7 +186,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_align_similarity), cmocka_unit_test(test_register_noise_outliers),
-        cmocka_unit_test(test_register_guess), cmocka_unit_test(test_register_errors),
+        cmocka_unit_test(test_register_guess),   cmocka_unit_test(test_register_errors),
         cmocka_unit_test(test_pairs_file),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

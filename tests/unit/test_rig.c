@@ -22,7 +22,7 @@ static rs_rig_camera camera(rs_lens_model model, const double *dist)
     c.cy = 255.5;
     memcpy(c.dist, dist, 5 * sizeof *dist);
     rs_m3_identity(c.r_rig_cam);
-    c.max_field = model == RS_LENS_PINHOLE ? 3 : 2.5;   /* both models are one-to-one that far */
+    c.max_field = model == RS_LENS_PINHOLE ? 3 : 2.5; /* both models are one-to-one that far */
     return c;
 }
 

@@ -18,20 +18,20 @@ static int cmp_double(const void *a, const void *b)
 }
 
 /* For every k of vals[0..n): select returns what qsort puts at k. One per element type. */
-#define DEFINE_CHECK_ALL_K(name, T, cmp, select)                          \
-    static void name(const T *vals, size_t n)                             \
-    {                                                                     \
+#define DEFINE_CHECK_ALL_K(name, T, cmp, select)                                  \
+    static void name(const T *vals, size_t n)                                     \
+    {                                                                             \
         T *sorted = malloc(n * sizeof *sorted), *work = malloc(n * sizeof *work); \
-        assert_non_null(sorted);                                          \
-        assert_non_null(work);                                            \
-        memcpy(sorted, vals, n * sizeof *sorted);                         \
-        qsort(sorted, n, sizeof *sorted, cmp);                            \
-        for (size_t k = 0; k < n; k++) {                                  \
-            memcpy(work, vals, n * sizeof *work);                         \
-            assert_true(select(work, n, k) == sorted[k]);                 \
-        }                                                                 \
-        free(sorted);                                                     \
-        free(work);                                                       \
+        assert_non_null(sorted);                                                  \
+        assert_non_null(work);                                                    \
+        memcpy(sorted, vals, n * sizeof *sorted);                                 \
+        qsort(sorted, n, sizeof *sorted, cmp);                                    \
+        for (size_t k = 0; k < n; k++) {                                          \
+            memcpy(work, vals, n * sizeof *work);                                 \
+            assert_true(select(work, n, k) == sorted[k]);                         \
+        }                                                                         \
+        free(sorted);                                                             \
+        free(work);                                                               \
     }
 
 DEFINE_CHECK_ALL_K(check_all_k_float, float, cmp_float, rs_select_kth)

@@ -14,9 +14,9 @@
 #include "stitch.h"
 #include "testutil.h"
 
-#define NCAM 6
-#define OFFSET_M 0.06
-#define PANO_W 800
+#define NCAM      6
+#define OFFSET_M  0.06
+#define PANO_W    800
 #define BORDER_PX 8
 
 static const double true_gain[NCAM] = {1.00, 1.06, 0.95, 1.10, 0.92, 1.03};
@@ -25,9 +25,9 @@ static const double true_gain[NCAM] = {1.00, 1.06, 0.95, 1.10, 0.92, 1.03};
  * rig that hides parts of the walls from some cameras. */
 static rs_mesh *room(void)
 {
-    static const double boxes[][6] = {
-        {-2.6, -3.6, -1.6, 4.6, 2.6, -1.5}, {-2.6, -3.6, -1.5, -2.5, 2.6, 2.5}, {4.5, -3.6, -1.5, 4.6, 2.6, 2.5},
-        {-2.5, -3.6, -1.5, 4.5, -3.5, 2.5}, {-2.5, 2.5, -1.5, 4.5, 2.6, 2.5},  {1.2, 0.8, -1.5, 1.5, 1.1, 1.0}};
+    static const double boxes[][6] = {{-2.6, -3.6, -1.6, 4.6, 2.6, -1.5}, {-2.6, -3.6, -1.5, -2.5, 2.6, 2.5},
+                                      {4.5, -3.6, -1.5, 4.6, 2.6, 2.5},   {-2.5, -3.6, -1.5, 4.5, -3.5, 2.5},
+                                      {-2.5, 2.5, -1.5, 4.5, 2.6, 2.5},   {1.2, 0.8, -1.5, 1.5, 1.1, 1.0}};
     static const int quad[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
     int nb = (int)(sizeof boxes / sizeof boxes[0]);
     rs_mesh *m = rs_mesh_new((size_t)nb * 8, (size_t)nb * 12);
@@ -52,7 +52,7 @@ static rs_mesh *room(void)
 static void surface(rs_v3 p, float rgb[3])
 {
     double v = 0.45 + 0.25 * sin(2 * M_PI * (p.x + 0.7 * p.y) / 0.6) * cos(2 * M_PI * (p.z - 0.3 * p.y) / 0.8) +
-               0.1 * sin(2 * M_PI * (0.5 * p.x + p.z) / 1.7);
+        0.1 * sin(2 * M_PI * (0.5 * p.x + p.z) / 1.7);
     rgb[0] = (float)v, rgb[1] = (float)(0.9 * v), rgb[2] = (float)(0.8 * v + 0.05);
 }
 
@@ -69,8 +69,10 @@ static void trace(const rs_scene *s, rs_v3 org, rs_v3 d, float rgb[3], double *d
     rs_hit hit;
     rs_scene_intersect(s, &ray, &hit, 1);
     *depth = hit.face == RS_NO_HIT ? INFINITY : hit.t;
-    if (hit.face == RS_NO_HIT) sky(rs_v3_norm(d), rgb);
-    else surface(rs_v3_add(org, rs_v3_scale(d, hit.t)), rgb);
+    if (hit.face == RS_NO_HIT)
+        sky(rs_v3_norm(d), rgb);
+    else
+        surface(rs_v3_add(org, rs_v3_scale(d, hit.t)), rgb);
 }
 
 /* ladybug5-like: five cameras around every 72 degrees and one up, 256 x 320, f = 130 px, OpenCV
@@ -83,7 +85,7 @@ static void write_rig(const char *path)
         double r[9], t[3];
         if (i < 5) {
             double a = 2 * M_PI * i / 5, ca = cos(a), sa = sin(a);
-            double rr[9] = {sa, 0, ca, -ca, 0, sa, 0, -1, 0};   /* columns: right, down, forward */
+            double rr[9] = {sa, 0, ca, -ca, 0, sa, 0, -1, 0}; /* columns: right, down, forward */
             memcpy(r, rr, sizeof r);
             t[0] = OFFSET_M * ca, t[1] = OFFSET_M * sa, t[2] = 0;
         } else {
@@ -113,8 +115,8 @@ typedef struct {
     rs_scene *scene;
     rs_pose pose;
     rs_image *frames[NCAM];
-    rs_image *truth;           /* cast from the rig centre */
-    double *depth;             /* the truth's depth per pixel (INFINITY: sky) */
+    rs_image *truth; /* cast from the rig centre */
+    double *depth;   /* the truth's depth per pixel (INFINITY: sky) */
 } fixture;
 
 static int setup(void **state)
@@ -154,7 +156,8 @@ static int setup(void **state)
     f->depth = malloc((size_t)PANO_W * PANO_W / 2 * sizeof *f->depth);
     for (int r = 0; r < PANO_W / 2; r++)
         for (int col = 0; col < PANO_W; col++)
-            trace(f->scene, f->pose.position, rs_pose_dir_to_world(&f->pose, rs_pano_pixel_dir(PANO_W, PANO_W / 2, col, r)),
+            trace(f->scene, f->pose.position,
+                  rs_pose_dir_to_world(&f->pose, rs_pano_pixel_dir(PANO_W, PANO_W / 2, col, r)),
                   rs_image_px(f->truth, col, r), &f->depth[(size_t)r * PANO_W + col]);
     *state = f;
     return 0;
@@ -230,8 +233,9 @@ static void test_parallax_corrected(void **state)
     double e_flat = gain_error(g_flat), e_model = gain_error(g_model);
     printf("# parallax: PSNR %.2f dB infinite depth, %.2f dB model depth over %.1f %% of the panorama; "
            "worst gain error %.3f %% and %.3f %%; model depth on %.1f %% of the sphere, %.2f %% of the camera "
-           "samples hidden\n", p_flat, p_model, 100 * share, 100 * e_flat, 100 * e_model,
-           100 * st_model.model_coverage, 100 * st_model.hidden_share);
+           "samples hidden\n",
+           p_flat, p_model, 100 * share, 100 * e_flat, 100 * e_model, 100 * st_model.model_coverage,
+           100 * st_model.hidden_share);
     assert_true(share > 0.5);
     assert_true(st_flat.model_coverage == 0 && st_flat.hidden_share == 0);
     /* The room and its floor fill most of what the rig sees; the column hides some samples. */
@@ -294,13 +298,16 @@ static double stage_psnr(const fixture *f, const char *dir, const char *extra, c
     if (pairs)
         snprintf(capture, sizeof capture, "correspondences = %s\n", pairs);
     else
-        snprintf(capture, sizeof capture, "position = %.17g %.17g %.17g\nrotation = %.17g %.17g %.17g %.17g %.17g "
-                 "%.17g %.17g %.17g %.17g\n", f->pose.position.x, f->pose.position.y, f->pose.position.z,
-                 f->pose.rot[0], f->pose.rot[1], f->pose.rot[2], f->pose.rot[3], f->pose.rot[4], f->pose.rot[5],
-                 f->pose.rot[6], f->pose.rot[7], f->pose.rot[8]);
+        snprintf(capture, sizeof capture,
+                 "position = %.17g %.17g %.17g\nrotation = %.17g %.17g %.17g %.17g %.17g "
+                 "%.17g %.17g %.17g %.17g\n",
+                 f->pose.position.x, f->pose.position.y, f->pose.position.z, f->pose.rot[0], f->pose.rot[1],
+                 f->pose.rot[2], f->pose.rot[3], f->pose.rot[4], f->pose.rot[5], f->pose.rot[6], f->pose.rot[7],
+                 f->pose.rot[8]);
     snprintf(text, sizeof text,
              "[pipeline]\nworkdir = out\n[rig]\nfile = rig.yaml\nframes = %s\nwidth = %d\nfeather_px = 16\n%s\n"
-             "[capture]\n%s", frames, PANO_W, extra, capture);
+             "[capture]\n%s",
+             frames, PANO_W, extra, capture);
     rs_test_write(rs_test_path(dir, "calib.ini"), text);
     char cmd[4096];
     snprintf(cmd, sizeof cmd, "'%s/rhoscan-calib' '%s'", rs_test_bin_dir(), rs_test_path(dir, "calib.ini"));
@@ -313,7 +320,8 @@ static double stage_psnr(const fixture *f, const char *dir, const char *extra, c
     char *rep = NULL;
     size_t size;
     assert_int_equal(rs_read_file(rs_test_path(dir, "out/calib.json"), &rep, &size, &err), 0);
-    int yes = strstr(rep, "\"parallax_corrected\": true") != NULL, no = strstr(rep, "\"parallax_corrected\": false") != NULL;
+    int yes = strstr(rep, "\"parallax_corrected\": true") != NULL,
+        no = strstr(rep, "\"parallax_corrected\": false") != NULL;
     free(rep);
     assert_true(yes != no);
     *corrected = yes;
@@ -336,7 +344,7 @@ static void test_calib_stage(void **state)
         assert_int_equal(rs_image_write_exr(f->frames[i], rs_test_path(dir, name), names, 0, NULL, &err), 0);
     }
     int corrected = 0;
-    double p_none = stage_psnr(f, dir, "", NULL, &corrected);      /* no mesh.ply yet: infinite depth */
+    double p_none = stage_psnr(f, dir, "", NULL, &corrected); /* no mesh.ply yet: infinite depth */
     assert_false(corrected);
     rs_ply *ply = rs_ply_new();
     rs_mesh_to_ply(f->mesh, ply);
@@ -362,7 +370,8 @@ static void test_calib_stage(void **state)
     double p_solved = stage_psnr(f, dir, "", "pairs.txt", &corrected);
     assert_true(corrected);
     printf("# calib stage: PSNR %.2f dB without mesh.ply, %.2f dB with it, %.2f dB with parallax = false, %.2f dB "
-           "with the pose solved from pairs\n", p_none, p_model, p_off, p_solved);
+           "with the pose solved from pairs\n",
+           p_none, p_model, p_off, p_solved);
     assert_true(p_model >= 35 && p_model > p_none + 6);
     assert_true(fabs(p_off - p_none) < 1e-9);
     assert_true(p_solved >= 35 && fabs(p_solved - p_model) < 1);

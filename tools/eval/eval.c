@@ -14,8 +14,8 @@
 void rs_eval_opts_default(rs_eval_opts *o)
 {
     memset(o, 0, sizeof *o);
-    o->tol_m = 0.15;              /* as ../shared/tools/eval_albedo.py */
-    o->concave_threshold = 0.2;   /* docs/ACCURACY.md says why */
+    o->tol_m = 0.15;            /* as ../shared/tools/eval_albedo.py */
+    o->concave_threshold = 0.2; /* docs/ACCURACY.md says why */
     o->max_error = o->max_error_all = o->min_coverage = NAN;
 }
 
@@ -69,8 +69,8 @@ static int load_truth(ev *e, const char *dir, rs_err *err)
         rc = rs_faceprop_get(e->truth_ply, path, names[c], e->nt, v, err);
         for (size_t f = 0; f < e->nt && rc == 0; f++) {
             if (!(v[f] > 0 && v[f] <= 1)) {
-                rc = rs_err_set(err, RS_ERR_INPUT, path, 0, "face %zu: %s = %g: expected a truth albedo in (0, 1]",
-                                f, names[c], v[f]);
+                rc = rs_err_set(err, RS_ERR_INPUT, path, 0, "face %zu: %s = %g: expected a truth albedo in (0, 1]", f,
+                                names[c], v[f]);
                 break;
             }
             e->trgb[3 * f + c] = v[f];
@@ -79,7 +79,8 @@ static int load_truth(ev *e, const char *dir, rs_err *err)
     }
     for (size_t f = 0; f < e->nt && rc == 0; f++) {
         if (!(part[f] >= 0 && part[f] < 100000 && part[f] == floor(part[f]))) {
-            rc = rs_err_set(err, RS_ERR_INPUT, path, 0, "face %zu: part = %g: expected an integer 0..99999", f, part[f]);
+            rc =
+                rs_err_set(err, RS_ERR_INPUT, path, 0, "face %zu: part = %g: expected an integer 0..99999", f, part[f]);
             break;
         }
         e->tpart[f] = (int)part[f];
@@ -332,7 +333,8 @@ int rs_eval_run(const rs_eval_opts *o, rs_json **result, int *passed, rs_err *er
         rs_json_push_str(fails, msg), nfail++;
     }
     if (isfinite(o->max_error_all) && !(ma <= o->max_error_all)) {
-        snprintf(msg, sizeof msg, "mean relative error over all facets %.4f > --max-error-all %.4f", ma, o->max_error_all);
+        snprintf(msg, sizeof msg, "mean relative error over all facets %.4f > --max-error-all %.4f", ma,
+                 o->max_error_all);
         rs_json_push_str(fails, msg), nfail++;
     }
     double coverage = rs_eval_get(doc, "coverage.share");

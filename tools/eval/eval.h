@@ -10,16 +10,16 @@
 #include "mesh.h"
 
 typedef struct rs_eval_opts {
-    const char *truth_dir;     /* truth.ply, pano.exr, pano_diffcol/diffdir/diffind.exr */
-    const char *work_dir;      /* albedo.ply, facet_id.exr, synth.exr */
-    const char *out_dir;       /* eval.json and eval_error.exr/.png go here; NULL = work_dir */
-    const char *json_path;     /* eval.json elsewhere; NULL = out_dir/eval.json */
-    double tol_m;              /* a sample point further than this from every truth triangle is unmatched */
-    double concave_threshold;  /* a part is concave when its mean enclosure reaches this */
+    const char *truth_dir;    /* truth.ply, pano.exr, pano_diffcol/diffdir/diffind.exr */
+    const char *work_dir;     /* albedo.ply, facet_id.exr, synth.exr */
+    const char *out_dir;      /* eval.json and eval_error.exr/.png go here; NULL = work_dir */
+    const char *json_path;    /* eval.json elsewhere; NULL = out_dir/eval.json */
+    double tol_m;             /* a sample point further than this from every truth triangle is unmatched */
+    double concave_threshold; /* a part is concave when its mean enclosure reaches this */
     /* Thresholds; NAN = not checked. */
-    double max_error;          /* area-weighted mean relative error, interior facets */
-    double max_error_all;      /* the same over all matched facets */
-    double min_coverage;       /* observed and estimable share of the model pixels */
+    double max_error;     /* area-weighted mean relative error, interior facets */
+    double max_error_all; /* the same over all matched facets */
+    double min_coverage;  /* observed and estimable share of the model pixels */
 } rs_eval_opts;
 
 void rs_eval_opts_default(rs_eval_opts *o);
@@ -39,15 +39,15 @@ double rs_eval_get(const rs_json *doc, const char *path);
  * corners and edge midpoints pulled 15 % toward it, as ../shared/tools/eval_albedo.py does)
  * each take the part of their nearest truth triangle if it lies within tol_m. */
 typedef struct rs_eval_match {
-    int *part;                 /* majority part per facet (ties: the lower id), -1 unmatched */
-    double *truth_rgb;         /* 3 per facet: the albedo of the first agreeing point's triangle */
-    uint8_t *interior;         /* all seven points matched and on one part */
+    int *part;         /* majority part per facet (ties: the lower id), -1 unmatched */
+    double *truth_rgb; /* 3 per facet: the albedo of the first agreeing point's triangle */
+    uint8_t *interior; /* all seven points matched and on one part */
 } rs_eval_match;
 
 /* A facet is matched when its centroid lies within tol_m of the truth. truth_part and
  * truth_rgb hold one (three) value(s) per truth triangle. Caller frees with rs_eval_match_free. */
-int rs_eval_match_facets(const rs_mesh *res, const rs_mesh *truth, const int *truth_part,
-                         const double *truth_rgb, double tol_m, rs_eval_match *out, rs_err *err);
+int rs_eval_match_facets(const rs_mesh *res, const rs_mesh *truth, const int *truth_part, const double *truth_rgb,
+                         double tol_m, rs_eval_match *out, rs_err *err);
 void rs_eval_match_free(rs_eval_match *m);
 
 /* Enclosure of each facet of mesh: the cosine-weighted share of its hemisphere that hits the

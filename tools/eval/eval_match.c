@@ -35,7 +35,7 @@ double rs_eval_point_tri_dist(rs_v3 p, rs_v3 a, rs_v3 b, rs_v3 c)
         return rs_v3_len(rs_v3_sub(p, q));
     }
     double den = va + vb + vc;
-    if (!(den > 0)) {            /* degenerate triangle: nearest of its three edges' ends */
+    if (!(den > 0)) { /* degenerate triangle: nearest of its three edges' ends */
         double m = rs_v3_len(ap);
         if (rs_v3_len(bp) < m) m = rs_v3_len(bp);
         if (rs_v3_len(cp) < m) m = rs_v3_len(cp);
@@ -45,7 +45,9 @@ double rs_eval_point_tri_dist(rs_v3 p, rs_v3 a, rs_v3 b, rs_v3 c)
     return rs_v3_len(rs_v3_sub(p, q));
 }
 
-typedef struct { float lo[3], hi[3]; } aabb;
+typedef struct {
+    float lo[3], hi[3];
+} aabb;
 
 /* Squared distance from p to a box: a lower bound of the distance to the triangle inside. */
 static double aabb_dist2(const aabb *b, rs_v3 p)
@@ -85,8 +87,8 @@ void rs_eval_match_free(rs_eval_match *m)
     memset(m, 0, sizeof *m);
 }
 
-int rs_eval_match_facets(const rs_mesh *res, const rs_mesh *truth, const int *truth_part,
-                         const double *truth_rgb, double tol_m, rs_eval_match *out, rs_err *err)
+int rs_eval_match_facets(const rs_mesh *res, const rs_mesh *truth, const int *truth_part, const double *truth_rgb,
+                         double tol_m, rs_eval_match *out, rs_err *err)
 {
     size_t nf = res->nfaces;
     memset(out, 0, sizeof *out);
@@ -129,7 +131,7 @@ int rs_eval_match_facets(const rs_mesh *res, const rs_mesh *truth, const int *tr
             part[i] = tri[i] >= 0 ? truth_part[tri[i]] : -1;
         }
         out->part[f] = -1;
-        if (tri[0] < 0) continue;            /* the centroid is off the truth: unmatched */
+        if (tri[0] < 0) continue; /* the centroid is off the truth: unmatched */
         int best = -1, best_n = 0;
         for (int i = 0; i < 7; i++) {
             if (part[i] < 0) continue;

@@ -14,11 +14,11 @@ typedef struct ev {
     size_t nt, nf;
     int nparts;
     int *tpart;
-    double *trgb;                 /* 3 per truth triangle */
-    double *alb, *esky, *g;       /* 3 per facet */
+    double *trgb;           /* 3 per truth triangle */
+    double *alb, *esky, *g; /* 3 per facet */
     double *obs, *est, *area, *encl;
-    double *rel, *sgn;            /* per facet: mean over R,G,B of |rho - t| / t, (rho - t) / t */
-    uint8_t *sel;                 /* observed, estimable, finite, matched */
+    double *rel, *sgn; /* per facet: mean over R,G,B of |rho - t| / t, (rho - t) / t */
+    uint8_t *sel;      /* observed, estimable, finite, matched */
     rs_eval_match m;
     rs_image *ids, *pano, *dc, *dd, *di, *synth;
 } ev;
@@ -26,7 +26,7 @@ typedef struct ev {
 /* The camera-view measures into doc: "coverage", "irradiance", "synth"; writes eval_error.exr
  * and eval_error.png into out_dir. good[f]: observed and estimable. part_gshare[nparts]: the
  * truth's interreflection share diffind / (diffdir + diffind) over each part's pixels. */
-int rs_eval_camera(const ev *e, const uint8_t *good, rs_json *doc, const char *out_dir,
-                   double *part_gshare, rs_err *err);
+int rs_eval_camera(const ev *e, const uint8_t *good, rs_json *doc, const char *out_dir, double *part_gshare,
+                   rs_err *err);
 
 #endif

@@ -21,7 +21,7 @@ static int write_error_images(const rs_image *rel, const rs_image *color, const 
 
 static int has_albedo(const rs_image *dc, int x, int y)
 {
-    x = (x + dc->width) % dc->width;                      /* azimuth wraps */
+    x = (x + dc->width) % dc->width; /* azimuth wraps */
     y = y < 0 ? 0 : y >= dc->height ? dc->height - 1 : y;
     const float *p = rs_image_px(dc, x, y);
     return isfinite(p[0] + p[1] + p[2]) && p[0] + p[1] + p[2] > 0;
@@ -32,12 +32,12 @@ static int has_albedo(const rs_image *dc, int x, int y)
  * mixed pixels show the sky as much as the model and would count as uncovered model. */
 static int is_model(const rs_image *dc, int x, int y)
 {
-    return has_albedo(dc, x, y) && has_albedo(dc, x - 1, y) && has_albedo(dc, x + 1, y) &&
-           has_albedo(dc, x, y - 1) && has_albedo(dc, x, y + 1);
+    return has_albedo(dc, x, y) && has_albedo(dc, x - 1, y) && has_albedo(dc, x + 1, y) && has_albedo(dc, x, y - 1) &&
+        has_albedo(dc, x, y + 1);
 }
 
-int rs_eval_camera(const ev *e, const uint8_t *good, rs_json *doc, const char *out_dir,
-                   double *part_gshare, rs_err *err)
+int rs_eval_camera(const ev *e, const uint8_t *good, rs_json *doc, const char *out_dir, double *part_gshare,
+                   rs_err *err)
 {
     int w = e->ids->width, h = e->ids->height, rc = -1;
     size_t npx = (size_t)w * h, nf = e->nf, np = (size_t)e->nparts;

@@ -47,12 +47,18 @@ int main(int argc, char **argv)
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
             fputs(USAGE, stdout);
             return 0;
-        } else if (!strcmp(a, "--quiet")) quiet = 1;
-        else if (!strcmp(a, "--max-error")) bad = number(a, v, 0, &o.max_error), i++;
-        else if (!strcmp(a, "--max-error-all")) bad = number(a, v, 0, &o.max_error_all), i++;
-        else if (!strcmp(a, "--min-coverage")) bad = number(a, v, 0, &o.min_coverage), i++;
-        else if (!strcmp(a, "--tol")) bad = number(a, v, 1e-6, &o.tol_m), i++;
-        else if (!strcmp(a, "--concave-threshold")) bad = number(a, v, 0, &o.concave_threshold), i++;
+        } else if (!strcmp(a, "--quiet"))
+            quiet = 1;
+        else if (!strcmp(a, "--max-error"))
+            bad = number(a, v, 0, &o.max_error), i++;
+        else if (!strcmp(a, "--max-error-all"))
+            bad = number(a, v, 0, &o.max_error_all), i++;
+        else if (!strcmp(a, "--min-coverage"))
+            bad = number(a, v, 0, &o.min_coverage), i++;
+        else if (!strcmp(a, "--tol"))
+            bad = number(a, v, 1e-6, &o.tol_m), i++;
+        else if (!strcmp(a, "--concave-threshold"))
+            bad = number(a, v, 0, &o.concave_threshold), i++;
         else if (!strcmp(a, "--json") || !strcmp(a, "--out")) {
             if (!v) {
                 fprintf(stderr, "rhoscan-eval: %s needs a path\n%s", a, USAGE);
@@ -63,7 +69,8 @@ int main(int argc, char **argv)
         } else if (a[0] == '-' && a[1]) {
             fprintf(stderr, "rhoscan-eval: unknown option \"%s\"\n%s", a, USAGE);
             return 1;
-        } else if (npos < 2) pos[npos++] = a;
+        } else if (npos < 2)
+            pos[npos++] = a;
         else {
             fprintf(stderr, "rhoscan-eval: unexpected argument \"%s\"\n%s", a, USAGE);
             return 1;
@@ -85,14 +92,16 @@ int main(int argc, char **argv)
         return err.kind ? (int)err.kind : 3;
     }
     if (!quiet) {
-        fprintf(stderr, "rhoscan-eval: albedo interior: mean %.4f median %.4f p95 %.4f bias %+.4f | all: mean %.4f "
-                        "p95 %.4f | coverage %.3f\n",
+        fprintf(stderr,
+                "rhoscan-eval: albedo interior: mean %.4f median %.4f p95 %.4f bias %+.4f | all: mean %.4f "
+                "p95 %.4f | coverage %.3f\n",
                 rs_eval_get(doc, "albedo.interior.mean_rel"), rs_eval_get(doc, "albedo.interior.median_rel"),
                 rs_eval_get(doc, "albedo.interior.p95_rel"), rs_eval_get(doc, "albedo.interior.bias_rel"),
                 rs_eval_get(doc, "albedo.all.mean_rel"), rs_eval_get(doc, "albedo.all.p95_rel"),
                 rs_eval_get(doc, "coverage.share"));
-        fprintf(stderr, "rhoscan-eval: E_sky vs pi DiffDir %.4f (bias %+.4f), G vs pi DiffInd %.4f (bias %+.4f), "
-                        "total %.4f (bias %+.4f); synth vs pano %.4f\n",
+        fprintf(stderr,
+                "rhoscan-eval: E_sky vs pi DiffDir %.4f (bias %+.4f), G vs pi DiffInd %.4f (bias %+.4f), "
+                "total %.4f (bias %+.4f); synth vs pano %.4f\n",
                 rs_eval_get(doc, "irradiance.esky_rel"), rs_eval_get(doc, "irradiance.esky_bias"),
                 rs_eval_get(doc, "irradiance.g_rel"), rs_eval_get(doc, "irradiance.g_bias"),
                 rs_eval_get(doc, "irradiance.total_rel"), rs_eval_get(doc, "irradiance.total_bias"),
