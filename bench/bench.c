@@ -16,12 +16,12 @@
 #ifdef _OPENMP
 #include <omp.h>
 #endif
-#include "faceprop.h"
-#include "fileio.h"
-#include "log.h"
-#include "mesh.h"
-#include "scenegen.h"
-#include "truth.h"
+#include "common/faceprop.h"
+#include "common/fileio.h"
+#include "common/log.h"
+#include "common/mesh.h"
+#include "bench/scenegen.h"
+#include "bench/truth.h"
 
 typedef struct {
     const char *name;      /* row label in the CSV */

@@ -1,11 +1,11 @@
 /* scenegen: procedural building scenes (see scenegen.h). The scene is a list of rectangles
  * (quads), each subdivided into square-ish cells of two triangles; one cell size serves all. */
-#include "scenegen.h"
+#include "bench/scenegen.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include "sampling.h"
+#include "common/sampling.h"
 
 typedef struct {
     rs_v3 o, e1, e2; /* corner and edges; the normal is along e1 x e2 */

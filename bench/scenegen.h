@@ -5,7 +5,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
-#include "mesh.h"
+#include "common/mesh.h"
 
 typedef struct rs_bench_scene {
     rs_mesh *mesh;

@@ -1,16 +1,16 @@
 /* truth: the benchmark's known answer (see truth.h): sky, forward solve with a dense-sampled
  * kernel from rs_gather_facet, and the camera's panorama by ray casting. */
-#include "truth.h"
+#include "bench/truth.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include "gather.h"
-#include "log.h"
-#include "pano.h"
-#include "scene.h"
-#include "skyenv.h"
-#include "transport.h"
+#include "light/gather.h"
+#include "common/log.h"
+#include "common/pano.h"
+#include "common/scene.h"
+#include "sky/skyenv.h"
+#include "light/transport.h"
 
 /* The analytic sky: a blue gradient, a glow around the sun and the sun's disc (0.53 degrees). */
 static const double SUN_ELEV = 35 * M_PI / 180, SUN_AZ = 80 * M_PI / 180, SUN_RADIUS = 0.00466;

@@ -4,9 +4,9 @@
 #ifndef RS_BENCH_TRUTH_H
 #define RS_BENCH_TRUTH_H
 
-#include "err.h"
-#include "image.h"
-#include "scenegen.h"
+#include "common/err.h"
+#include "common/image.h"
+#include "bench/scenegen.h"
 
 /* Sky panorama (world frame, W x W/2), 3 channels, linear. hdr_path NULL: a clear sky with a
  * sun (normal irradiance 8, about six times the sky's) at 35 degrees elevation, its pixels

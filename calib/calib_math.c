@@ -1,6 +1,6 @@
 /* calib_math: small dense linear algebra for calibration (see calib_math.h). Sizes are tiny
  * (n <= 8), so the plain textbook algorithms are the clearest choice. */
-#include "calib_math.h"
+#include "calib/calib_math.h"
 
 #include <string.h>
 

@@ -4,7 +4,7 @@
 #ifndef RS_CALIB_MATH_H
 #define RS_CALIB_MATH_H
 
-#include "vec.h"
+#include "common/vec.h"
 
 /* Eigen-decomposition of the symmetric n x n matrix a (row-major, n <= 8; destroyed) by cyclic
  * Jacobi rotations: eigenvalues in descending order into evals, unit eigenvectors as the

@@ -1,14 +1,14 @@
 /* colmap: the reader of COLMAP's text model (see colmap.h); the alignment and the poses are in
  * colmap_align.c. The formats are those of COLMAP 3.8's model_converter (src/base/reconstruction.cc). */
-#include "colmap.h"
+#include "calib/colmap.h"
 
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "calib_math.h"
-#include "colmap_text.h"
-#include "fileio.h"
+#include "calib/calib_math.h"
+#include "calib/colmap_text.h"
+#include "common/fileio.h"
 
 /* COLMAP 3.8's camera models (src/base/camera_models.h) and their parameter counts. */
 static const struct {

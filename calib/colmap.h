@@ -4,8 +4,8 @@
 #ifndef RS_COLMAP_H
 #define RS_COLMAP_H
 
-#include "err.h"
-#include "pano.h"
+#include "common/err.h"
+#include "common/pano.h"
 
 typedef struct rs_colmap_camera {
     long id;

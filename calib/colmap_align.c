@@ -1,12 +1,12 @@
 /* colmap_align: from a COLMAP model to rhoscan poses (see colmap.h): the views and control-point
  * files, the Umeyama similarity to the scan's frame with its residuals, and panorama poses. */
-#include "colmap.h"
+#include "calib/colmap.h"
 
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "calib_math.h"
-#include "colmap_text.h"
+#include "calib/calib_math.h"
+#include "calib/colmap_text.h"
 
 /* Grows *arr (elements of size sz) to hold n + 1; -1 when memory runs out. */
 static int grow(void **arr, int n, int *cap, size_t sz)

@@ -4,7 +4,7 @@
 #define RS_COLMAP_TEXT_H
 
 #include <stddef.h>
-#include "err.h"
+#include "common/err.h"
 
 typedef struct rs_ctext {
     char path[4096];

@@ -1,6 +1,6 @@
 // cv_adapter: OpenCV behind the C header cv_adapter.h. Each extern "C" entry wraps its body in
 // try/catch: an exception crossing into C code would be undefined behaviour.
-#include "cv_adapter.h"
+#include "calib/cv_adapter.h"
 
 #include <cstdio>
 #include <cstdlib>

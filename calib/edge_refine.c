@@ -1,14 +1,14 @@
 /* edge_refine: pose refinement by aligning model edges with panorama edges (see edge_refine.h).
  * Model edges are 3D points fixed on the model, re-projected by each candidate pose. */
-#include "edge_refine.h"
+#include "calib/edge_refine.h"
 
 #include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include "calib_math.h"
-#include "cv_adapter.h"
-#include "linsolve.h"
+#include "calib/calib_math.h"
+#include "calib/cv_adapter.h"
+#include "common/linsolve.h"
 
 void rs_edge_refine_defaults(rs_edge_refine_opts *o)
 {

@@ -6,10 +6,10 @@
 #ifndef RS_EDGE_REFINE_H
 #define RS_EDGE_REFINE_H
 
-#include "err.h"
-#include "image.h"
-#include "pano.h"
-#include "scene.h"
+#include "common/err.h"
+#include "common/image.h"
+#include "common/pano.h"
+#include "common/scene.h"
 
 typedef struct rs_edge_refine_opts {
     int levels;              /* pyramid levels, each half the width of the next finer one */

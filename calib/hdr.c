@@ -1,11 +1,11 @@
 /* hdr: exposure brackets -> radiance (see hdr.h). OpenCV does the merge; what is ours is the
  * clipping: Debevec's weights give a clipped pixel the value of its shortest exposure, a lower
  * bound, so such pixels are counted and the sun (a small compact blob of them) is reported. */
-#include "hdr.h"
+#include "calib/hdr.h"
 
 #include <stdlib.h>
 #include <string.h>
-#include "cv_adapter.h"
+#include "calib/cv_adapter.h"
 
 #define SATURATED_CODE 250
 

@@ -3,8 +3,8 @@
 #ifndef RS_HDR_H
 #define RS_HDR_H
 
-#include "err.h"
-#include "image.h"
+#include "common/err.h"
+#include "common/image.h"
 
 typedef struct rs_hdr_report {
     size_t clipped_px;   /* pixels saturated even in the shortest exposure: radiance is a lower bound */

@@ -1,13 +1,13 @@
 /* register: spherical PnP for panoramas (see register.h). Minimal samples of 3 pairs are solved
  * exactly (P3P: the three camera distances from the law of cosines), the candidate poses are
  * scored with a truncated quadratic cost (MSAC), and the best is refined on its inliers. */
-#include "register.h"
+#include "calib/register.h"
 
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "calib_math.h"
-#include "linsolve.h"
+#include "calib/calib_math.h"
+#include "common/linsolve.h"
 
 rs_v3 rs_pair_bearing(double col, double row, int width, int height)
 {

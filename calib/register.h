@@ -5,8 +5,8 @@
 #define RS_REGISTER_H
 
 #include <stdint.h>
-#include "err.h"
-#include "pano.h"
+#include "common/err.h"
+#include "common/pano.h"
 
 typedef struct rs_pair {
     double col, row; /* continuous pixel coordinates, pixel centres at integers */

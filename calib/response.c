@@ -1,10 +1,10 @@
 /* response: response-curve files (see response.h). A curve measured once (in the lab, or
  * calibrated from a well-exposed scene) is more trustworthy than one fitted to every capture. */
-#include "response.h"
+#include "calib/response.h"
 
 #include <stdlib.h>
 #include <string.h>
-#include "fileio.h"
+#include "common/fileio.h"
 
 int rs_response_read(const char *path, float *out, rs_err *err)
 {

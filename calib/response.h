@@ -3,7 +3,7 @@
 #ifndef RS_RESPONSE_H
 #define RS_RESPONSE_H
 
-#include "err.h"
+#include "common/err.h"
 
 /* The file: 256 data lines, line i for 8-bit code i, each with one number (all channels) or three
  * (R G B), separated by spaces, tabs or commas; blank lines and lines starting with '#' are

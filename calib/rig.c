@@ -1,12 +1,12 @@
 /* rig: rig files and lens models (see rig.h). The projection is written out here rather than
  * called through OpenCV so that it can stop at the edge of the usable field of view, per pixel,
  * which cv::projectPoints does not do. */
-#include "rig.h"
+#include "calib/rig.h"
 
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "cv_adapter.h"
+#include "calib/cv_adapter.h"
 
 /* Radial derivative of the distorted radius: pinhole d/dr [r (1 + k1 r^2 + k2 r^4 + k3 r^6)],
  * fisheye d/dtheta [theta (1 + k1 theta^2 + ... + k4 theta^8)]. */

@@ -4,8 +4,8 @@
 #ifndef RS_RIG_H
 #define RS_RIG_H
 
-#include "err.h"
-#include "vec.h"
+#include "common/err.h"
+#include "common/vec.h"
 
 typedef enum { RS_LENS_PINHOLE, RS_LENS_FISHEYE } rs_lens_model;
 

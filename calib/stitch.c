@@ -3,13 +3,13 @@
  * (from the camera's own centre when the point is at a finite depth), sampled bilinearly where
  * the lens model is usable, and blended with weights that fall smoothly to 0 at the usable edge,
  * so seams do not show as steps. */
-#include "stitch.h"
+#include "calib/stitch.h"
 
 #include <stdlib.h>
 #include <string.h>
-#include "calib_math.h"
-#include "linsolve.h"
-#include "pano.h"
+#include "calib/calib_math.h"
+#include "common/linsolve.h"
+#include "common/pano.h"
 
 #define MIN_OVERLAP_PX 64 /* fewer shared pixels say too little about a gain ratio */
 

@@ -4,10 +4,10 @@
 #ifndef RS_STITCH_H
 #define RS_STITCH_H
 
-#include "image.h"
-#include "pano.h"
-#include "rig.h"
-#include "scene.h"
+#include "common/image.h"
+#include "common/pano.h"
+#include "calib/rig.h"
+#include "common/scene.h"
 
 typedef struct rs_stitch_opts {
     int width;             /* panorama width (px); height = width / 2 */

@@ -1,11 +1,12 @@
-/* capture: a panorama with its pose, as given by a [capture] section: the image (linear,
- * 3 channels, 2:1) and the camera centre and rotation in the world frame. */
+/* capture: a panorama with its pose: the image (linear, 3 channels, 2:1) and the camera centre
+ * and rotation in the world frame. Loading one from a config section is the pipeline's
+ * (pipeline/capture_load.h). */
 #ifndef RS_CAPTURE_H
 #define RS_CAPTURE_H
 
-#include "config.h"
-#include "image.h"
-#include "pano.h"
+#include <math.h>
+#include "common/image.h"
+#include "common/pano.h"
 
 typedef struct rs_capture {
     rs_image *pano; /* 3 channels; single-channel files are copied to R=G=B */
@@ -15,9 +16,6 @@ typedef struct rs_capture {
     size_t negative;  /* pixels with a negative channel (left as they are) */
 } rs_capture;
 
-/* Loads [capture] panorama, position, rotation (section may be "capture.NAME").
- * Errors: panorama not set, unreadable, or not 2:1. */
-int rs_capture_load(const rs_config *cfg, const char *section, rs_capture *cap, rs_err *err);
 void rs_capture_release(rs_capture *cap);
 
 /* 1 when every channel of the pixel is finite and >= 0: the value can be used as radiance. */

@@ -1,13 +1,13 @@
 /* cloud: point clouds in memory and cloud.ply, the ingest stage's output, which keeps each
  * scan's grid (scan, row, col per point and one "rhoscan_scan" comment per scan). */
-#include "cloud.h"
+#include "common/cloud.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "fileio.h"
+#include "common/fileio.h"
 
 #define SCAN_COMMENT      "rhoscan_scan"
 #define ORIGIN_COMMENT    "rhoscan_origin"

@@ -5,8 +5,8 @@
 
 #include <stddef.h>
 #include <stdint.h>
-#include "err.h"
-#include "ply.h"
+#include "common/err.h"
+#include "common/ply.h"
 
 /* One scan of an organized cloud: cols x rows points stored column by column (as in PTX),
  * point (col, row) at index first + col * rows + row. */

@@ -1,13 +1,13 @@
 /* cloud_text: XYZ/CSV text point clouds (exports of CloudCompare, scanners' office software)
  * read with a column map from the config. Exports rs_cloud_read_text (cloud.h). */
-#include "cloud.h"
+#include "common/cloud.h"
 
 #include <ctype.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "fileio.h"
+#include "common/fileio.h"
 
 enum { COL_SKIP, COL_X, COL_Y, COL_Z, COL_I, COL_R, COL_G, COL_B };
 #define MAX_COLS 64

@@ -1,7 +1,7 @@
 /* config: loads INI files with libinih, checks every key against rs_cfg_keys (config_keys.c),
  * applies --set overrides, and answers the typed getters of config.h. */
-#include "config.h"
-#include "config_priv.h"
+#include "common/config.h"
+#include "common/config_priv.h"
 
 /* Debian's libinih 55 is built with INI_HANDLER_LINENO=1 (its ini_parse_stream passes the line
  * number as a fifth argument; checked in the disassembly), but its ini.h defaults the macro to 0:

@@ -6,7 +6,7 @@
 #define RS_CONFIG_H
 
 #include <stddef.h>
-#include "err.h"
+#include "common/err.h"
 
 typedef enum {
     RS_CFG_STRING,  /* free text */

@@ -1,7 +1,7 @@
 /* config_doc: renders the key table (config_keys.c) as configs/KEYS.md, so that the reference
  * cannot drift from what the loader accepts (test_config compares the committed file). */
-#include "config.h"
-#include "config_priv.h"
+#include "common/config.h"
+#include "common/config_priv.h"
 
 #include <stdlib.h>
 #include <string.h>

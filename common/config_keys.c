@@ -1,6 +1,6 @@
 /* config_keys: the one table of every configuration key (configs/KEYS.md is generated from
  * the same facts). Angles in configs are in degrees where the key says _deg; code uses radians. */
-#include "config.h"
+#include "common/config.h"
 
 #define INF 1e300
 

@@ -4,7 +4,7 @@
 #define RS_CONFIG_PRIV_H
 
 #include <stddef.h>
-#include "config.h"
+#include "common/config.h"
 
 /* Longest resolved path a config may hold (PATH_MAX on Linux, with its NUL). */
 #define RS_CFG_PATH_MAX 4096

@@ -1,6 +1,6 @@
 /* config_value: checks section names, key names and values against the key table, writes a
  * value's canonical text, and describes what a row accepts (for error messages and KEYS.md). */
-#include "config_priv.h"
+#include "common/config_priv.h"
 
 #include <ctype.h>
 #include <errno.h>

@@ -1,5 +1,5 @@
 // exr_dwa: the C++ fallback for EXR compressions the C library lacks (see exr_dwa.h).
-#include "exr_dwa.h"
+#include "common/exr_dwa.h"
 
 #include <ImfChannelList.h>
 #include <ImfFrameBuffer.h>

@@ -1,5 +1,5 @@
 /* faceprop: reading and writing per-facet PLY properties (see faceprop.h). */
-#include "faceprop.h"
+#include "common/faceprop.h"
 
 #include <stdio.h>
 #include <stdlib.h>

@@ -4,8 +4,8 @@
 #define RS_FACEPROP_H
 
 #include <stddef.h>
-#include "err.h"
-#include "ply.h"
+#include "common/err.h"
+#include "common/ply.h"
 
 /* Copies face property `name` of ply (file: for messages) into out[nfaces]; error when the
  * face element or the property is missing, or the face count differs from nfaces. */

@@ -1,5 +1,5 @@
 /* fileio: atomic outputs, whole-file reads, checksums, paths (see fileio.h). */
-#include "fileio.h"
+#include "common/fileio.h"
 
 #include <errno.h>
 #include <fcntl.h>

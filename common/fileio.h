@@ -7,7 +7,7 @@
 
 #include <stdint.h>
 #include <stdio.h>
-#include "err.h"
+#include "common/err.h"
 
 /* An output being written: a FILE* on "<path>.tmp.<pid>" that becomes <path> on commit. */
 typedef struct rs_atomic_file {

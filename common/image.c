@@ -1,6 +1,6 @@
 /* image: float images and their files (see image.h): Radiance .hdr, PNG and JPEG through
  * stb_image, PNG previews through stb_image_write; OpenEXR is in image_exr.c. */
-#include "image_internal.h"
+#include "common/image_internal.h"
 
 #include <limits.h>
 #include <math.h>
@@ -10,7 +10,7 @@
 #include <string.h>
 
 #include <zlib.h>
-#include "fileio.h"
+#include "common/fileio.h"
 
 /* stb: the implementations live in this one file; only the formats we detect are compiled. */
 #define STBI_ONLY_PNG

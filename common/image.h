@@ -5,7 +5,7 @@
 #ifndef RS_IMAGE_H
 #define RS_IMAGE_H
 
-#include "err.h"
+#include "common/err.h"
 
 typedef struct rs_image {
     int width, height, channels;

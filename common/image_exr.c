@@ -1,7 +1,7 @@
 /* image_exr: the OpenEXR side of common/image.h, through the OpenEXR core C API: reading
  * (scanline or tiled, any compression the library decodes) and writing (ZIP, float or half). */
-#include "exr_dwa.h"
-#include "image_internal.h"
+#include "common/exr_dwa.h"
+#include "common/image_internal.h"
 
 #include <stdint.h>
 #include <stdio.h>
@@ -10,7 +10,7 @@
 
 #include <openexr.h>
 
-#include "fileio.h"
+#include "common/fileio.h"
 
 /* What the OpenEXR callbacks share: the input bytes when reading, a growing buffer when
  * writing (written to disk atomically at the end), and the library's first error message,

@@ -4,7 +4,7 @@
 #define RS_IMAGE_INTERNAL_H
 
 #include <stddef.h>
-#include "image.h"
+#include "common/image.h"
 
 /* Largest accepted width or height: beyond any panorama we expect, and small enough that a
  * corrupt header cannot ask for absurd allocations one side at a time. */

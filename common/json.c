@@ -1,11 +1,11 @@
 /* json: a small ordered JSON tree and its writer (see json.h). */
-#include "json.h"
+#include "common/json.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "fileio.h"
+#include "common/fileio.h"
 
 typedef enum { J_NULL, J_NUM, J_INT, J_STR, J_BOOL, J_RAW, J_OBJ, J_ARR } j_kind;
 

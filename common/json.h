@@ -4,7 +4,7 @@
 #define RS_JSON_H
 
 #include <stddef.h>
-#include "err.h"
+#include "common/err.h"
 
 typedef struct rs_json rs_json;
 

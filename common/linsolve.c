@@ -1,5 +1,5 @@
 /* linsolve: dense Gaussian elimination with partial pivoting (see linsolve.h). */
-#include "linsolve.h"
+#include "common/linsolve.h"
 
 #include <math.h>
 

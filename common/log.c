@@ -1,6 +1,6 @@
 /* log: stderr diagnostics and progress (see log.h). A bar redrawn in place on a terminal,
  * a plain line every 10 % otherwise, so that CI logs stay readable. */
-#include "log.h"
+#include "common/log.h"
 
 #include <stdarg.h>
 #include <stdio.h>

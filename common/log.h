@@ -4,7 +4,7 @@
 #define RS_LOG_H
 
 #include <stddef.h>
-#include "err.h"
+#include "common/err.h"
 
 typedef enum { RS_LOG_QUIET = 0, RS_LOG_WARN = 1, RS_LOG_INFO = 2, RS_LOG_DEBUG = 3 } rs_log_level;
 

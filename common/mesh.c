@@ -1,6 +1,6 @@
 /* mesh: indexed triangle meshes (mesh.h): life cycle, conversion from and to PLY, and the
  * per-face geometry every later stage uses. */
-#include "mesh.h"
+#include "common/mesh.h"
 
 #include <float.h>
 #include <math.h>

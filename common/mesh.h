@@ -7,9 +7,9 @@
 
 #include <stddef.h>
 #include <stdint.h>
-#include "err.h"
-#include "ply.h"
-#include "vec.h"
+#include "common/err.h"
+#include "common/ply.h"
+#include "common/vec.h"
 
 typedef struct rs_mesh {
     size_t nverts, nfaces;

@@ -1,5 +1,5 @@
 /* pano: equirectangular mapping (see pano.h for the convention). */
-#include "pano.h"
+#include "common/pano.h"
 
 rs_v3 rs_pano_uv_to_dir(double u, double v)
 {

@@ -7,8 +7,8 @@
 #ifndef RS_PANO_H
 #define RS_PANO_H
 
-#include "image.h"
-#include "vec.h"
+#include "common/image.h"
+#include "common/vec.h"
 
 typedef struct rs_pose {
     rs_v3 position; /* camera centre, world frame, m */

@@ -1,6 +1,6 @@
 // pcl_bridge: the Point Cloud Library behind a C header (pcl_bridge.h). PCL stays in this one
 // translation unit (it takes ~10 s and 0.8 GB to compile); every entry catches all exceptions.
-#include "pcl_bridge.h"
+#include "common/pcl_bridge.h"
 
 #include <cmath>
 #include <cstdio>

@@ -9,8 +9,8 @@ extern "C" { /* around the includes too: err.h and cloud.h are C headers without
 
 #include <stddef.h>
 #include <stdint.h>
-#include "cloud.h"
-#include "err.h"
+#include "common/cloud.h"
+#include "common/err.h"
 
 /* Every function catches all C++ exceptions and reports them in err; PCL's own console
  * output is silenced. Coordinates are float (PCL's): callers recentre georeferenced clouds

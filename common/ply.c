@@ -1,6 +1,6 @@
 /* ply: the in-memory PLY model (builders, look-ups, free) and the writer (ascii and binary
  * little endian, buffered through an atomic file). The reader is in ply_read.c. */
-#include "ply.h"
+#include "common/ply.h"
 
 #include <float.h>
 #include <math.h>
@@ -10,8 +10,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "fileio.h"
-#include "ply_internal.h"
+#include "common/fileio.h"
+#include "common/ply_internal.h"
 
 const size_t rs_ply_type_size[RS_PLY_NTYPES] = {1, 1, 2, 2, 4, 4, 4, 8};
 const char *const rs_ply_type_name[RS_PLY_NTYPES] = {"char", "uchar", "short", "ushort",

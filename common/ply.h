@@ -5,7 +5,7 @@
 #define RS_PLY_H
 
 #include <stddef.h>
-#include "err.h"
+#include "common/err.h"
 
 typedef enum {
     RS_PLY_INT8,

@@ -4,7 +4,7 @@
 #define RS_PLY_INTERNAL_H
 
 #include <stddef.h>
-#include "ply.h"
+#include "common/ply.h"
 
 #define RS_PLY_NTYPES 8
 

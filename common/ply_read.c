@@ -1,6 +1,6 @@
 /* ply_read: the PLY reader behind rs_ply_read and rs_ply_read_mem (ascii, binary little and
  * big endian). Element counts are checked against the bytes that remain before allocating. */
-#include "ply.h"
+#include "common/ply.h"
 
 #include <errno.h>
 #include <math.h>
@@ -9,8 +9,8 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "fileio.h"
-#include "ply_internal.h"
+#include "common/fileio.h"
+#include "common/ply_internal.h"
 
 /* Bounds that keep garbage headers from costing quadratic time; real files are far below. */
 #define MAX_ELEMENTS 1024

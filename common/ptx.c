@@ -1,13 +1,13 @@
 /* ptx: the Leica PTX reader (DESIGN.md section 3): one or more organized scans back to back,
  * each registered by its 4x4 matrix. Exports rs_ptx_read and rs_ptx_read_mem (cloud.h). */
-#include "cloud.h"
+#include "common/cloud.h"
 
 #include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "fileio.h"
+#include "common/fileio.h"
 
 /* A cursor over the text, one line at a time. Blank lines are skipped wherever they occur. */
 typedef struct ptx_text {

@@ -1,5 +1,5 @@
 /* sampling: Owen-scrambled Sobol points and the maps onto hemispheres and triangles. */
-#include "sampling.h"
+#include "common/sampling.h"
 
 rs_v3 rs_cosine_hemisphere(rs_v3 n, double x, double y)
 {

@@ -5,7 +5,7 @@
 #define RS_SAMPLING_H
 
 #include <stdint.h>
-#include "vec.h"
+#include "common/vec.h"
 
 /* The hashes and the Sobol points are inline: a gather calls them for every ray with seeds
  * that are the same for a whole facet, which the compiler then computes once. */

@@ -1,5 +1,5 @@
 /* scene: Embree 3 wrapper (see scene.h). */
-#include "scene.h"
+#include "common/scene.h"
 
 #include <embree3/rtcore.h>
 #include <float.h>

@@ -6,8 +6,8 @@
 
 #include <stddef.h>
 #include <stdint.h>
-#include "err.h"
-#include "mesh.h"
+#include "common/err.h"
+#include "common/mesh.h"
 
 #define RS_NO_HIT UINT32_MAX
 

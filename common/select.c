@@ -1,5 +1,5 @@
 /* select: Hoare's selection (see select.h), once per element type. */
-#include "select.h"
+#include "common/select.h"
 
 #define RS_DEFINE_SELECT_KTH(name, T)                              \
     T name(T *v, size_t n, size_t k)                               \

@@ -4,9 +4,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "fileio.h"
-#include "log.h"
-#include "stage.h"
+#include "common/fileio.h"
+#include "common/log.h"
+#include "pipeline/stage.h"
 
 static void usage(FILE *out)
 {

@@ -1,6 +1,6 @@
 /* stages: the pipeline's stages in order, with what each reads and writes; the driver and
  * the rerun decisions are built on this table. */
-#include "stages.h"
+#include "stages/stages.h"
 
 #include <string.h>
 

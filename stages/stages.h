@@ -3,7 +3,7 @@
 #ifndef RS_STAGES_H
 #define RS_STAGES_H
 
-#include "stage.h"
+#include "pipeline/stage.h"
 
 int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err);      /* -> cloud.ply */
 int rs_mesh_run(const rs_config *cfg, rs_report *rep, rs_err *err);        /* -> mesh.ply */

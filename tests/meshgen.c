@@ -1,10 +1,10 @@
 /* meshgen: procedural test meshes (see meshgen.h). */
-#include "meshgen.h"
+#include "tests/meshgen.h"
 
 #include <math.h>
 #include <stdlib.h>
-#include "ply.h"
-#include "testutil.h"
+#include "common/ply.h"
+#include "tests/testutil.h"
 
 rs_meshgen rs_meshgen_new(size_t max_verts, size_t max_faces)
 {

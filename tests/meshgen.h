@@ -3,7 +3,7 @@
 #ifndef RS_MESHGEN_H
 #define RS_MESHGEN_H
 
-#include "mesh.h"
+#include "common/mesh.h"
 
 /* A mesh with room for nverts / nfaces that rs_meshgen_rect appends to. */
 typedef struct {

@@ -1,5 +1,5 @@
 /* testutil: helpers shared by the test programs (see testutil.h). */
-#include "testutil.h"
+#include "tests/testutil.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -7,8 +7,8 @@
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
-#include "faceprop.h"
-#include "ply.h"
+#include "common/faceprop.h"
+#include "common/ply.h"
 
 const char *rs_test_tmpdir(const char *tag)
 {

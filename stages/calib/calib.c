@@ -5,20 +5,21 @@
 #include <stdlib.h>
 #include <string.h>
 #include <ctype.h>
-#include "calib_files.h"
-#include "calib_math.h"
-#include "colmap_poses.h"
-#include "edge_pose.h"
-#include "capture.h"
-#include "fileio.h"
-#include "log.h"
-#include "register.h"
-#include "cv_adapter.h"
-#include "stitch.h"
-#include "hdr.h"
-#include "response.h"
-#include "parallax.h"
-#include "stages.h"
+#include "pipeline/calib_files.h"
+#include "calib/calib_math.h"
+#include "stages/calib/colmap_poses.h"
+#include "stages/calib/edge_pose.h"
+#include "common/capture.h"
+#include "pipeline/capture_load.h"
+#include "common/fileio.h"
+#include "common/log.h"
+#include "calib/register.h"
+#include "calib/cv_adapter.h"
+#include "calib/stitch.h"
+#include "calib/hdr.h"
+#include "calib/response.h"
+#include "stages/calib/parallax.h"
+#include "stages/stages.h"
 
 /* Solves the pose of [capture] from its pairs file on a width x height panorama and records the
  * residual of every pair, the rejected ones by line. */

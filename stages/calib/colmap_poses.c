@@ -1,13 +1,13 @@
 /* colmap_poses: the calib stage's [colmap] step (see colmap_poses.h): read the model, the views
  * and the control points, align by Umeyama, report residuals, write the captures' poses. */
-#include "colmap_poses.h"
+#include "stages/calib/colmap_poses.h"
 
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "calib_files.h"
-#include "colmap.h"
-#include "log.h"
+#include "pipeline/calib_files.h"
+#include "calib/colmap.h"
+#include "common/log.h"
 
 #define MAX_CAPTURES 64
 

@@ -3,9 +3,9 @@
 #ifndef RS_COLMAP_POSES_H
 #define RS_COLMAP_POSES_H
 
-#include "config.h"
-#include "err.h"
-#include "stage.h"
+#include "common/config.h"
+#include "common/err.h"
+#include "pipeline/stage.h"
 
 /* Does nothing (returns 0) without [colmap] model. Otherwise aligns the model (residuals per
  * control point into the report's "colmap" object), then writes the pose of each [capture] or

@@ -1,14 +1,14 @@
 /* edge_pose: [capture] refine_edges in the calib stage (see edge_pose.h). Runs after the pairs
  * and COLMAP steps, so that a pose they solved is the start; alone, the config's pose is. */
-#include "edge_pose.h"
+#include "stages/calib/edge_pose.h"
 
 #include <stdio.h>
 #include <string.h>
-#include "calib_files.h"
-#include "edge_refine.h"
-#include "fileio.h"
-#include "log.h"
-#include "scene.h"
+#include "pipeline/calib_files.h"
+#include "calib/edge_refine.h"
+#include "common/fileio.h"
+#include "common/log.h"
+#include "common/scene.h"
 
 /* An error of the refinement, re-worded to name the config key that asked for it. */
 static int keyed_error(const rs_config *cfg, rs_err *err)

@@ -4,9 +4,9 @@
 #ifndef RS_EDGE_POSE_H
 #define RS_EDGE_POSE_H
 
-#include "config.h"
-#include "err.h"
-#include "stage.h"
+#include "common/config.h"
+#include "common/err.h"
+#include "pipeline/stage.h"
 
 /* Does nothing (returns 0) unless [capture] refine_edges is true. Otherwise needs the work
  * folder's mesh.ply (the mesh stage) and the capture's panorama (stitched or [capture]

@@ -1,12 +1,12 @@
 /* parallax: the model and the rig's pose for the stitcher's parallax correction (see
  * parallax.h). The mesh stage runs before calib, so mesh.ply is there in a full run. */
-#include "parallax.h"
+#include "stages/calib/parallax.h"
 
 #include <stdio.h>
 #include <string.h>
-#include "calib_files.h"
-#include "fileio.h"
-#include "stage.h"
+#include "pipeline/calib_files.h"
+#include "common/fileio.h"
+#include "pipeline/stage.h"
 
 #define MESH_FILE "mesh.ply"
 

@@ -3,10 +3,10 @@
 #ifndef RS_CALIB_PARALLAX_H
 #define RS_CALIB_PARALLAX_H
 
-#include "config.h"
-#include "mesh.h"
-#include "pano.h"
-#include "scene.h"
+#include "common/config.h"
+#include "common/mesh.h"
+#include "common/pano.h"
+#include "common/scene.h"
 
 typedef struct rs_parallax_model {
     rs_mesh *mesh;

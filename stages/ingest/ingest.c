@@ -1,16 +1,16 @@
 /* ingest: the ingest stage. Reads the [ingest] scan files (PTX, PLY, PCD, XYZ/CSV) into one
  * cloud, recentres georeferenced coordinates, cleans unorganized points (outlier removal,
  * voxel downsampling, PCL) and writes cloud.ply. Exports rs_ingest_run. */
-#include "stages.h"
+#include "stages/stages.h"
 
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
 
-#include "cloud.h"
-#include "fileio.h"
-#include "log.h"
-#include "pcl_bridge.h"
+#include "common/cloud.h"
+#include "common/fileio.h"
+#include "common/log.h"
+#include "common/pcl_bridge.h"
 
 /* By extension for the text and PCD formats (a text cloud cannot be told from a PTX by its
  * first lines), else by content: "ply" magic or PTX. */

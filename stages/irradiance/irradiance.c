@@ -13,19 +13,20 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "capture.h"
-#include "faceprop.h"
-#include "log.h"
-#include "sampling.h"
-#include "scene.h"
-#include "gather.h"
-#include "kernel_out.h"
-#include "skyenv.h"
-#include "skyground.h"
-#include "skysh.h"
-#include "solar.h"
-#include "sunsource.h"
-#include "stages.h"
+#include "common/capture.h"
+#include "pipeline/capture_load.h"
+#include "common/faceprop.h"
+#include "common/log.h"
+#include "common/sampling.h"
+#include "common/scene.h"
+#include "light/gather.h"
+#include "light/kernel_out.h"
+#include "sky/skyenv.h"
+#include "light/skyground.h"
+#include "sky/skysh.h"
+#include "sky/solar.h"
+#include "light/sunsource.h"
+#include "stages/stages.h"
 
 static int write_outputs(const rs_config *cfg, const rs_mesh *mesh, const rs_facet_gather *fg, const double *radiance,
                          const uint8_t *observed, double fill_rate, double mc_factor, rs_report *rep, rs_err *err)

@@ -4,8 +4,8 @@
 #define RS_DENOISE_H
 
 #include <stddef.h>
-#include "err.h"
-#include "mesh.h"
+#include "common/err.h"
+#include "common/mesh.h"
 
 typedef struct rs_denoise_opts {
     int normal_iterations; /* passes of the bilateral normal filter */

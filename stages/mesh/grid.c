@@ -1,13 +1,13 @@
 /* grid: triangulates organized scans on their angular grid, dropping cells across depth
  * discontinuities, at grazing angles and across angular gaps (see grid.h). */
-#include "grid.h"
+#include "stages/mesh/grid.h"
 
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "vec.h"
+#include "common/vec.h"
 
 enum { KEEP = 0, DROP_DEPTH = 1, DROP_GRAZING = 2 };
 

@@ -4,9 +4,9 @@
 #define RS_GRID_H
 
 #include <stddef.h>
-#include "cloud.h"
-#include "err.h"
-#include "mesh.h"
+#include "common/cloud.h"
+#include "common/err.h"
+#include "common/mesh.h"
 
 typedef struct rs_grid_opts {
     double max_depth_ratio; /* drop triangles whose ranges differ by more than this fraction */

@@ -1,26 +1,26 @@
 /* mesh: the mesh stage. Triangulates the scan grids of cloud.ply (one sheet where scans
  * overlap) or reconstructs its unorganized points (PCL), or takes [mesh] input_mesh as it is;
  * simplifies to the facet size, measures the result and writes mesh.ply. Exports rs_mesh_run. */
-#include "stages.h"
+#include "stages/stages.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "cloud.h"
-#include "denoise.h"
-#include "fileio.h"
-#include "grid.h"
-#include "image.h"
-#include "log.h"
-#include "mesh.h"
-#include "meshreport.h"
-#include "nadir.h"
-#include "rig.h"
-#include "stitch.h"
-#include "overlap.h"
-#include "simplify.h"
-#include "unorganized.h"
+#include "common/cloud.h"
+#include "stages/mesh/denoise.h"
+#include "common/fileio.h"
+#include "stages/mesh/grid.h"
+#include "common/image.h"
+#include "common/log.h"
+#include "common/mesh.h"
+#include "stages/mesh/meshreport.h"
+#include "stages/mesh/nadir.h"
+#include "calib/rig.h"
+#include "calib/stitch.h"
+#include "stages/mesh/overlap.h"
+#include "stages/mesh/simplify.h"
+#include "stages/mesh/unorganized.h"
 
 /* Cells spanning more than this many angular grid steps are not surface (the seam of a
  * sweep that does not close). */

@@ -4,8 +4,8 @@
 #define RS_MESHDIST_H
 
 #include <stddef.h>
-#include "err.h"
-#include "mesh.h"
+#include "common/err.h"
+#include "common/mesh.h"
 
 typedef struct rs_meshdist rs_meshdist;
 

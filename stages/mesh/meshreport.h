@@ -4,9 +4,9 @@
 #define RS_MESHREPORT_H
 
 #include <stddef.h>
-#include "err.h"
-#include "json.h"
-#include "mesh.h"
+#include "common/err.h"
+#include "common/json.h"
+#include "common/mesh.h"
 
 typedef struct rs_mesh_quality {
     size_t faces, verts, edges;

@@ -1,12 +1,12 @@
 /* nadir: the cap below a scanner (see nadir.h). */
-#include "nadir.h"
+#include "stages/mesh/nadir.h"
 
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "grid.h"
-#include "linsolve.h"
-#include "vec.h"
+#include "stages/mesh/grid.h"
+#include "common/linsolve.h"
+#include "common/vec.h"
 
 #define MIN_RIM_SHARE     0.8   /* of the columns must have a point below the scanner */
 #define MAX_RIM_ELEVATION -0.35 /* rad (-20 degrees): the rim must look down */

@@ -5,8 +5,8 @@
 #define RS_NADIR_H
 
 #include <stddef.h>
-#include "cloud.h"
-#include "mesh.h"
+#include "common/cloud.h"
+#include "common/mesh.h"
 
 typedef struct rs_nadir_stats {
     size_t ring_points; /* lowest valid point of each column used as the cap's rim */

@@ -1,12 +1,12 @@
 /* overlap: drops the faces of each scan's sheet where another scan saw the same surface
  * better (see overlap.h), with one Embree scene per scan. */
-#include "overlap.h"
+#include "stages/mesh/overlap.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "scene.h"
+#include "common/scene.h"
 
 #define BLOCK        1024
 #define MAX_ATTEMPTS 3

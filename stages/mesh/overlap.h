@@ -6,9 +6,9 @@
 
 #include <stddef.h>
 #include <stdint.h>
-#include "cloud.h"
-#include "err.h"
-#include "mesh.h"
+#include "common/cloud.h"
+#include "common/err.h"
+#include "common/mesh.h"
 
 typedef struct rs_overlap_stats {
     size_t dropped;       /* faces dropped: another scan saw their surface better */

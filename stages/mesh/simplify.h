@@ -4,8 +4,8 @@
 #define RS_SIMPLIFY_H
 
 #include <stddef.h>
-#include "err.h"
-#include "mesh.h"
+#include "common/err.h"
+#include "common/mesh.h"
 
 typedef struct rs_simplify_opts {
     double target_edge_m;       /* stop once the mean edge length reaches this (m); 0: no limit */

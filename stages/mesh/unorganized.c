@@ -1,12 +1,12 @@
 /* unorganized: normals, surface reconstruction and clean-up of unorganized clouds with PCL
  * (see unorganized.h). */
-#include "unorganized.h"
+#include "stages/mesh/unorganized.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "pcl_bridge.h"
+#include "common/pcl_bridge.h"
 
 static int cmp_float(const void *a, const void *b)
 {

@@ -4,9 +4,9 @@
 #define RS_UNORGANIZED_H
 
 #include <stddef.h>
-#include "cloud.h"
-#include "err.h"
-#include "mesh.h"
+#include "common/cloud.h"
+#include "common/err.h"
+#include "common/mesh.h"
 
 typedef struct rs_unorg_opts {
     int poisson; /* 0: greedy projection triangulation, 1: Poisson */

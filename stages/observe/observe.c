@@ -8,14 +8,15 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
-#include "capture.h"
-#include "faceprop.h"
-#include "fileio.h"
-#include "log.h"
-#include "sampling.h"
-#include "scene.h"
-#include "select.h"
-#include "stages.h"
+#include "common/capture.h"
+#include "pipeline/capture_load.h"
+#include "common/faceprop.h"
+#include "common/fileio.h"
+#include "common/log.h"
+#include "common/sampling.h"
+#include "common/scene.h"
+#include "common/select.h"
+#include "stages/stages.h"
 
 typedef struct {
     uint32_t face;  /* facet hit by the pixel's centre ray, RS_NO_HIT if none */

@@ -1,15 +1,16 @@
 /* greycard: the grey-card check (see greycard.h). The card's radiance comes from the object's
  * pixels and its irradiance from the sky's: if both share one radiometric scale, pi L / E is
  * the card's albedo; their ratio is how far the object and sky exposures disagree. */
-#include "greycard.h"
+#include "stages/reflectance/greycard.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
-#include "capture.h"
-#include "image.h"
-#include "log.h"
-#include "stage.h"
+#include "common/capture.h"
+#include "pipeline/capture_load.h"
+#include "common/image.h"
+#include "common/log.h"
+#include "pipeline/stage.h"
 
 static double lum3(const double *v)
 {

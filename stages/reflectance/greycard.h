@@ -5,9 +5,9 @@
 
 #include <stddef.h>
 #include <stdint.h>
-#include "config.h"
-#include "err.h"
-#include "json.h"
+#include "common/config.h"
+#include "common/err.h"
+#include "common/json.h"
 
 /* When [calib] grey_card_region is set: over the capture panorama's pixels in the region that
  * show a facet (facet_id.exr) and hold a usable value, the card's mean radiance L and the mean

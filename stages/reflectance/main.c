@@ -1,5 +1,5 @@
 /* rhoscan-reflectance: the reflectance stage as a program (see stages.h and stage.h). */
-#include "stages.h"
+#include "stages/stages.h"
 
 int main(int argc, char **argv)
 {

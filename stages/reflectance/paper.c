@@ -1,8 +1,8 @@
 /* paper: dense kernel with brute-force pairwise visibility (see paper.h). */
-#include "paper.h"
+#include "stages/reflectance/paper.h"
 
 #include <stdlib.h>
-#include "log.h"
+#include "common/log.h"
 
 /* Möller-Trumbore: 1 when the open segment o + t d, t in (eps, 1 - eps), crosses the triangle. */
 static int segment_hits(rs_v3 o, rs_v3 d, rs_v3 a, rs_v3 b, rs_v3 c)

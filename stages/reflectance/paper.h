@@ -6,8 +6,8 @@
 #define RS_PAPER_H
 
 #include <stddef.h>
-#include "err.h"
-#include "mesh.h"
+#include "common/err.h"
+#include "common/mesh.h"
 
 /* K: m * m floats, row-major, caller frees. pairs_tested: segment tests run. */
 int rs_paper_kernel(const rs_mesh *mesh, float **K, double *pairs_tested, rs_err *err);

@@ -1,12 +1,12 @@
 /* pool: neighbour lists for irradiance shared within a plane (see pool.h). The facets'
  * centroids go into a hashed uniform grid whose cell is the median search radius, so that a
  * typical search visits 27 cells. */
-#include "pool.h"
+#include "stages/reflectance/pool.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include "select.h"
+#include "common/select.h"
 
 typedef struct {
     const uint8_t *wanted; /* facets that search (NULL: all) */

@@ -17,7 +17,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
-#include "mesh.h"
+#include "common/mesh.h"
 
 /* The disk's size in facets of a facet's own area, and a hard cap on the neighbours kept. */
 #define RS_POOL_FACETS         32

@@ -22,14 +22,14 @@
  * albedo_sigma_rel times the facet's mean albedo over the channels. */
 #include <stdlib.h>
 #include <string.h>
-#include "faceprop.h"
-#include "greycard.h"
-#include "image.h"
-#include "log.h"
-#include "paper.h"
-#include "pool.h"
-#include "stages.h"
-#include "transport.h"
+#include "common/faceprop.h"
+#include "stages/reflectance/greycard.h"
+#include "common/image.h"
+#include "common/log.h"
+#include "stages/reflectance/paper.h"
+#include "stages/reflectance/pool.h"
+#include "stages/stages.h"
+#include "light/transport.h"
 
 /* Unobserved facets take the albedo measured on facets facing the same way: ground and roofs,
  * walls, ceilings and soffits differ in material far more often than walls among themselves.

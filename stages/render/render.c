@@ -8,14 +8,15 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "capture.h"
-#include "mesh.h"
-#include "faceprop.h"
-#include "log.h"
-#include "select.h"
-#include "stages.h"
-#include "transport.h"
-#include "render_uncertainty.h"
+#include "common/capture.h"
+#include "pipeline/capture_load.h"
+#include "common/mesh.h"
+#include "common/faceprop.h"
+#include "common/log.h"
+#include "common/select.h"
+#include "stages/stages.h"
+#include "light/transport.h"
+#include "stages/render/render_uncertainty.h"
 
 /* Exposure that maps the 99th percentile of the given pixels' luminance to 1. */
 static float auto_exposure(const rs_image *img, const float *ids)

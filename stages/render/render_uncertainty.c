@@ -1,14 +1,14 @@
 /* render_uncertainty: sky_filled and albedo_sigma_rel painted over the camera's view
  * (see render_uncertainty.h). */
-#include "render_uncertainty.h"
+#include "stages/render/render_uncertainty.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
-#include "faceprop.h"
-#include "stage.h"
+#include "common/faceprop.h"
+#include "pipeline/stage.h"
 
 static const char *const names[2] = {"sky_filled", "albedo_sigma"};
 static const char *const props[2] = {"sky_filled", "albedo_sigma_rel"};

@@ -4,10 +4,10 @@
 #define RS_RENDER_UNCERTAINTY_H
 
 #include <stddef.h>
-#include "config.h"
-#include "err.h"
-#include "image.h"
-#include "ply.h"
+#include "common/config.h"
+#include "common/err.h"
+#include "common/image.h"
+#include "common/ply.h"
 
 /* The value that the PNGs show as full red (the ramp of rs_image_ramp): sky_filled is a share
  * (0..1); albedo_sigma_rel at 20 %, the scale of rhoscan-eval's error image, so the two compare. */

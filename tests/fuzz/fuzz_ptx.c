@@ -3,7 +3,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "cloud.h"
+#include "common/cloud.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {

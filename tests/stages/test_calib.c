@@ -6,14 +6,15 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "calib_files.h"
-#include "calib_math.h"
-#include "capture.h"
-#include "image.h"
-#include "register.h"
-#include "rig.h"
-#include "stitch.h"
-#include "testutil.h"
+#include "pipeline/calib_files.h"
+#include "calib/calib_math.h"
+#include "common/capture.h"
+#include "pipeline/capture_load.h"
+#include "common/image.h"
+#include "calib/register.h"
+#include "calib/rig.h"
+#include "calib/stitch.h"
+#include "tests/testutil.h"
 
 #define NCAM   6
 #define PANO_W 1024

@@ -5,10 +5,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "image.h"
-#include "meshgen.h"
-#include "ply.h"
-#include "testutil.h"
+#include "common/image.h"
+#include "tests/meshgen.h"
+#include "common/ply.h"
+#include "tests/testutil.h"
 
 static const char *prog(const char *name)
 {

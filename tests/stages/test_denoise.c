@@ -1,15 +1,15 @@
 /* test_denoise: the mesh stage's bilateral normal denoising on a noisy profile strip (a floor,
  * a wall at a 90 degree crease, a roof at a 135 degree edge): flat parts smoothed, creases kept. */
-#include "testutil.h"
+#include "tests/testutil.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "config.h"
-#include "denoise.h"
-#include "mesh.h"
+#include "common/config.h"
+#include "stages/mesh/denoise.h"
+#include "common/mesh.h"
 
 #define H     0.05   /* grid spacing (m) */
 #define NOISE 0.0015 /* per-axis vertex noise (m), like a scan's millimetres */

@@ -4,12 +4,12 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "eval.h"
-#include "fileio.h"
-#include "image.h"
-#include "meshgen.h"
-#include "ply.h"
-#include "testutil.h"
+#include "tools/eval/eval.h"
+#include "common/fileio.h"
+#include "common/image.h"
+#include "tests/meshgen.h"
+#include "common/ply.h"
+#include "tests/testutil.h"
 
 #define W 64
 #define H 32

@@ -6,11 +6,11 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "image.h"
-#include "meshgen.h"
-#include "pano.h"
-#include "ply.h"
-#include "testutil.h"
+#include "common/image.h"
+#include "tests/meshgen.h"
+#include "common/pano.h"
+#include "common/ply.h"
+#include "tests/testutil.h"
 
 #define W      256
 #define ALBEDO 0.18

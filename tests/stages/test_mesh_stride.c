@@ -1,16 +1,16 @@
 /* test_mesh_stride: the grid mesher's stride (every k-th row and column when the facet budget
  * is far below a large grid's cells) and the coarse nadir cap that welds to that lattice. */
-#include "testutil.h"
+#include "tests/testutil.h"
 
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "cloud.h"
-#include "grid.h"
-#include "mesh.h"
-#include "nadir.h"
+#include "common/cloud.h"
+#include "stages/mesh/grid.h"
+#include "common/mesh.h"
+#include "stages/mesh/nadir.h"
 
 /* A full turn of cols azimuths by rows elevations from -80 to -40 degrees, every ray hitting
  * the floor z = 0 from a scanner at height h above the origin. */

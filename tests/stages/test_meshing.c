@@ -1,7 +1,7 @@
 /* test_meshing: grid triangulation of synthetic scans (orientation, depth jumps, missing
  * returns, open sweeps, grazing angles) and the ingest and mesh stages end to end: on a
  * synthetic scan, on [mesh] input_mesh, and on the two_planes_sky reference scan. */
-#include "testutil.h"
+#include "tests/testutil.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -9,11 +9,11 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "cloud.h"
-#include "grid.h"
-#include "image.h"
-#include "mesh.h"
-#include "stages.h"
+#include "common/cloud.h"
+#include "stages/mesh/grid.h"
+#include "common/image.h"
+#include "common/mesh.h"
+#include "stages/stages.h"
 
 /* A scanner at o sweeping cols azimuths over az_span_deg (a full turn: no repeated column)
  * and rows elevations from -80 to -40 degrees, every ray hitting the plane z = 0 (steep enough

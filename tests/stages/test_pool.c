@@ -1,7 +1,7 @@
 /* pool: irradiance shared within a plane (stages/reflectance/pool.h). The noise of independent
  * per-facet values falls, their mean does not move, and nothing is shared across planes, across
  * a parallel step, beyond Ward's radius, or with a facet that was not gathered. */
-#include "testutil.h"
+#include "tests/testutil.h"
 
 #include <math.h>
 #include <omp.h>
@@ -9,10 +9,10 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include "faceprop.h"
-#include "meshgen.h"
-#include "pool.h"
-#include "sampling.h"
+#include "common/faceprop.h"
+#include "tests/meshgen.h"
+#include "stages/reflectance/pool.h"
+#include "common/sampling.h"
 
 /* A 10 m floor of 40 x 40 cells (3200 facets) and, at x = 10, a wall 5 m high of 40 x 20. */
 static rs_mesh *floor_and_wall(size_t *nfloor)

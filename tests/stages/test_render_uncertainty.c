@@ -1,7 +1,7 @@
 /* The render stage's uncertainty images (issue 8, part 4): sky_filled and albedo_sigma panoramas
  * exist after a run, hold each seen facet's value from albedo.ply (EXR raw, PNG on the ramp) and
  * -1 where no facet is seen; with an albedo.ply that lacks the properties they are not written. */
-#include "testutil.h"
+#include "tests/testutil.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -9,10 +9,10 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "faceprop.h"
-#include "image.h"
-#include "mesh.h"
-#include "render/render_uncertainty.h"
+#include "common/faceprop.h"
+#include "common/image.h"
+#include "common/mesh.h"
+#include "stages/render/render_uncertainty.h"
 
 static int exists(const char *dir, const char *name)
 {

@@ -1,8 +1,8 @@
 /* test_scan_mesh: scan to mesh at survey scale: text and PCD readers, PCL cleaning, recentred
  * georeferenced clouds, unorganized meshing, several overlapping scans, and the accuracy of
  * the meshes of the reference scenes against their true surfaces. */
-#include "testutil.h"
-#include "meshgen.h"
+#include "tests/testutil.h"
+#include "tests/meshgen.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -10,13 +10,13 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "cloud.h"
-#include "image.h"
-#include "mesh.h"
-#include "meshdist.h"
-#include "pcl_bridge.h"
-#include "scene.h"
-#include "stages.h"
+#include "common/cloud.h"
+#include "common/image.h"
+#include "common/mesh.h"
+#include "stages/mesh/meshdist.h"
+#include "common/pcl_bridge.h"
+#include "common/scene.h"
+#include "stages/stages.h"
 
 /* Scan noise of the reference scenes (DESIGN.md section 4), m. */
 #define SCAN_NOISE 0.003

@@ -1,14 +1,14 @@
 /* test_simplify: quadric edge collapse on exact shapes: an L-shaped block (sharp convex and
  * concave edges, corners, volume, closedness) and a flat open square (boundary kept). */
-#include "testutil.h"
+#include "tests/testutil.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "mesh.h"
-#include "simplify.h"
+#include "common/mesh.h"
+#include "stages/mesh/simplify.h"
 
 /* The L: the union of two boxes, both 2 m high. */
 static const double box_lo[2][3] = {{0, 0, 0}, {0, 0, 0}};

@@ -6,12 +6,12 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "gather.h"
-#include "image.h"
-#include "meshgen.h"
-#include "ply.h"
-#include "sampling.h"
-#include "testutil.h"
+#include "light/gather.h"
+#include "common/image.h"
+#include "tests/meshgen.h"
+#include "common/ply.h"
+#include "common/sampling.h"
+#include "tests/testutil.h"
 
 /* A standard normal number from two hashes (Box-Muller). */
 static double normal(uint32_t k)

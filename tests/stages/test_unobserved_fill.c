@@ -5,7 +5,7 @@
  * Three facets, each under E_sky = 1: an observed ground (up, albedo 0.2, 1 m^2), an observed wall
  * (sideways, albedo 0.8, 10 m^2) and an unobserved ground (up, albedo 0.2) that the wall sees
  * through K = 0.5 sr. Its true light on the wall is 0.5 x 0.2 / pi. */
-#include "../stress/stress.h"
+#include "tests/stress/stress.h"
 
 #define RHO_GROUND    0.2
 #define RHO_WALL      0.8

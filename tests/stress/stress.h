@@ -8,15 +8,15 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "faceprop.h"
-#include "fileio.h"
-#include "gather.h"
-#include "mesh.h"
-#include "meshgen.h"
-#include "scene.h"
-#include "stage.h"
-#include "testutil.h"
-#include "transport.h"
+#include "common/faceprop.h"
+#include "common/fileio.h"
+#include "light/gather.h"
+#include "common/mesh.h"
+#include "tests/meshgen.h"
+#include "common/scene.h"
+#include "pipeline/stage.h"
+#include "tests/testutil.h"
+#include "light/transport.h"
 
 /* K from the hemisphere gather of every facet with no sky (escaping rays bring nothing), in
  * compressed-row form. Caller frees with stress_transport_free. */

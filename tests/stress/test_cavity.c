@@ -1,8 +1,8 @@
 /* test_cavity: a nearly closed box (one cell of its lid missing) under a uniform white sky, with
  * albedo 0.5, 0.9 and 0.99 (one per colour channel): the forward solve converges to the direct
  * solution, and the reflectance stage, given the radiance of that solution, returns the albedo. */
-#include "linsolve.h"
-#include "stress.h"
+#include "common/linsolve.h"
+#include "tests/stress/stress.h"
 
 #define NCELL 6 /* cells per side of the unit box */
 

@@ -3,7 +3,7 @@
  * non-manifold edge, a sealed cavity (no light at all) and a facet seen edge-on. `rhoscan run`
  * must finish; every number it writes is finite, and the facets with nothing to measure are
  * flagged estimable = 0 instead of estimated. */
-#include "testutil.h"
+#include "tests/testutil.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -11,9 +11,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "faceprop.h"
-#include "image.h"
-#include "mesh.h"
+#include "common/faceprop.h"
+#include "common/image.h"
+#include "common/mesh.h"
 
 enum { ZERO_AREA, DUPLICATE, SLIVER, FLIPPED, FIN, SEALED, EDGE_ON, NKINDS };
 static const char *kind_name[NKINDS] = {"zero-area",        "duplicate vertices", "sliver", "flipped plate",

@@ -2,8 +2,8 @@
  * degrees, with gaps down to 1e-4 of the facet's size: the gather's K row sum toward the plane
  * stays within its sampling error of the analytic view factor, and the paper's point-to-point
  * kernel, which diverges there, is flagged by the reflectance stage instead of written out. */
-#include "paper.h"
-#include "stress.h"
+#include "stages/reflectance/paper.h"
+#include "tests/stress/stress.h"
 
 static const double facet = 0.01; /* facet size s (m) */
 

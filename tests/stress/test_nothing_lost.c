@@ -2,7 +2,7 @@
  * rerun, ends with data files (PLY, EXR) byte-identical to an uninterrupted run; one thread and
  * all cores give the same bytes; a full disk (RHOSCAN_FAULT=enospc:N) leaves the previous
  * outputs intact with a clear message; /dev/full as stdout or work folder is an error. */
-#include "testutil.h"
+#include "tests/testutil.h"
 
 #include <dirent.h>
 #include <stdio.h>
@@ -11,7 +11,7 @@
 #include <sys/wait.h>
 #include <time.h>
 
-#include "fileio.h"
+#include "common/fileio.h"
 
 /* Fewer rays and facets than the sample's config: the same code paths, in a fraction of the time. */
 #define SMALL                                                     \

@@ -3,7 +3,7 @@
  * (A_i K_ij = A_j K_ji, summed over random halves of the facets, within sampling error), the
  * forward solve conserves energy, and the reflectance stage's albedo does not change when every
  * radiance is scaled by the same factor (camera gain cancels). */
-#include "stress.h"
+#include "tests/stress/stress.h"
 
 static uint32_t rng = 12345;
 static double uniform01(void)

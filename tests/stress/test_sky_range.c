@@ -2,9 +2,9 @@
  * of 1 and shadows of 1e-3): the sky map, its sampling tables and the gather stay finite and
  * the irradiance of an open facet matches the exact sum over the map's pixels; a sky scaled
  * to 1e30 per pixel (float range) does not overflow. */
-#include "stress.h"
+#include "tests/stress/stress.h"
 
-#include "pano.h"
+#include "common/pano.h"
 
 /* E of an upward facet with nothing above it, for the panorama: the exact sum of L cos dOmega
  * over the map's upper hemisphere, in double. */

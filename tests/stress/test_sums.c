@@ -2,8 +2,8 @@
  * unobserved facets) must match a compensated long-double sum to 1e-6 relative, with facet
  * areas spanning six orders of magnitude and irradiance eight (a sun of 1e5 over 1e-3 shade),
  * so that no float accumulation or cancellation can hide in the stage's loops. */
-#include "sampling.h"
-#include "stress.h"
+#include "common/sampling.h"
+#include "tests/stress/stress.h"
 
 #define NFACETS 1000000
 

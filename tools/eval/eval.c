@@ -4,12 +4,12 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "eval.h"
-#include "faceprop.h"
-#include "fileio.h"
-#include "image.h"
-#include "ply.h"
-#include "eval_priv.h"
+#include "tools/eval/eval.h"
+#include "common/faceprop.h"
+#include "common/fileio.h"
+#include "common/image.h"
+#include "common/ply.h"
+#include "tools/eval/eval_priv.h"
 
 void rs_eval_opts_default(rs_eval_opts *o)
 {

@@ -5,9 +5,9 @@
 
 #include <stddef.h>
 #include <stdint.h>
-#include "err.h"
-#include "json.h"
-#include "mesh.h"
+#include "common/err.h"
+#include "common/json.h"
+#include "common/mesh.h"
 
 typedef struct rs_eval_opts {
     const char *truth_dir;    /* truth.ply, pano.exr, pano_diffcol/diffdir/diffind.exr */

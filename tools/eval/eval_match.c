@@ -3,9 +3,9 @@
 #include <float.h>
 #include <stdlib.h>
 #include <string.h>
-#include "eval.h"
-#include "sampling.h"
-#include "scene.h"
+#include "tools/eval/eval.h"
+#include "common/sampling.h"
+#include "common/scene.h"
 
 double rs_eval_point_tri_dist(rs_v3 p, rs_v3 a, rs_v3 b, rs_v3 c)
 {

@@ -3,9 +3,9 @@
 #ifndef RS_EVAL_PRIV_H
 #define RS_EVAL_PRIV_H
 
-#include "eval.h"
-#include "image.h"
-#include "ply.h"
+#include "tools/eval/eval.h"
+#include "common/image.h"
+#include "common/ply.h"
 
 /* Everything one evaluation holds; freed by eval_free. */
 typedef struct ev {

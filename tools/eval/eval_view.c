@@ -3,8 +3,8 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include "eval_priv.h"
-#include "fileio.h"
+#include "tools/eval/eval_priv.h"
+#include "common/fileio.h"
 
 /* Relative error that the false-colour image shows as full red. */
 #define ERROR_IMAGE_FULL_SCALE 0.2

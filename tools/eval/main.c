@@ -4,8 +4,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "eval.h"
-#include "log.h"
+#include "tools/eval/eval.h"
+#include "common/log.h"
 
 static const char *USAGE =
     "usage: rhoscan-eval TRUTH_DIR WORKDIR [options]\n"

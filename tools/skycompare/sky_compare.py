@@ -119,7 +119,7 @@ def calibrated_ratio(sig):
     return 1.2816 * np.median(sig) / m
 
 
-METHOD = """## How the sky is completed (stages/irradiance: skyenv.c, skyfill.c, skymodel.c, solar.c)
+METHOD = """## How the sky is completed (sky/: skyenv.c, skyfill.c, skymodel.c, solar.c)
 
 - Sources, in order: `[sky] panorama` wherever its rays miss the model (its exposure matched to the
   capture by the per-channel median ratio over the sky both see, bright pixels left out), then the
@@ -145,7 +145,7 @@ METHOD = """## How the sky is completed (stages/irradiance: skyenv.c, skyfill.c,
   the scan's lowest level of observed upward facets (median pi L / (E_sky + G), each gathered
   first; `[sky] ground_albedo_from = scan`), or `ground_albedo` when an explicit sun or a shadow
   search comes after the gather.
-- A sun no camera saw (`[sky] sun_from_shadows`, stages/irradiance/sunshadow.c): with its direction
+- A sun no camera saw (`[sky] sun_from_shadows`, sky/sunshadow.c): with its direction
   known, its DNI and colour come from the model's shadows. An observed facet in full sun and one in
   full shadow near it on the same plane are taken to share an albedo, so
   D = (L_i E_j / L_j - E_i) / cos_i per channel (E = E_sky + G without the sun); medians over
@@ -157,7 +157,7 @@ METHOD = """## How the sky is completed (stages/irradiance: skyenv.c, skyfill.c,
   the lowest 20 % (by solid angle); each block is held out in turn and predicted by both methods
   from the rest (the model's harmonic order is the one with the smallest RMS error). A fill
   interpolates next to the measured sky and extrapolates far from it, so its error grows with
-  the angle d to the nearest measured direction (stages/irradiance/skydist.c, on a 128 x 64 grid):
+  the angle d to the nearest measured direction (sky/skydist.c, on a 128 x 64 grid):
   each filled pixel gets a relative standard uncertainty `rate x sqrt(d)` (at most 1), the kriging
   standard error of a field with a linear variogram. The rate comes from the blocks: each block's
   |relative error| over the square root of its light-weighted mean d from the sky left. The hidden
@@ -306,7 +306,7 @@ def main():
                     '%.2f' % r['mc_factor'] if r['mc_factor'] is not None else '-'))
         fh.write('\n## The sun from the shadows\n\n'
                  'The DNI (luminance, the panorama\'s unit x sr) and colour rhoscan estimated from the shadows '
-                 '(stages/irradiance/sunshadow.c), against the sky file\'s sun as "model + measured sun" takes it. '
+                 '(sky/sunshadow.c), against the sky file\'s sun as "model + measured sun" takes it. '
                  '"used by" names the method rows that estimated it: "model + sun direction" does so only when no '
                  'camera saw the sun (`sun_from_shadows = auto`), "sun from shadows" always (`on`, the panorama\'s '
                  'own sun removed).\n\n'

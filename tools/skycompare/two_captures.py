@@ -58,7 +58,7 @@ WHY = """## What the tables show
 """
 
 
-HOW = """## How several captures are merged (stages/irradiance/skyenv.c)
+HOW = """## How several captures are merged (sky/skyenv.c)
 
 - Every capture's sky pixels (rays from its position that miss the model, usable values) are
   spread onto the map of the first capture ([capture]); a sky panorama ([sky] panorama) still

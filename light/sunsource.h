@@ -1,0 +1,107 @@
+/* sunsource: a sun that the panoramas do not hold as an explicit source: its clipped disc (if
+ * any) leaves the panoramas, the gather adds E_sun = DNI max(0, n.s) V per facet. The DNI is
+ * the config's ([sky] sun_irradiance, e.g. from a pyrheliometer) or, for a sun hidden from
+ * every capture or with [sky] sun_from_shadows = on, estimated from the model's shadows
+ * (sunshadow.h). Exports rs_sunsource_*. */
+#ifndef RS_SUNSOURCE_H
+#define RS_SUNSOURCE_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "common/capture.h"
+#include "common/json.h"
+#include "common/config.h"
+#include "light/gather.h"
+#include "common/scene.h"
+#include "sky/skyenv.h"
+#include "sky/skyfill.h"
+#include "sky/sunsearch.h"
+#include "sky/sunshadow.h"
+
+/* Half-angle of the sun's disc seen from the Earth (0.53 deg across, mean distance). */
+#define RS_SUN_RADIUS_RAD (0.2665 * M_PI / 180)
+
+typedef struct rs_sunsource {
+    int active;           /* 0: no explicit sun, everything here does nothing */
+    int from_shadows;     /* dni and rgb are estimated from the shadows (rs_sunsource_from_shadows) */
+    double dni;           /* direct normal irradiance (luminance), the panorama's radiance unit x sr */
+    double rgb[3];        /* [sky] sun_color at luminance 1: the DNI per channel is dni x rgb */
+    rs_v3 dir_world;      /* unit, toward the sun */
+    const char *dir_from; /* "config", "solar position" or "clipped disc" */
+    rs_sunshadow shadow;  /* with from_shadows: the estimate (dni_lum 0 when it failed) */
+    int shadow_rc;        /* its rs_sunshadow_estimate result; 2: a searched sun, not significant */
+    int search;           /* auto, nothing places the sun and no camera saw one: search the shadows */
+    int searched;         /* the direction came from rs_sunsource_search */
+    rs_sunsearch found;   /* its result */
+    double found_off_deg; /* its angle to the sky's own estimate (rs_sunsource_search) */
+    double margin;        /* its margin (m) */
+    double clip_level;    /* luminance from which a capture pixel is the clipped disc */
+    double halo_factor;   /* pixels within cone_rad above this x the median sky go too */
+    double cone_rad;
+    size_t removed_px;     /* pixels taken out of the panoramas (all of them) */
+    double removed_sr;     /* their solid angle in the capture */
+    double removed_power;  /* sum of luminance x solid angle over the capture's removed pixels:
+                                  what the panorama had of the sun (a lower bound when clipped) */
+    double removed_rgb[3]; /* the same per channel */
+    int fell_back;         /* on, no estimate: the DNI is removed_power (what the panorama held) */
+} rs_sunsource;
+
+/* Reads [sky] sun_irradiance (or sun_from_shadows = on), sun_color and sun_clip_level; when set, takes the sun's direction from fill
+ * (the config's azimuth and elevation or the solar position, when fill->sun_given) or else from
+ * the centroid of the largest blob of capture sky pixels at or above the clip level (and then
+ * sets fill->sun_given and sun_dir, so the fill knows where the removed sun was), and removes
+ * the sun from cap's panorama (rs_sunsource_remove). Returns 0, or -1 with err when the key is
+ * set but no direction is given and no pixel reaches the clip level. */
+int rs_sunsource_setup(const rs_config *cfg, rs_capture *cap, const float *facet_id, rs_skyfill_opts *fill,
+                       rs_sunsource *sun, rs_err *err);
+
+/* Marks unusable (-1) every pixel of c's panorama that sees sky (facet_id < 0; every pixel when
+ * facet_id is NULL) within cone_rad of the sun and at or above min(clip_level, halo_factor x the
+ * median luminance of c's sky pixels): the disc and its bright halo, so that the sky map fills
+ * them in as sky and the sun is not counted twice. Returns the pixels removed; counts them in
+ * sun (and their solid angle and power when count_power). Does nothing when !sun->active. */
+size_t rs_sunsource_remove(rs_sunsource *sun, rs_capture *c, const float *facet_id, int count_power);
+
+/* [sky] sun_from_shadows = auto, once the sky map is built: when the config places the sun
+ * (fill->sun_given) above the horizon, sun_irradiance is not set, and no camera saw it (the
+ * map's pixel toward it is filled and no pixel of the sun set lies within cone_rad of it),
+ * activates sun with from_shadows. When nothing places the sun and the map has no bright
+ * pixel at all, sets sun->search instead (rs_sunsource_search). Returns whether it activated. */
+int rs_sunsource_auto(const rs_config *cfg, const rs_skyenv *env, const rs_skyfill_opts *fill, rs_sunsource *sun);
+
+/* V per facet into vis[nf]: the share of `rays` shadow rays (from Sobol points on the facet
+ * toward Sobol points on the sun's disc) that escape, for every gathered facet (fg[f].rays > 0
+ * or fg[f].sky_sh) facing the sun; -1 for the others. rays >= 1. -1: out of memory. */
+int rs_sunsource_visibility(const rs_sunsource *sun, const rs_scene *scene, int rays, uint32_t seed, size_t nf,
+                            const rs_facet_gather *fg, float *vis);
+
+/* With sun->search, after the gather: the direction from the shadows (sunsearch.h) among the
+ * directions the map filled. It is taken only within RS_SUNSOURCE_AGREE_DEG of sky_dir, the
+ * direction whose clear-sky distribution explains the visible sky best (the model fill's
+ * search): two independent cues must agree, so that shadows cast by a dim sun the cameras did
+ * see cannot put a second one behind the building. When taken, activates sun with from_shadows
+ * and searched (its DNI must then come out above 5 standard errors, else it adds nothing).
+ * Returns 0, -1 out of memory. */
+#define RS_SUNSOURCE_AGREE_DEG 30.0
+int rs_sunsource_search(rs_sunsource *sun, const rs_scene *scene, const rs_skyenv *env, const rs_facet_gather *fg,
+                        const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height, rs_v3 sky_dir);
+
+/* With from_shadows: estimates dni and rgb (rs_sunshadow_estimate; E = E_sky + G from fg and
+ * the observed radiance, the margin from the capture at cam with panoramas pano_height high).
+ * When there is too little evidence (shadow_rc says why) a sun whose disc was removed from the
+ * panorama gets back what the panorama held of it (fell_back), any other adds nothing (dni 0).
+ * Returns 0, -1 out of memory. */
+int rs_sunsource_from_shadows(rs_sunsource *sun, const rs_mesh *mesh, const float *vis, const rs_facet_gather *fg,
+                              const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height);
+
+/* Adds E_sun = dni rgb max(0, n.s) V to E_sky (each channel, and dni max(0, n.s) V to its
+ * luminance) of every facet with vis >= 0. With from_shadows the sun counts as filled light
+ * (filled_lum), and its standard error shadow.sigma_lum max(0, n.s) V joins fill_sigma_lum in
+ * quadrature. */
+void rs_sunsource_apply(const rs_sunsource *sun, const rs_scene *scene, size_t nf, const float *vis,
+                        rs_facet_gather *fg);
+
+/* The source's figures under metrics "explicit_sun". */
+void rs_sunsource_report(const rs_sunsource *sun, rs_json *metrics);
+
+#endif

@@ -1,0 +1,366 @@
+/* stage: running a stage, its report and <stage>.json, fingerprints for rerun decisions,
+ * and the shared program entry of rhoscan-<stage> (see stage.h). */
+#include "pipeline/stage.h"
+
+#include <errno.h>
+#include <inttypes.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+#include "common/fileio.h"
+#include "common/log.h"
+
+/* Every skip of this process, for the summary at the end of a run. */
+static char *skip_lines;
+static size_t skip_len;
+static const char *current_stage = "";
+
+static void remember_skip(const char *stage, const char *what, const char *why)
+{
+    char line[768];
+    int n = snprintf(line, sizeof line, "  %s: %s: %s\n", stage, what, why);
+    if (n <= 0) return;
+    char *grown = realloc(skip_lines, skip_len + (size_t)n + 1);
+    if (!grown) return;
+    memcpy(grown + skip_len, line, (size_t)n + 1);
+    skip_lines = grown;
+    skip_len += (size_t)n;
+}
+
+void rs_report_skips_summary(void)
+{
+    if (skip_len) rs_log_info("what was skipped, and why:\n%.*s", (int)skip_len - 1, skip_lines);
+    free(skip_lines);
+    skip_lines = NULL;
+    skip_len = 0;
+}
+
+void rs_report_skip(rs_report *rep, const char *what, const char *why_fmt, ...)
+{
+    char why[512];
+    va_list ap;
+    va_start(ap, why_fmt);
+    vsnprintf(why, sizeof why, why_fmt, ap);
+    va_end(ap);
+    rs_log_info("skipped %s: %s", what, why);
+    remember_skip(rep ? current_stage : "run", what, why);
+    if (!rep || !rep->skipped) return;
+    rs_json *o = rs_json_push_obj(rep->skipped);
+    rs_json_set_str(o, "what", what);
+    rs_json_set_str(o, "why", why);
+}
+
+void rs_report_time(rs_report *rep, const char *step, double seconds)
+{
+    if (rep && rep->timings) rs_json_set_num(rep->timings, step, seconds);
+}
+
+int rs_workdir(const rs_config *cfg, char *out, size_t n, rs_err *err)
+{
+    if (!rs_config_path(cfg, "pipeline", "workdir", out, n))
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0, "[pipeline] workdir is not set");
+    return rs_mkdir_p(out, err);
+}
+
+const char *rs_work_path(const rs_config *cfg, const char *name, char *out, size_t n)
+{
+    char dir[4096];
+    if (!rs_config_path(cfg, "pipeline", "workdir", dir, sizeof dir)) dir[0] = 0;
+    return rs_path_join(out, n, dir, name);
+}
+
+/* Calls fn(word, user) for each space-separated word of list. */
+static void each_word(const char *list, void (*fn)(const char *, void *), void *user)
+{
+    char word[128];
+    while (list && *list) {
+        while (*list == ' ') list++;
+        size_t k = strcspn(list, " ");
+        if (k == 0) break;
+        snprintf(word, sizeof word, "%.*s", (int)(k < sizeof word ? k : sizeof word - 1), list);
+        fn(word, user);
+        list += k;
+    }
+}
+
+typedef struct {
+    const rs_config *cfg;
+    uint64_t hash;
+    rs_json *inputs; /* optional: file -> hex hash */
+} fp_state;
+
+static void fp_file(fp_state *s, const char *path)
+{
+    uint64_t h = 0;
+    if (rs_hash_file(path, &h, NULL) != 0) h = 0; /* missing: the stage itself will say so */
+    s->hash = rs_hash_bytes(path, strlen(path), s->hash);
+    s->hash = rs_hash_bytes(&h, sizeof h, s->hash);
+    if (s->inputs) {
+        char hex[32];
+        snprintf(hex, sizeof hex, "%016" PRIx64, h);
+        rs_json_set_str(s->inputs, path, h ? hex : "missing");
+    }
+}
+
+static void fp_section(const char *section, void *user)
+{
+    fp_state *s = user;
+    char *text = rs_config_section_text(s->cfg, section);
+    if (text) s->hash = rs_hash_bytes(text, strlen(text), s->hash);
+    free(text);
+    /* Files named by the section's path keys are inputs too. */
+    for (const rs_cfg_key *k = rs_cfg_keys; k->section; k++) {
+        if (strcmp(k->section, section) != 0) continue;
+        char path[4096];
+        if (k->type == RS_CFG_PATH && rs_config_path(s->cfg, section, k->key, path, sizeof path)) {
+            if (strcmp(section, "pipeline") != 0) fp_file(s, path);
+        } else if (k->type == RS_CFG_PATHS) {
+            int n = rs_config_path_count(s->cfg, section, k->key);
+            for (int i = 0; i < n; i++)
+                if (rs_config_path_at(s->cfg, section, k->key, i, path, sizeof path)) fp_file(s, path);
+        }
+    }
+}
+
+static void fp_input(const char *name, void *user)
+{
+    fp_state *s = user;
+    char path[4096];
+    fp_file(s, rs_work_path(s->cfg, name, path, sizeof path));
+}
+
+static uint64_t fingerprint(const rs_stage_def *def, const rs_config *cfg, rs_json *inputs)
+{
+    fp_state s = {cfg, RS_HASH_SEED, inputs};
+    s.hash = rs_hash_bytes(RHOSCAN_VERSION, strlen(RHOSCAN_VERSION), s.hash);
+    s.hash = rs_hash_bytes(def->name, strlen(def->name), s.hash);
+    each_word(def->sections, fp_section, &s);
+    each_word(def->inputs, fp_input, &s);
+    return s.hash;
+}
+
+int rs_stage_fingerprint(const rs_stage_def *def, const rs_config *cfg, uint64_t *fp, rs_err *err)
+{
+    *fp = fingerprint(def, cfg, NULL);
+    return 0;
+}
+
+/* The state file: "fingerprint HEX" then "output NAME HEX" per output (0 when absent). */
+static const char *state_path(const rs_stage_def *def, const rs_config *cfg, char *out, size_t n)
+{
+    char name[256];
+    snprintf(name, sizeof name, ".rhoscan/%s.state", def->name);
+    return rs_work_path(cfg, name, out, n);
+}
+
+typedef struct {
+    const rs_config *cfg;
+    char *buf;
+    size_t len, cap;
+} state_buf;
+
+static void state_output(const char *name, void *user)
+{
+    state_buf *b = user;
+    char path[4096];
+    uint64_t h = 0;
+    if (rs_hash_file(rs_work_path(b->cfg, name, path, sizeof path), &h, NULL) != 0) h = 0;
+    int k = snprintf(b->buf + b->len, b->cap - b->len, "output %s %016" PRIx64 "\n", name, h);
+    if (k > 0 && (size_t)k < b->cap - b->len) b->len += (size_t)k;
+}
+
+static char *state_text(const rs_stage_def *def, const rs_config *cfg, uint64_t fp)
+{
+    state_buf b = {cfg, malloc(8192), 0, 8192};
+    if (!b.buf) return NULL;
+    b.len = (size_t)snprintf(b.buf, b.cap, "fingerprint %016" PRIx64 "\n", fp);
+    each_word(def->outputs, state_output, &b);
+    return b.buf;
+}
+
+int rs_stage_up_to_date(const rs_stage_def *def, const rs_config *cfg, char *why, size_t n)
+{
+    char path[4096];
+    char *old = NULL;
+    size_t size;
+    if (rs_read_file(state_path(def, cfg, path, sizeof path), &old, &size, NULL) != 0) {
+        snprintf(why, n, "no record of an earlier run");
+        return 0;
+    }
+    uint64_t fp = fingerprint(def, cfg, NULL);
+    char *now = state_text(def, cfg, fp);
+    int same_fp = now && strncmp(old, now, strlen("fingerprint ") + 16) == 0;
+    int same = now && strcmp(old, now) == 0;
+    if (!same_fp)
+        snprintf(why, n, "its inputs or config sections [%s] changed", def->sections);
+    else if (!same)
+        snprintf(why, n, "its outputs were changed or removed since the last run");
+    else
+        snprintf(why, n, "inputs and config sections [%s] unchanged since the last run", def->sections);
+    free(old);
+    free(now);
+    return same;
+}
+
+/* The process's peak resident memory in MB so far (Linux VmHWM), NAN when unknown. Read from
+ * inside: a parent's getrusage of its child also counts the parent's pages at the fork. */
+static double peak_rss_mb(void)
+{
+    FILE *f = fopen("/proc/self/status", "r");
+    if (!f) return NAN;
+    char line[256];
+    double kb = NAN;
+    while (fgets(line, sizeof line, f))
+        if (sscanf(line, "VmHWM: %lf kB", &kb) == 1) break;
+    fclose(f);
+    return kb / 1024;
+}
+
+int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_err *err)
+{
+    char dir[4096], path[4096];
+    if (rs_workdir(cfg, dir, sizeof dir, err) != 0) return -1;
+    if (rs_mkdir_p(rs_path_join(path, sizeof path, dir, ".rhoscan"), err) != 0) return -1;
+
+    rs_report rep = {rs_json_object(), NULL, NULL};
+    if (!rep.metrics) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+    rs_json_set_str(rep.metrics, "stage", def->name);
+    rs_json_set_str(rep.metrics, "program", "rhoscan " RHOSCAN_VERSION);
+    rs_json_set_str(rep.metrics, "config", rs_config_file(cfg));
+    rs_json *inputs = rs_json_set_obj(rep.metrics, "inputs");
+    uint64_t fp = fingerprint(def, cfg, inputs);
+    rep.timings = rs_json_set_obj(rep.metrics, "timings_s");
+    rep.skipped = rs_json_set_arr(rep.metrics, "skipped");
+
+    rs_log_info("%s: started", def->name);
+    current_stage = def->name;
+    double t0 = rs_now();
+    int rc = def->run(cfg, &rep, err);
+    double wall = rs_now() - t0;
+    if (rc != 0) {
+        rs_json_free(rep.metrics);
+        return -1;
+    }
+    rs_json_set_num(rep.metrics, "wall_time_s", wall);
+    double peak = peak_rss_mb();
+    if (!isnan(peak)) rs_json_set_num(rep.metrics, "peak_rss_mb", peak); /* the process's, so far */
+    char hex[32];
+    snprintf(hex, sizeof hex, "%016" PRIx64, fp);
+    rs_json_set_str(rep.metrics, "fingerprint", hex);
+    char name[256];
+    snprintf(name, sizeof name, "%s.json", def->name);
+    rc = rs_json_write(rep.metrics, rs_path_join(path, sizeof path, dir, name), err);
+    rs_json_free(rep.metrics);
+    if (rc != 0) return -1;
+
+    char *state = state_text(def, cfg, fp);
+    if (!state) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+    rc = rs_write_file_atomic(state_path(def, cfg, path, sizeof path), state, strlen(state), err);
+    free(state);
+    if (rc == 0) rs_log_info("%s: done in %.2f s", def->name, wall);
+    return rc;
+}
+
+static void stage_usage(const char *stage, FILE *out)
+{
+    fprintf(out,
+            "usage: rhoscan-%s [--set section.key=value]... [--print-config] [--quiet|--verbose] CONFIG\n"
+            "Runs the %s stage of rhoscan on the work folder named by CONFIG ([pipeline] workdir).\n"
+            "Options may stand before or after CONFIG; configs/KEYS.md lists every key.\n",
+            stage, stage);
+}
+
+int rs_stdout_check(const char *prog)
+{
+    if (fflush(stdout) == 0 && !ferror(stdout)) return 0;
+    fprintf(stderr, "%s: cannot write to standard output: %s\n", prog, strerror(errno));
+    return 2;
+}
+
+rs_config *rs_program_config(const char *path, const char *const *sets, int *exit_code)
+{
+    rs_err err;
+    rs_err_clear(&err);
+    rs_config *cfg = rs_config_load(path, sets, &err);
+    if (!cfg) {
+        rs_log_error(&err);
+        *exit_code = err.kind ? (int)err.kind : 1;
+        return NULL;
+    }
+#ifdef _OPENMP
+    long threads = rs_config_int(cfg, "pipeline", "threads");
+    if (threads > 0) omp_set_num_threads((int)threads);
+#endif
+    return cfg;
+}
+
+int rs_stage_main(const rs_stage_def *def, int argc, char **argv)
+{
+    const char *stage = def->name;
+    char prog[128];
+    snprintf(prog, sizeof prog, "rhoscan-%s", stage);
+    rs_log_init(prog);
+    const char **sets = calloc((size_t)argc + 1, sizeof *sets);
+    int nsets = 0, print_config = 0;
+    const char *config = NULL;
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        if (strcmp(a, "--set") == 0 && i + 1 < argc)
+            sets[nsets++] = argv[++i];
+        else if (strncmp(a, "--set=", 6) == 0)
+            sets[nsets++] = a + 6;
+        else if (strcmp(a, "--print-config") == 0)
+            print_config = 1;
+        else if (strcmp(a, "--quiet") == 0)
+            rs_log_set_level(RS_LOG_WARN);
+        else if (strcmp(a, "--verbose") == 0)
+            rs_log_set_level(RS_LOG_DEBUG);
+        else if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+            stage_usage(stage, stdout);
+            free(sets);
+            return rs_stdout_check(prog);
+        } else if (a[0] == '-' || config) {
+            fprintf(stderr, "%s: unexpected argument '%s'\n", prog, a);
+            stage_usage(stage, stderr);
+            free(sets);
+            return 1;
+        } else
+            config = a;
+    }
+    if (!config) {
+        stage_usage(stage, stderr);
+        free(sets);
+        return 1;
+    }
+    int rc = 0;
+    rs_config *cfg = rs_program_config(config, sets, &rc);
+    free(sets);
+    if (!cfg) return rc;
+    rs_err err;
+    rs_err_clear(&err);
+    if (print_config) {
+        char words[256];
+        snprintf(words, sizeof words, "%s", def->sections);
+        for (char *s = strtok(words, " "); s; s = strtok(NULL, " ")) {
+            char *text = rs_config_section_text(cfg, s);
+            if (text) fputs(text, stdout);
+            free(text);
+        }
+        rc = rs_stdout_check(prog);
+    } else {
+        if (rs_stage_execute(def, cfg, &err) != 0) {
+            rs_log_error(&err);
+            rc = err.kind ? (int)err.kind : 3;
+        } else {
+            rs_report_skips_summary();
+        }
+    }
+    rs_config_free(cfg);
+    return rc;
+}

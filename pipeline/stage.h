@@ -1,0 +1,70 @@
+/* stage: what every stage shares. A stage is a function
+ *     int rs_<name>_run(const rs_config *cfg, rs_report *rep, rs_err *err)
+ * that reads its inputs from the work folder and its config sections, writes its outputs
+ * atomically, and records counts, timings and skips in rep. rs_stage_main() turns it into a
+ * program; the driver (rhoscan run) calls the same functions through rs_stage_table. */
+#ifndef RS_STAGE_H
+#define RS_STAGE_H
+
+#include <stdint.h>
+#include "common/config.h"
+#include "common/err.h"
+#include "common/json.h"
+
+typedef struct rs_report {
+    rs_json *metrics; /* the stage's <stage>.json object; add fields freely */
+    rs_json *skipped; /* array of {"what", "why"} */
+    rs_json *timings; /* object: step -> seconds */
+} rs_report;
+
+/* Records that something was skipped and why (also logged). */
+void rs_report_skip(rs_report *rep, const char *what, const char *why_fmt, ...) __attribute__((format(printf, 3, 4)));
+void rs_report_time(rs_report *rep, const char *step, double seconds);
+/* Logs every skip recorded by this process ("stage: what: why"), then forgets them. */
+void rs_report_skips_summary(void);
+
+typedef int (*rs_stage_fn)(const rs_config *cfg, rs_report *rep, rs_err *err);
+
+typedef struct rs_stage_def {
+    const char *name; /* "mesh" */
+    rs_stage_fn run;
+    const char *sections; /* config sections it reads, space-separated */
+    const char *inputs;   /* work-folder files it reads, space-separated */
+    const char *outputs;  /* work-folder files it writes, space-separated */
+    const char *help;
+} rs_stage_def;
+
+/* In pipeline order, ended by {NULL} (stages/stages.c: it references every stage's code, so
+ * only the driver and the tests use it; a stage program passes its own def). */
+extern const rs_stage_def rs_stage_table[];
+const rs_stage_def *rs_stage_find(const char *name);
+
+/* The work folder of a config ([pipeline] workdir, resolved), created if needed. */
+int rs_workdir(const rs_config *cfg, char *out, size_t n, rs_err *err);
+/* workdir/name into out. */
+const char *rs_work_path(const rs_config *cfg, const char *name, char *out, size_t n);
+
+/* Runs one stage: calls def->run, writes <stage>.json (metrics, timings, skips, fingerprint,
+ * input checksums) and the state file used for rerun decisions. */
+int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_err *err);
+
+/* The fingerprint of a stage's inputs: program version, its config sections as in effect,
+ * and the contents of every input file (work-folder inputs and the files its keys name). */
+int rs_stage_fingerprint(const rs_stage_def *def, const rs_config *cfg, uint64_t *fp, rs_err *err);
+/* 1 when the recorded state says the stage ran with this fingerprint and its outputs are
+ * unchanged since; 0 otherwise with the reason in why. */
+int rs_stage_up_to_date(const rs_stage_def *def, const rs_config *cfg, char *why, size_t n);
+
+/* After a program printed data to stdout: 0, or 2 (system error) with a message naming prog
+ * when the data did not all get out (a full disk, /dev/full, a closed pipe). */
+int rs_stdout_check(const char *prog);
+
+/* A program's config: loads path with the --set overrides and applies [pipeline] threads.
+ * NULL after logging the error, with *exit_code set to the error's exit code. */
+rs_config *rs_program_config(const char *path, const char *const *sets, int *exit_code);
+
+/* Shared program entry for rhoscan-<stage>: options --set section.key=value (repeatable),
+ * --print-config, --quiet, --verbose, --help; CONFIG anywhere among them. Returns the exit code. */
+int rs_stage_main(const rs_stage_def *def, int argc, char **argv);
+
+#endif

@@ -1,0 +1,48 @@
+/* sunsearch: the direction of a sun that nobody placed and no camera saw, from the shadows on
+ * the model. Among the directions the sky map filled (no camera saw sky there), it looks for
+ * the one whose predicted shadow edges line up with jumps of the observed radiance over the
+ * irradiance without the sun. Score of a direction s: every facet of rs_sunshadow_pairs facing
+ * s (n.s > 0.1) is lit or shadowed by one ray from its centroid; over the pairs with one end of
+ * each, the median of log(Y_lit / E_lit) - log(Y_dark / E_dark), Y the luminance of the observed
+ * radiance and E of E_sky + G. With equal albedos that is log(1 + D cos / E) at the true
+ * direction, and about 0 where the predicted edges cross no real one. That median sets a
+ * threshold for an edge score which also counts real edges a direction fails to predict, and
+ * that picks the direction, coarse to fine: an 8 degree grid, then 2 and 0.5 degree grids
+ * around the best three. Exports rs_sunsearch_*. */
+#ifndef RS_SUNSEARCH_H
+#define RS_SUNSEARCH_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "common/scene.h"
+#include "sky/skyenv.h"
+#include "sky/sunshadow.h"
+
+/* Fewest lit-shadowed pairs for a direction to be scored. */
+#define RS_SUNSEARCH_MIN_PAIRS 50
+/* Most pairs a direction is scored on (every k-th beyond): it bounds the rays per direction,
+ * about 2 per pair, so the search costs the same at 10^6 facets as at 10^5. */
+#define RS_SUNSEARCH_MAX_PAIRS 100000
+/* Smallest median log contrast taken for a sun (a 10.5 % jump): an overcast sky's shadows
+ * score about 0. */
+#define RS_SUNSEARCH_MIN_SCORE 0.1
+
+/* Smallest circumsolar term c of the Perez fit to the visible sky (green; CIE clear skies 10,
+ * overcast 0; the reference skies 5.9 to 8.2) for a search: below it the sky is overcast and
+ * no sun casts shadows, while an albedo edge could still look like one. */
+#define RS_SUNSEARCH_MIN_GLOW 2.0
+
+typedef struct rs_sunsearch {
+    rs_v3 dir;         /* unit, world, toward the sun */
+    double score;      /* its median log contrast */
+    double edge_score; /* its edge score (sunsearch.c), what picked it */
+    size_t pairs;      /* lit-shadowed pairs behind it */
+    int candidates;    /* directions scored */
+} rs_sunsearch;
+
+/* E and L: 3 per facet (E_sky + G without a sun, and the observed radiance). Returns 0 with
+ * the best direction, 1 when no direction had RS_SUNSEARCH_MIN_PAIRS pairs, -1 out of memory. */
+int rs_sunsearch_run(const rs_scene *scene, const rs_skyenv *env, const rs_sunshadow_pairs *pairs, const double *E,
+                     const double *L, const uint8_t *observed, rs_sunsearch *out);
+
+#endif

@@ -1,0 +1,180 @@
+/* test_cloud: cloud.ply round trips (grids, no-return cells, colours), reading by content,
+ * concatenation, PLY clouds from other software, and corrupt grid descriptions. */
+#include "tests/testutil.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/cloud.h"
+
+/* Two scans (3 x 2 with colour and one no-return cell, 1 x 2) as PTX text. */
+static const char *ptx_text = "3\n2\n1 2 3\n1 0 0\n0 1 0\n0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n1 2 3 1\n"
+                              "0.1 0.2 0.3 0.5 1 2 3\n0.4 0.5 0.6 0.25 4 5 6\n0 0 0 0.5 0 0 0\n"
+                              "1.1 1.2 1.3 0.125 7 8 9\n2.1 2.2 2.3 1 10 11 12\n3.1 3.2 3.3 0 13 14 15\n"
+                              "1\n2\n-5 0 0.5\n1 0 0\n0 1 0\n0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n-5 0 0.5 1\n"
+                              "0.123456789012345 9 8 0.5\n7 6 5 0.75\n";
+
+static rs_cloud *sample_cloud(void)
+{
+    rs_err err = {0};
+    rs_cloud *c = rs_ptx_read_mem(ptx_text, strlen(ptx_text), "sample.ptx", &err);
+    if (!c) fail_msg("%s", err.msg);
+    return c;
+}
+
+static void assert_same_cloud(const rs_cloud *a, const rs_cloud *b)
+{
+    assert_int_equal(a->npoints, b->npoints);
+    assert_int_equal(a->nscans, b->nscans);
+    for (int s = 0; s < a->nscans; s++) {
+        assert_int_equal(a->scans[s].cols, b->scans[s].cols);
+        assert_int_equal(a->scans[s].rows, b->scans[s].rows);
+        assert_int_equal(a->scans[s].first, b->scans[s].first);
+        for (int j = 0; j < 3; j++) assert_true(a->scans[s].position[j] == b->scans[s].position[j]);
+    }
+    for (size_t i = 0; i < a->npoints; i++) {
+        assert_int_equal(a->valid[i], b->valid[i]);
+        if (!a->valid[i]) continue;
+        for (int j = 0; j < 3; j++) assert_true(a->xyz[3 * i + j] == b->xyz[3 * i + j]); /* doubles, exact */
+        assert_float_equal(a->intensity[i], b->intensity[i], 0);
+        if (a->rgb)
+            for (int j = 0; j < 3; j++) assert_int_equal(a->rgb[3 * i + j], b->rgb[3 * i + j]);
+    }
+}
+
+static void test_round_trip(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("cloud");
+    const char *path = rs_test_path(dir, "cloud.ply");
+    rs_cloud *c = sample_cloud();
+    rs_err err = {0};
+    assert_int_equal(rs_cloud_write_ply(c, path, &err), 0);
+    rs_cloud *back = rs_cloud_read_ply(path, &err);
+    if (!back) fail_msg("%s", err.msg);
+    assert_same_cloud(c, back);
+    /* The no-return cell stays a no-return cell, placed at its scanner. */
+    assert_int_equal(back->valid[2], 0);
+    assert_true(back->xyz[6] == 1 && back->xyz[7] == 2 && back->xyz[8] == 3);
+
+    /* Only valid points are stored: 7 of 8. */
+    rs_ply *ply = rs_ply_read(path, &err);
+    assert_non_null(ply);
+    assert_int_equal(rs_ply_find_element(ply, "vertex")->count, 7);
+    assert_string_equal(rs_ply_find_comment(ply, "rhoscan_scan"), "0 3 2 1 2 3");
+    rs_ply_free(ply);
+
+    /* rs_cloud_read tells PLY from PTX by content, whatever the name says. */
+    rs_cloud *again = rs_cloud_read(path, &err);
+    assert_non_null(again);
+    assert_same_cloud(c, again);
+    const char *ptx_named_ply = rs_test_path(dir, "really_ptx.ply");
+    rs_test_write(ptx_named_ply, ptx_text);
+    rs_cloud *from_ptx = rs_cloud_read(ptx_named_ply, &err);
+    assert_non_null(from_ptx);
+    assert_same_cloud(c, from_ptx);
+    rs_cloud_free(c);
+    rs_cloud_free(back);
+    rs_cloud_free(again);
+    rs_cloud_free(from_ptx);
+    rs_test_rmtree(dir);
+}
+
+/* An ascii PLY from other software: unorganized, all points valid, float colours 0..1. */
+static const char *foreign_ply =
+    "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+    "property float red\nproperty float green\nproperty float blue\nend_header\n"
+    "0 0 0 1 0 0.5\n1 0 0 0 1 0\n0 1 0 0 0 1\n";
+
+static void test_append_and_foreign(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("cloud");
+    const char *path = rs_test_path(dir, "other.ply");
+    rs_test_write(path, foreign_ply);
+    rs_err err = {0};
+    rs_cloud *loose = rs_cloud_read(path, &err);
+    if (!loose) fail_msg("%s", err.msg);
+    assert_int_equal(loose->nscans, 0);
+    assert_int_equal(loose->npoints, 3);
+    assert_int_equal(loose->rgb[0], 255);
+    assert_int_equal(loose->rgb[2], 128);
+    assert_null(loose->intensity);
+
+    /* Organized scans first, then the loose points; arrays made to fit both. */
+    rs_cloud *all = sample_cloud();
+    assert_int_equal(rs_cloud_append(all, loose, &err), 0);
+    assert_int_equal(all->npoints, 11);
+    assert_int_equal(all->nscans, 2);
+    assert_int_equal(rs_cloud_unorganized(all), 3);
+    assert_float_equal(all->intensity[8], 0, 0);
+    assert_true(all->xyz[3 * 9] == 1.0);
+
+    /* And the mixture survives cloud.ply: loose points carry scan = -1. */
+    const char *out = rs_test_path(dir, "cloud.ply");
+    assert_int_equal(rs_cloud_write_ply(all, out, &err), 0);
+    rs_cloud *back = rs_cloud_read_ply(out, &err);
+    if (!back) fail_msg("%s", err.msg);
+    assert_same_cloud(all, back);
+    rs_cloud_free(back);
+
+    /* A second PTX appended shifts the scan offsets. */
+    rs_cloud *more = sample_cloud();
+    assert_int_equal(rs_cloud_append(all, more, &err), 0);
+    assert_int_equal(all->nscans, 4);
+    assert_int_equal(all->scans[2].first, 11);
+    assert_int_equal(all->scans[3].first, 17);
+    rs_cloud_free(more);
+    rs_cloud_free(all);
+    rs_cloud_free(loose);
+    rs_test_rmtree(dir);
+}
+
+static void expect_bad_ply(const char *dir, const char *text, const char *phrase)
+{
+    const char *path = rs_test_path(dir, "bad.ply");
+    rs_test_write(path, text);
+    rs_err err = {0};
+    rs_cloud *c = rs_cloud_read_ply(path, &err);
+    if (c) fail_msg("accepted: expected an error with \"%s\"", phrase);
+    assert_non_null(strstr(err.file, "bad.ply"));
+    if (!strstr(err.msg, phrase)) fail_msg("message \"%s\" lacks \"%s\"", err.msg, phrase);
+}
+
+#define GRID_HEADER(comment, n)                                                                                 \
+    "ply\nformat ascii 1.0\ncomment " comment "\nelement vertex " #n "\nproperty double x\nproperty double y\n" \
+    "property double z\nproperty int scan\nproperty int row\nproperty int col\nend_header\n"
+
+static void test_corrupt(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("cloud");
+    expect_bad_ply(dir, GRID_HEADER("rhoscan_scan 0 2 2 0 0 0", 2) "1 1 1 0 0 0\n2 2 2 0 0 0\n",
+                   "holds a point already");
+    expect_bad_ply(dir, GRID_HEADER("rhoscan_scan 0 2 2 0 0 0", 1) "1 1 1 0 2 0\n", "outside the grids");
+    expect_bad_ply(dir, GRID_HEADER("rhoscan_scan 0 2 2 0 0 0", 1) "1 1 1 1 0 0\n", "outside the grids");
+    expect_bad_ply(dir, GRID_HEADER("rhoscan_scan 0 0 2 0 0 0", 1) "1 1 1 0 0 0\n", "COLS and ROWS >= 1");
+    expect_bad_ply(dir, GRID_HEADER("rhoscan_scan 3 2 2 0 0 0", 1) "1 1 1 0 0 0\n", "INDEX from 0");
+    expect_bad_ply(dir, GRID_HEADER("rhoscan_scan 0 2 2 0 0 nan", 1) "1 1 1 0 0 0\n", "finite position");
+    expect_bad_ply(dir, GRID_HEADER("rhoscan_scan 0 100000 100000 0 0 0", 1) "1 1 1 0 0 0\n", "corrupt");
+    expect_bad_ply(dir, GRID_HEADER("rhoscan_scan 0 2 2 0 0 0", 1) "nan 1 1 0 0 0\n", "expected finite coordinates");
+    expect_bad_ply(dir,
+                   "ply\nformat ascii 1.0\ncomment rhoscan_scan 0 1 1 0 0 0\nelement vertex 1\nproperty double x\n"
+                   "property double y\nproperty double z\nend_header\n1 1 1\n",
+                   "lack scan, row and col");
+    expect_bad_ply(dir, "ply\nformat ascii 1.0\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n",
+                   "no vertex element");
+    rs_test_rmtree(dir);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_round_trip),
+        cmocka_unit_test(test_append_and_foreign),
+        cmocka_unit_test(test_corrupt),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
