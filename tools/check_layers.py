@@ -1,10 +1,10 @@
 #!/usr/bin/env python3
 """Checks the include graph against the layers of docs/DESIGN.md, lowest first:
 
-    common  <-  calib, sky  <-  light  <-  pipeline  <-  stages/<stage>  <-  programs
+    common  <-  calib, sky, meshing  <-  light  <-  pipeline  <-  stages/<stage>  <-  programs
 
-A library folder includes only itself and the folders below it (calib and sky know nothing of
-each other; a stage folder knows no other stage). Programs (tests/, bench/, tools/, every
+A library folder includes only itself and the folders below it (calib, sky and meshing know
+nothing of each other; a stage folder knows no other stage). Programs (tests/, bench/, tools/, every
 stages/*/main.c and the driver stages/rhoscan.c) may include anything; no library includes
 them. Every quoted include is written from the repository root and names a file that exists.
 Between modules (x.c with x.h) there is no cycle.
@@ -17,9 +17,10 @@ BELOW = {
     'common': set(),
     'calib': {'common'},
     'sky': {'common'},
+    'meshing': {'common'},
     'light': {'common', 'sky'},
-    'pipeline': {'common', 'calib', 'sky', 'light'},
-    'stages': {'common', 'calib', 'sky', 'light', 'pipeline'},
+    'pipeline': {'common', 'calib', 'sky', 'meshing', 'light'},
+    'stages': {'common', 'calib', 'sky', 'meshing', 'light', 'pipeline'},
 }
 PROGRAM_DIRS = ('tests/', 'bench/', 'tools/')
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"', re.M)

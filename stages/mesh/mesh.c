@@ -8,19 +8,19 @@
 #include <string.h>
 
 #include "common/cloud.h"
-#include "stages/mesh/denoise.h"
+#include "meshing/denoise.h"
 #include "common/fileio.h"
-#include "stages/mesh/grid.h"
+#include "meshing/grid.h"
 #include "common/image.h"
 #include "common/log.h"
 #include "common/mesh.h"
-#include "stages/mesh/meshreport.h"
-#include "stages/mesh/nadir.h"
+#include "meshing/meshreport.h"
+#include "meshing/nadir.h"
 #include "calib/rig.h"
 #include "calib/stitch.h"
-#include "stages/mesh/overlap.h"
-#include "stages/mesh/simplify.h"
-#include "stages/mesh/unorganized.h"
+#include "meshing/overlap.h"
+#include "meshing/simplify.h"
+#include "meshing/unorganized.h"
 
 /* Cells spanning more than this many angular grid steps are not surface (the seam of a
  * sweep that does not close). */

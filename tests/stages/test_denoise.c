@@ -8,7 +8,7 @@
 #include <string.h>
 
 #include "common/config.h"
-#include "stages/mesh/denoise.h"
+#include "meshing/denoise.h"
 #include "common/mesh.h"
 
 #define H     0.05   /* grid spacing (m) */

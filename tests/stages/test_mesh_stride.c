@@ -8,9 +8,9 @@
 #include <string.h>
 
 #include "common/cloud.h"
-#include "stages/mesh/grid.h"
+#include "meshing/grid.h"
 #include "common/mesh.h"
-#include "stages/mesh/nadir.h"
+#include "meshing/nadir.h"
 
 /* A full turn of cols azimuths by rows elevations from -80 to -40 degrees, every ray hitting
  * the floor z = 0 from a scanner at height h above the origin. */

@@ -10,7 +10,7 @@
 #include <sys/stat.h>
 
 #include "common/cloud.h"
-#include "stages/mesh/grid.h"
+#include "meshing/grid.h"
 #include "common/image.h"
 #include "common/mesh.h"
 #include "stages/stages.h"

@@ -13,7 +13,7 @@
 #include "common/cloud.h"
 #include "common/image.h"
 #include "common/mesh.h"
-#include "stages/mesh/meshdist.h"
+#include "meshing/meshdist.h"
 #include "common/pcl_bridge.h"
 #include "common/scene.h"
 #include "stages/stages.h"

@@ -8,7 +8,7 @@
 #include <string.h>
 
 #include "common/mesh.h"
-#include "stages/mesh/simplify.h"
+#include "meshing/simplify.h"
 
 /* The L: the union of two boxes, both 2 m high. */
 static const double box_lo[2][3] = {{0, 0, 0}, {0, 0, 0}};

@@ -1,6 +1,6 @@
 /* overlap: drops the faces of each scan's sheet where another scan saw the same surface
  * better (see overlap.h), with one Embree scene per scan. */
-#include "stages/mesh/overlap.h"
+#include "meshing/overlap.h"
 
 #include <math.h>
 #include <stdlib.h>

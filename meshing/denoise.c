@@ -1,6 +1,6 @@
 /* denoise: bilateral normal filtering (Zheng, Fu, Au, Tai 2011, "Bilateral Normal Filtering for
  * Mesh Denoising") and Sun et al. 2007's vertex update; exports rs_denoise_apply (denoise.h). */
-#include "stages/mesh/denoise.h"
+#include "meshing/denoise.h"
 
 #include <math.h>
 #include <stdint.h>

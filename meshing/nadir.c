@@ -1,10 +1,10 @@
 /* nadir: the cap below a scanner (see nadir.h). */
-#include "stages/mesh/nadir.h"
+#include "meshing/nadir.h"
 
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "stages/mesh/grid.h"
+#include "meshing/grid.h"
 #include "common/linsolve.h"
 #include "common/vec.h"
 

@@ -1,6 +1,6 @@
 /* grid: triangulates organized scans on their angular grid, dropping cells across depth
  * discontinuities, at grazing angles and across angular gaps (see grid.h). */
-#include "stages/mesh/grid.h"
+#include "meshing/grid.h"
 
 #include <math.h>
 #include <stdint.h>

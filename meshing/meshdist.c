@@ -1,6 +1,6 @@
 /* meshdist: point-to-mesh distances with Embree's rtcPointQuery and an exact point-triangle
  * distance in the callback (see meshdist.h). */
-#include "stages/mesh/meshdist.h"
+#include "meshing/meshdist.h"
 
 #include <embree3/rtcore.h>
 #include <math.h>

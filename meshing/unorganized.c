@@ -1,6 +1,6 @@
 /* unorganized: normals, surface reconstruction and clean-up of unorganized clouds with PCL
  * (see unorganized.h). */
-#include "stages/mesh/unorganized.h"
+#include "meshing/unorganized.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -1,13 +1,13 @@
 /* meshreport: facet count, edge-length statistics, boundary loops, non-manifold edges and
  * scan-point distances of a mesh (see meshreport.h). */
-#include "stages/mesh/meshreport.h"
+#include "meshing/meshreport.h"
 
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "stages/mesh/meshdist.h"
+#include "meshing/meshdist.h"
 
 typedef struct edge_key {
     uint32_t a, b; /* a < b */

@@ -1,6 +1,6 @@
 /* simplify: quadric edge collapse (Garland & Heckbert 1997, "Surface simplification using
  * quadric error metrics") with a binary heap; exports rs_simplify_apply (simplify.h). */
-#include "stages/mesh/simplify.h"
+#include "meshing/simplify.h"
 
 #include <math.h>
 #include <stdint.h>
