@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 # Generates docs/ACCURACY.md from rhoscan-eval's output: every sample dataset (and the shared
 # Cycles references when present) run with the methods direct, paper and interreflection.
-# SPDX-License-Identifier: MIT
+# SPDX-License-Identifier: BSD-3-Clause
 """usage: tools/accuracy_report.py --bin BUILD_DIR [--shared DIR] [--only NAME ...] [--report-only]
 
 For each dataset: `rhoscan run` with reflectance.method = interreflection, then direct (only

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 # Breaks rhoscan-eval's E_sky figure (per-facet E_sky against pi DiffDir, pixel-weighted) down by
 # cause: which facets carry the error, signed or not, lit or shaded, at silhouettes or inside.
-# SPDX-License-Identifier: MIT
+# SPDX-License-Identifier: BSD-3-Clause
 """usage: tools/eval/esky_breakdown.py TRUTH_DIR WORKDIR [WORKDIR2]
 
 Per facet seen on >= 4 pixels and estimable (as rhoscan-eval): est = mean RGB of irradiance_sky,

@@ -1,6 +1,6 @@
 # Checks a rendered reference scene: the pass identity pano = diffcol * (diffdir + diffind),
 # and optionally the difference to another rendering of the same scene (a reference or a re-seeded run).
-# SPDX-License-Identifier: MIT
+# SPDX-License-Identifier: BSD-3-Clause
 """Run inside Blender (reads EXR through Blender's image loader, needs numpy):
 
     blender -b --factory-startup --python tools/refscene/check.py -- DIR [OTHER_DIR] [--block N]

@@ -1,6 +1,6 @@
 # Geometry of the reference scenes that needs no Blender: polygons with holes triangulated by ear
 # clipping, extruded into closed outward-oriented solids, PLY/OBJ mesh readers, a watertightness check.
-# SPDX-License-Identifier: MIT
+# SPDX-License-Identifier: BSD-3-Clause
 """Pure Python (no numpy, no Blender), so that CI tests it.
 
 A solid is (verts, tris): verts a list of (x, y, z) floats, tris a list of (i, j, k) vertex

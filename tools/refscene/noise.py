@@ -1,7 +1,7 @@
 # The Monte Carlo noise of a rendered truth: two renders of one scene with different seeds give the
 # per-pixel and per-facet relative noise of pano.exr, and the sample count that reaches a target;
 # one render gives an estimate from adjacent pixels inside one face (--adjacent).
-# SPDX-License-Identifier: MIT
+# SPDX-License-Identifier: BSD-3-Clause
 """Run with Debian's python3 (numpy, OpenImageIO), no Blender:
 
     /usr/bin/python3 tools/refscene/noise.py DIR_A DIR_B [--samples N] [--target 0.005] [--block 6]

@@ -1,6 +1,6 @@
 # Reference-scene generator: builds a scene of Lambertian parts (boxes, extruded polygons, imported meshes)
 # under an HDR sky from a JSON description and writes the panorama, its passes, the truth, a PTX scan, rig frames.
-# SPDX-License-Identifier: MIT
+# SPDX-License-Identifier: BSD-3-Clause
 """Run inside Blender 3.4 (needs numpy, from Debian's python3-numpy):
 
     blender -b --factory-startup --python tools/refscene/render.py -- SCENE.json OUTDIR \

@@ -1,6 +1,6 @@
 # Simulated Ladybug-style rig: camera layouts, OpenCV's pinhole lens model (k1 k2 p1 p2 k3) and its
 # inverse, the remap from an undistorted render to a distorted frame, and the rig file (DESIGN.md section 7).
-# SPDX-License-Identifier: MIT
+# SPDX-License-Identifier: BSD-3-Clause
 """numpy only, no Blender: test_refscene.py checks it in CI.
 
 Camera frame: OpenCV's (x right, y down, z forward); pixel centres at integer coordinates.

@@ -1,6 +1,6 @@
 # Reference-scene description: reads and checks the scene JSON (parts, sky, sun, camera, scanner, rig)
 # and turns its parts into triangles; no Blender here, so that the checks run in CI (test_refscene.py).
-# SPDX-License-Identifier: MIT
+# SPDX-License-Identifier: BSD-3-Clause
 """Every error is a SceneError whose message names the file, the key, the value and what was
 expected. See tools/refscene/README.md for the keys."""
 import json

@@ -1,6 +1,6 @@
 # Tests of the reference-scene generator's Blender-free logic: polygon triangulation and extrusion,
 # mesh import, scene validation messages, the lens model and the rig file. Runs in CI (ctest refscene_logic).
-# SPDX-License-Identifier: MIT
+# SPDX-License-Identifier: BSD-3-Clause
 """Run: /usr/bin/python3 tools/refscene/test_refscene.py   (needs numpy, not Blender)."""
 import json
 import math

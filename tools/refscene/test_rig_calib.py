@@ -1,6 +1,6 @@
 # Cross-check of the generator's rig (rigsim.py: lens model, its inverse, rig.yaml) against rhoscan's
 # own (calib/rig.c, stitch.c): frames made by rigsim from a known sky must stitch back into that sky.
-# SPDX-License-Identifier: MIT
+# SPDX-License-Identifier: BSD-3-Clause
 """Run: /usr/bin/python3 tools/refscene/test_rig_calib.py --bin BUILD_DIR   (ctest refscene_rig_calib)
 
 Frames of the ladybug5 preset are filled the way render.py fills them (every pixel undistorted

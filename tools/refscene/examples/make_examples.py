@@ -1,6 +1,6 @@
 # Writes the example scene descriptions in this folder (arcade.json, imported.json, rig.json): the
 # arches' outlines are many points, easier computed than typed. Run: python3 make_examples.py
-# SPDX-License-Identifier: MIT
+# SPDX-License-Identifier: BSD-3-Clause
 import json
 import math
 import os
