@@ -10,7 +10,7 @@
 extern "C" {
 #endif
 
-/* One camera of a rig file as written (DESIGN.md section 7); validation is the caller's. */
+/* One camera of a rig file as written (docs/DESIGN.md, section Rig file); validation is the caller's. */
 typedef struct rs_cv_camera {
     char name[64];
     char model[32];    /* "pinhole", "fisheye", or what the file says */

@@ -35,7 +35,7 @@ typedef struct rs_edge_refine_result {
     double turn_deg, shift_m;                 /* the change from the start pose */
 } rs_edge_refine_result;
 
-/* Refines start against pano (linear RGB or grey, width = 2 x height, DESIGN.md section 2) and
+/* Refines start against pano (linear RGB or grey, width = 2 x height, docs/DESIGN.md, section Frames) and
  * the scene's mesh. Errors (RS_ERR_INPUT): a panorama of the wrong shape, fewer than
  * opts->min_edges model edges visible from the pose or image edges at some level (the message
  * says which and how many, so that the caller can name its config key). */

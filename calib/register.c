@@ -44,7 +44,7 @@ int rs_pairs_read(const char *path, int width, int height, rs_pair **pairs, int 
                 rs_err_set(err, RS_ERR_INPUT, path, lineno, "\"%s\": expected finite numbers", s);
                 goto out;
             }
-        /* Pixel c covers c - 0.5 .. c + 0.5 (DESIGN.md section 8). */
+        /* Pixel c covers c - 0.5 .. c + 0.5 (docs/DESIGN.md, section Pairs file). */
         if (v[0] < -0.5 || v[0] >= width - 0.5 || v[1] < -0.5 || v[1] > height - 0.5) {
             rs_err_set(err, RS_ERR_INPUT, path, lineno,
                        "pixel (%g, %g) lies outside the %d x %d panorama: expected column in [-0.5, %g) "

@@ -1,5 +1,5 @@
 /* register: the pose of a spherical panorama from pixel <-> world correspondences (the pairs
- * file of DESIGN.md section 8): P3P on bearing vectors inside RANSAC, then Levenberg-Marquardt
+ * file of docs/DESIGN.md, section Pairs file): P3P on bearing vectors inside RANSAC, then Levenberg-Marquardt
  * on the inliers' angular residuals. No pinhole assumption: points may lie anywhere on the sphere. */
 #ifndef RS_REGISTER_H
 #define RS_REGISTER_H

@@ -1,4 +1,4 @@
-/* rig: a Ladybug-style camera rig (DESIGN.md section 7) and its lens models: OpenCV's pinhole
+/* rig: a Ladybug-style camera rig (docs/DESIGN.md, section Rig file) and its lens models: OpenCV's pinhole
  * model with k1 k2 p1 p2 k3 and OpenCV's fisheye model with k1..k4, each used only inside the
  * field of view where it is one-to-one (the radial polynomial folds back at large radii). */
 #ifndef RS_RIG_H

@@ -1,4 +1,4 @@
-/* stitch: a rig's frames -> one equirectangular panorama in the rig frame (DESIGN.md section 2),
+/* stitch: a rig's frames -> one equirectangular panorama in the rig frame (docs/DESIGN.md, section Frames),
  * at infinite depth or, given the model, with each pixel's parallax corrected by the model's depth;
  * feathered blending and per-camera gains estimated from the overlaps. */
 #ifndef RS_STITCH_H

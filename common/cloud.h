@@ -53,7 +53,7 @@ int rs_cloud_recentre(rs_cloud *c, double limit_m);
  * 0..1. Errors name the file, line and column. Gives an unorganized cloud. */
 rs_cloud *rs_cloud_read_text(const char *path, const char *columns, rs_err *err);
 
-/* Leica PTX with one or more scans (DESIGN.md section 3): the 4x4 matrix (row-vector form,
+/* Leica PTX with one or more scans (docs/DESIGN.md, section Scan files): the 4x4 matrix (row-vector form,
  * may hold a scale) is applied to every point; the position line is the scanner centre in the
  * registered frame already and is kept as it is (not transformed).
  * Errors name the file, the line and what was expected (truncated files included). */

@@ -84,7 +84,8 @@ const rs_cfg_key rs_cfg_keys[] = {
      "panorama's edges with the model's (mesh.ply); unset or false: no refinement; [capture] only"},
 
     {"rig", "file", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib observe irradiance render",
-     "camera rig in OpenCV FileStorage YAML (DESIGN.md section 7); its stitched panorama replaces [capture] panorama"},
+     "camera rig in OpenCV FileStorage YAML (docs/DESIGN.md, section Rig file); its stitched panorama replaces "
+     "[capture] panorama"},
     {"rig", "frames", RS_CFG_PATHS, NULL, 0, 0, NULL, "", "calib",
      "one image per rig camera, in the order of the rig file's cameras (EXR, HDR, PNG, JPEG, TIFF)"},
     {"rig", "exposure_times_s", RS_CFG_STRING, NULL, 0, 0, NULL, "s", "calib",

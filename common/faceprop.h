@@ -1,5 +1,5 @@
 /* faceprop: per-facet values carried between stages as PLY face properties
- * (DESIGN.md section 2 names: albedo_r/_g/_b, radiance_*, irradiance_sky_*, ...). */
+ * (names of docs/DESIGN.md, section File contract: albedo_r/_g/_b, radiance_*, irradiance_sky_*, ...). */
 #ifndef RS_FACEPROP_H
 #define RS_FACEPROP_H
 

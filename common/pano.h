@@ -1,4 +1,4 @@
-/* pano: the equirectangular panorama convention of DESIGN.md section 2, written once.
+/* pano: the equirectangular panorama convention of docs/DESIGN.md, section Frames, written once.
  * Pixel (c, r) of a W x H image has u = (c + 0.5) / W, v = (r + 0.5) / H; continuous pixel
  * coordinates x = u * W, y = v * H (pixel c covers x in [c, c + 1)).
  * azimuth phi = pi * (1 - 2u) = atan2(d_y, d_x); polar angle theta = pi * v from +Z;

@@ -1,4 +1,4 @@
-/* ptx: the Leica PTX reader (DESIGN.md section 3): one or more organized scans back to back,
+/* ptx: the Leica PTX reader (docs/DESIGN.md, section Scan files): one or more organized scans back to back,
  * each registered by its 4x4 matrix. Exports rs_ptx_read and rs_ptx_read_mem (cloud.h). */
 #include "common/cloud.h"
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Checks the include graph against the layers of docs/DESIGN.md, lowest first:
+"""Checks the include graph against the layers of docs/DESIGN.md (section Layers), lowest first:
 
     common  <-  calib, sky, meshing  <-  light  <-  pipeline  <-  stages/<stage>  <-  programs
 

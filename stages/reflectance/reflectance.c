@@ -10,7 +10,7 @@
  * rho_fill (E_sky + G) / pi, rho_fill being [reflectance] unobserved_albedo or the
  * area-weighted mean albedo of the estimable facets facing the same way (up, down or sideways),
  * solved together by fixed-point iteration.
- * Writes albedo.ply with the face properties of DESIGN.md section 2, plus the sky completion's
+ * Writes albedo.ply with the face properties of docs/DESIGN.md, section File contract, plus the sky completion's
  * share (sky_filled), E_sky's fill uncertainty (irradiance_sky_sigma) and the albedo's standard
  * uncertainty, independent sources in quadrature:
  *   albedo_sigma_rel = sqrt(floor^2 + radiance_sigma_rel^2

@@ -1,4 +1,4 @@
-/* Tests of the panorama convention (DESIGN.md section 2) and its helpers. */
+/* Tests of the panorama convention (docs/DESIGN.md, section Frames) and its helpers. */
 #include <math.h>
 #include <stdlib.h>
 #include "common/pano.h"

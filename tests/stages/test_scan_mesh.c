@@ -18,7 +18,7 @@
 #include "common/scene.h"
 #include "stages/stages.h"
 
-/* Scan noise of the reference scenes (DESIGN.md section 4), m. */
+/* Scan noise of the reference scenes (docs/DESIGN.md, section Reference scenes), m. */
 #define SCAN_NOISE 0.003
 
 /* ---- helpers ---- */

@@ -3,7 +3,8 @@
 # into its panorama's frame written to views.txt (the file the calib stage's [colmap] views reads).
 """For each panorama PANO.exr, cuts N views around the horizon (90 deg field of view by default,
 pitched down a little so that the ground's texture is in them) as 8-bit sRGB PNGs named
-OUTDIR/images/PANO_vK.png, with bilinear lookup in the DESIGN.md convention.
+OUTDIR/images/PANO_vK.png, with bilinear lookup in the convention of docs/DESIGN.md,
+section Frames.
 
 The view camera is COLMAP's PINHOLE (x right, y down, z forward; pixel centres at 0.5, so the
 principal point is (size / 2, size / 2)) with f = size / 2 / tan(fov / 2). views.txt:

@@ -3,8 +3,9 @@
 # poses, the input of run_colmap.sh's test model (the Cycles panoramas' plain albedo has too few SIFT features).
 """Renders the boxes of a scene.json (rhoscan's reference-scene format) with a procedural
 value-noise texture on every face and a cloudy sky at infinity, by ray casting in numpy, as linear
-EXR panoramas in the DESIGN.md convention (u = (c + 0.5) / W, azimuth = pi (1 - 2u) = atan2(y, x),
-polar angle = pi v from +Z, local frame; world direction = R local direction).
+EXR panoramas in the convention of docs/DESIGN.md, section Frames (u = (c + 0.5) / W,
+azimuth = pi (1 - 2u) = atan2(y, x), polar angle = pi v from +Z, local frame; world direction =
+R local direction).
 
 Writes OUTDIR/<name>.exr for each pose and OUTDIR/poses.txt:
     NAME  X Y Z  R00 R01 ... R22      (centre in the world frame, m; rotation local -> world, row-major)

@@ -57,7 +57,7 @@ static int load_truth(ev *e, const char *dir, rs_err *err)
         free(part);
         return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
     }
-    /* Truth albedo is float `red green blue` (DESIGN.md section 4), not uchar sRGB. */
+    /* Truth albedo is float `red green blue` (docs/DESIGN.md, section Reference scenes), not uchar sRGB. */
     int rc = rs_faceprop_get(e->truth_ply, path, "part", e->nt, part, err);
     const char *names[3] = {"red", "green", "blue"};
     for (int c = 0; c < 3 && rc == 0; c++) {

@@ -1,5 +1,6 @@
 /* eval: rhoscan-eval, the comparison of a run (its work folder) with a Cycles truth folder
- * (DESIGN.md section 4): albedo error per facet and per truth part, coverage, irradiance, re-render. */
+ * (docs/DESIGN.md, section Reference scenes): albedo error per facet and per truth part, coverage,
+ * irradiance, re-render. */
 #ifndef RS_EVAL_H
 #define RS_EVAL_H
 

@@ -56,7 +56,7 @@ int rs_eval_camera(const ev *e, const uint8_t *good, rs_json *doc, const char *o
         int valid = id >= 0 && id < (float)nf && id == floorf(id);
         size_t f = valid ? (size_t)id : 0;
         int model = is_model(e->dc, (int)(k % w), (int)(k / w));
-        /* Truth irradiance: the passes hold E / pi (DESIGN.md section 4). Every pixel of a
+        /* Truth irradiance: the passes hold E / pi (docs/DESIGN.md, section Reference scenes). Every pixel of a
          * facet counts, as in tests/playback/reference_scene.py's compare_irradiance. */
         double ddm = M_PI * (e->dd->data[3 * k] + e->dd->data[3 * k + 1] + e->dd->data[3 * k + 2]) / 3;
         double dim = M_PI * (e->di->data[3 * k] + e->di->data[3 * k + 1] + e->di->data[3 * k + 2]) / 3;

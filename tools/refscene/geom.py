@@ -4,7 +4,7 @@
 """Pure Python (no numpy, no Blender), so that CI tests it.
 
 A solid is (verts, tris): verts a list of (x, y, z) floats, tris a list of (i, j, k) vertex
-indices wound counter-clockwise seen from outside (DESIGN.md section 2).
+indices wound counter-clockwise seen from outside (docs/DESIGN.md, section Frames).
 """
 import math
 import struct

@@ -1,5 +1,6 @@
 # Simulated Ladybug-style rig: camera layouts, OpenCV's pinhole lens model (k1 k2 p1 p2 k3) and its
-# inverse, the remap from an undistorted render to a distorted frame, and the rig file (DESIGN.md section 7).
+# inverse, the remap from an undistorted render to a distorted frame, and the rig file
+# (docs/DESIGN.md, section Rig file).
 # SPDX-License-Identifier: BSD-3-Clause
 """numpy only, no Blender: test_refscene.py checks it in CI.
 
@@ -164,7 +165,7 @@ def _matrix(name, rows, cols, data):
 
 
 def rig_yaml(cams):
-    """The rig file in the layout of DESIGN.md section 7 (OpenCV FileStorage YAML)."""
+    """The rig file in the layout of docs/DESIGN.md, section Rig file (OpenCV FileStorage YAML)."""
     lines = ["%YAML:1.0", "---", "camera_count: %d" % len(cams), "cameras:"]
     for c in cams:
         fx, fy, cx, cy = c["K"]

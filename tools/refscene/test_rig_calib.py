@@ -67,7 +67,7 @@ def main(argv):
     h = w // 2
     r, c = np.mgrid[0:h, 0:w].astype(float)
 
-    def pano_dirs(col, row):       # DESIGN.md section 2
+    def pano_dirs(col, row):       # docs/DESIGN.md, section Frames
         phi, theta = math.pi * (1 - 2 * (col + 0.5) / w), math.pi * (row + 0.5) / h
         return np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], axis=-1)
     truth = sky(pano_dirs(c, r))
