@@ -15,6 +15,7 @@
 #endif
 #include "common/fileio.h"
 #include "common/log.h"
+#include "pipeline/options.h"
 
 /* Every skip of this process, for the summary at the end of a run. */
 static char *skip_lines;
@@ -300,67 +301,80 @@ rs_config *rs_program_config(const char *path, const char *const *sets, int *exi
     return cfg;
 }
 
+enum { STAGE_SET, STAGE_PRINT_CONFIG, STAGE_QUIET, STAGE_VERBOSE, STAGE_HELP, STAGE_OPTIONS };
+static const rs_option stage_options[] = {
+    [STAGE_SET] = {"set", "section.key=value", "override a config key (repeatable); configs/KEYS.md lists them"},
+    [STAGE_PRINT_CONFIG] = {"print-config", NULL, "print the stage's config sections as in effect, run nothing"},
+    [STAGE_QUIET] = {"quiet", NULL, "warnings and errors only"},
+    [STAGE_VERBOSE] = {"verbose", NULL, "debugging messages too"},
+    [STAGE_HELP] = {"help", NULL, "this text", 'h'},
+    [STAGE_OPTIONS] = {NULL}};
+
+/* The stage's config sections as in effect on stdout. */
+static int print_config(const rs_stage_def *def, const rs_config *cfg, const char *prog)
+{
+    char words[256];
+    snprintf(words, sizeof words, "%s", def->sections);
+    for (char *s = strtok(words, " "); s; s = strtok(NULL, " ")) {
+        char *text = rs_config_section_text(cfg, s);
+        if (text) fputs(text, stdout);
+        free(text);
+    }
+    return rs_stdout_check(prog);
+}
+
+/* Runs the stage and logs the summary of its skips; the exit code. */
+static int run_stage(const rs_stage_def *def, const rs_config *cfg)
+{
+    rs_err err;
+    rs_err_clear(&err);
+    int rc = 0;
+    if (rs_stage_execute(def, cfg, &err) != 0) {
+        rs_log_error(&err);
+        rc = err.kind ? (int)err.kind : 3;
+    } else {
+        rs_report_skips_summary();
+    }
+    return rc;
+}
+
 int rs_stage_main(const rs_stage_def *def, int argc, char **argv)
 {
     const char *stage = def->name;
     char prog[128];
     snprintf(prog, sizeof prog, "rhoscan-%s", stage);
-    rs_log_init(prog);
+    rs_program_start(prog);
     const char **sets = calloc((size_t)argc + 1, sizeof *sets);
-    int nsets = 0, print_config = 0;
-    const char *config = NULL;
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        if (strcmp(a, "--set") == 0 && i + 1 < argc)
-            sets[nsets++] = argv[++i];
-        else if (strncmp(a, "--set=", 6) == 0)
-            sets[nsets++] = a + 6;
-        else if (strcmp(a, "--print-config") == 0)
-            print_config = 1;
-        else if (strcmp(a, "--quiet") == 0)
-            rs_log_set_level(RS_LOG_WARN);
-        else if (strcmp(a, "--verbose") == 0)
-            rs_log_set_level(RS_LOG_DEBUG);
-        else if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+    int nsets = 0, want_config = 0;
+    rs_opt_scan opt;
+    rs_opt_begin(&opt, stage_options, argc, argv, 1);
+    for (int o; (o = rs_opt_next(&opt)) != RS_OPT_END;) {
+        switch (o) {
+        case STAGE_SET: sets[nsets++] = opt.value; break;
+        case STAGE_PRINT_CONFIG: want_config = 1; break;
+        case STAGE_QUIET: rs_log_set_level(RS_LOG_WARN); break;
+        case STAGE_VERBOSE: rs_log_set_level(RS_LOG_DEBUG); break;
+        case STAGE_HELP:
             stage_usage(stage, stdout);
             free(sets);
             return rs_stdout_check(prog);
-        } else if (a[0] == '-' || config) {
-            fprintf(stderr, "%s: unexpected argument '%s'\n", prog, a);
+        default:
+            rs_opt_unexpected(&opt, prog);
             stage_usage(stage, stderr);
             free(sets);
             return 1;
-        } else
-            config = a;
+        }
     }
-    if (!config) {
+    if (!opt.operand) {
         stage_usage(stage, stderr);
         free(sets);
         return 1;
     }
     int rc = 0;
-    rs_config *cfg = rs_program_config(config, sets, &rc);
+    rs_config *cfg = rs_program_config(opt.operand, sets, &rc);
     free(sets);
     if (!cfg) return rc;
-    rs_err err;
-    rs_err_clear(&err);
-    if (print_config) {
-        char words[256];
-        snprintf(words, sizeof words, "%s", def->sections);
-        for (char *s = strtok(words, " "); s; s = strtok(NULL, " ")) {
-            char *text = rs_config_section_text(cfg, s);
-            if (text) fputs(text, stdout);
-            free(text);
-        }
-        rc = rs_stdout_check(prog);
-    } else {
-        if (rs_stage_execute(def, cfg, &err) != 0) {
-            rs_log_error(&err);
-            rc = err.kind ? (int)err.kind : 3;
-        } else {
-            rs_report_skips_summary();
-        }
-    }
+    rc = want_config ? print_config(def, cfg, prog) : run_stage(def, cfg);
     rs_config_free(cfg);
     return rc;
 }

@@ -64,7 +64,8 @@ int rs_stdout_check(const char *prog);
 rs_config *rs_program_config(const char *path, const char *const *sets, int *exit_code);
 
 /* Shared program entry for rhoscan-<stage>: options --set section.key=value (repeatable),
- * --print-config, --quiet, --verbose, --help; CONFIG anywhere among them. Returns the exit code. */
+ * --print-config, --quiet, --verbose, --help (pipeline/options.h); CONFIG anywhere among them.
+ * Logs the summary of what the stage skipped. Returns the exit code. */
 int rs_stage_main(const rs_stage_def *def, int argc, char **argv);
 
 #endif

@@ -6,6 +6,7 @@
 #include <string.h>
 #include "common/fileio.h"
 #include "common/log.h"
+#include "pipeline/options.h"
 #include "pipeline/stage.h"
 
 static void usage(FILE *out)
@@ -105,7 +106,7 @@ static int run_pipeline(const rs_config *cfg, const char *from, const char *only
 
 int main(int argc, char **argv)
 {
-    rs_log_init("rhoscan");
+    rs_program_start("rhoscan");
     if (argc < 2 || strcmp(argv[1], "help") == 0 || strcmp(argv[1], "--help") == 0) {
         usage(argc < 2 ? stderr : stdout);
         return argc < 2 ? 1 : rs_stdout_check("rhoscan");
