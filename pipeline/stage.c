@@ -223,6 +223,13 @@ static double peak_rss_mb(void)
     return kb / 1024;
 }
 
+const rs_stage_def *rs_stage_lookup(const rs_stage_def *table, const char *name)
+{
+    for (const rs_stage_def *d = table; d->name; d++)
+        if (strcmp(d->name, name) == 0) return d;
+    return NULL;
+}
+
 int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_err *err)
 {
     char dir[4096], path[4096];

@@ -2,7 +2,8 @@
  *     int rs_<name>_run(const rs_config *cfg, rs_report *rep, rs_err *err)
  * that reads its inputs from the work folder and its config sections, writes its outputs
  * atomically, and records counts, timings and skips in rep. rs_stage_main() turns it into a
- * program; the driver (rhoscan run) calls the same functions through rs_stage_table. */
+ * program; the driver (pipeline/driver.h: rhoscan run) calls the same functions through a
+ * table of stages (stages/stages.h: rs_stage_table). */
 #ifndef RS_STAGE_H
 #define RS_STAGE_H
 
@@ -34,10 +35,8 @@ typedef struct rs_stage_def {
     const char *help;
 } rs_stage_def;
 
-/* In pipeline order, ended by {NULL} (stages/stages.c: it references every stage's code, so
- * only the driver and the tests use it; a stage program passes its own def). */
-extern const rs_stage_def rs_stage_table[];
-const rs_stage_def *rs_stage_find(const char *name);
+/* The stage called name in table (ended by {NULL}), or NULL. */
+const rs_stage_def *rs_stage_lookup(const rs_stage_def *table, const char *name);
 
 /* The work folder of a config ([pipeline] workdir, resolved), created if needed. */
 int rs_workdir(const rs_config *cfg, char *out, size_t n, rs_err *err);

@@ -14,7 +14,7 @@
 #include "common/mesh.h"
 #include "tests/meshgen.h"
 #include "common/scene.h"
-#include "pipeline/stage.h"
+#include "stages/stages.h"
 #include "tests/testutil.h"
 #include "light/transport.h"
 
