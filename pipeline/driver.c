@@ -75,6 +75,8 @@ static void why_not_run(const rs_stage_def *d, const rs_config *cfg, const rs_ru
 
 int rs_run_pipeline(const rs_stage_def *stages, const rs_config *cfg, const rs_run_opts *opts, rs_err *err)
 {
+    rs_skips skips = {0};
+    rs_report run_rep = {NULL, NULL, NULL, &skips, "run"}; /* the driver's own skips: whole stages */
     rs_json *run = rs_json_object();
     rs_json *ran = rs_json_set_arr(run, "ran"), *skipped = rs_json_set_arr(run, "skipped");
     int reached_from = opts->from == NULL, rc = 0, nran = 0;
@@ -88,13 +90,13 @@ int rs_run_pipeline(const rs_stage_def *stages, const rs_config *cfg, const rs_r
             rs_log_info("skipped stage %s: %s", d->name, why);
             char what[64];
             snprintf(what, sizeof what, "stage %s", d->name);
-            rs_report_skip(NULL, what, "%s", why);
+            rs_report_skip(&run_rep, what, "%s", why);
             rs_json *o = rs_json_push_obj(skipped);
             rs_json_set_str(o, "stage", d->name);
             rs_json_set_str(o, "why", why);
             continue;
         }
-        if (rs_stage_execute(d, cfg, err) != 0) {
+        if (rs_stage_execute(d, cfg, &skips, err) != 0) {
             rc = -1;
             break;
         }
@@ -103,12 +105,13 @@ int rs_run_pipeline(const rs_stage_def *stages, const rs_config *cfg, const rs_r
     }
     rs_json_set_num(run, "wall_time_s", rs_now() - t0);
     if (rc == 0) {
-        rs_report_skips_summary();
+        rs_skips_log(&skips);
         rc = rs_merge_metrics(stages, cfg, run, err);
         if (rc == 0)
             rs_log_info("done in %.1f s: %d stage%s run, the rest up to date (see metrics.json)", rs_now() - t0, nran,
                         nran == 1 ? "" : "s");
     }
+    rs_skips_release(&skips);
     rs_json_free(run);
     return rc;
 }

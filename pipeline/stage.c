@@ -1,5 +1,5 @@
 /* stage: running a stage, its report and <stage>.json, fingerprints for rerun decisions,
- * and the shared program entry of rhoscan-<stage> (see stage.h). */
+ * the skips of a run, and the shared program entry of rhoscan-<stage> (see stage.h). */
 #include "pipeline/stage.h"
 
 #include <errno.h>
@@ -17,29 +17,28 @@
 #include "common/log.h"
 #include "pipeline/options.h"
 
-/* Every skip of this process, for the summary at the end of a run. */
-static char *skip_lines;
-static size_t skip_len;
-static const char *current_stage = "";
-
-static void remember_skip(const char *stage, const char *what, const char *why)
+void rs_skips_add(rs_skips *s, const char *stage, const char *what, const char *why)
 {
     char line[768];
     int n = snprintf(line, sizeof line, "  %s: %s: %s\n", stage, what, why);
     if (n <= 0) return;
-    char *grown = realloc(skip_lines, skip_len + (size_t)n + 1);
+    char *grown = realloc(s->lines, s->len + (size_t)n + 1);
     if (!grown) return;
-    memcpy(grown + skip_len, line, (size_t)n + 1);
-    skip_lines = grown;
-    skip_len += (size_t)n;
+    memcpy(grown + s->len, line, (size_t)n + 1);
+    s->lines = grown;
+    s->len += (size_t)n;
 }
 
-void rs_report_skips_summary(void)
+void rs_skips_log(const rs_skips *s)
 {
-    if (skip_len) rs_log_info("what was skipped, and why:\n%.*s", (int)skip_len - 1, skip_lines);
-    free(skip_lines);
-    skip_lines = NULL;
-    skip_len = 0;
+    if (s->len) rs_log_info("what was skipped, and why:\n%.*s", (int)s->len - 1, s->lines);
+}
+
+void rs_skips_release(rs_skips *s)
+{
+    free(s->lines);
+    s->lines = NULL;
+    s->len = 0;
 }
 
 void rs_report_skip(rs_report *rep, const char *what, const char *why_fmt, ...)
@@ -50,8 +49,9 @@ void rs_report_skip(rs_report *rep, const char *what, const char *why_fmt, ...)
     vsnprintf(why, sizeof why, why_fmt, ap);
     va_end(ap);
     rs_log_info("skipped %s: %s", what, why);
-    remember_skip(rep ? current_stage : "run", what, why);
-    if (!rep || !rep->skipped) return;
+    if (!rep) return;
+    if (rep->skips) rs_skips_add(rep->skips, rep->stage, what, why);
+    if (!rep->skipped) return;
     rs_json *o = rs_json_push_obj(rep->skipped);
     rs_json_set_str(o, "what", what);
     rs_json_set_str(o, "why", why);
@@ -230,13 +230,13 @@ const rs_stage_def *rs_stage_lookup(const rs_stage_def *table, const char *name)
     return NULL;
 }
 
-int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_err *err)
+int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_skips *skips, rs_err *err)
 {
     char dir[4096], path[4096];
     if (rs_workdir(cfg, dir, sizeof dir, err) != 0) return -1;
     if (rs_mkdir_p(rs_path_join(path, sizeof path, dir, ".rhoscan"), err) != 0) return -1;
 
-    rs_report rep = {rs_json_object(), NULL, NULL};
+    rs_report rep = {rs_json_object(), NULL, NULL, skips, def->name};
     if (!rep.metrics) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
     rs_json_set_str(rep.metrics, "stage", def->name);
     rs_json_set_str(rep.metrics, "program", "rhoscan " RHOSCAN_VERSION);
@@ -247,7 +247,6 @@ int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_err *err)
     rep.skipped = rs_json_set_arr(rep.metrics, "skipped");
 
     rs_log_info("%s: started", def->name);
-    current_stage = def->name;
     double t0 = rs_now();
     int rc = def->run(cfg, &rep, err);
     double wall = rs_now() - t0;
@@ -335,13 +334,15 @@ static int run_stage(const rs_stage_def *def, const rs_config *cfg)
 {
     rs_err err;
     rs_err_clear(&err);
+    rs_skips skips = {0};
     int rc = 0;
-    if (rs_stage_execute(def, cfg, &err) != 0) {
+    if (rs_stage_execute(def, cfg, &skips, &err) != 0) {
         rs_log_error(&err);
         rc = err.kind ? (int)err.kind : 3;
     } else {
-        rs_report_skips_summary();
+        rs_skips_log(&skips);
     }
+    rs_skips_release(&skips);
     return rc;
 }
 

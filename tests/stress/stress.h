@@ -146,7 +146,7 @@ static inline int stress_run_stage(const char *stage, const char *dir, const cha
     snprintf(text, sizeof text, "[pipeline]\nworkdir = %s\n%s", dir, extra);
     rs_config *cfg = rs_config_load_string(text, "stress.ini", dir, NULL, err);
     if (!cfg) fail_msg("config: %s", err->msg);
-    int rc = rs_stage_execute(rs_stage_find(stage), cfg, err);
+    int rc = rs_stage_execute(rs_stage_find(stage), cfg, NULL, err);
     rs_config_free(cfg);
     return rc;
 }
