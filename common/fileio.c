@@ -8,20 +8,21 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-/* RHOSCAN_FAULT=enospc:N makes the N-th atomic write of this process fail as a full disk
- * would, so that tests (which run as root, where permissions cannot fail) can check that
- * earlier outputs survive. */
-int rs_fault_should_fail(void)
+/* Writes left until the one that fails as a full disk would; -1: none fails (see fileio.h). */
+static long fault_countdown = -1;
+
+void rs_fault_inject_enospc(long nth)
 {
-    static long countdown = -2;
-    if (countdown == -2) {
-        const char *f = getenv("RHOSCAN_FAULT");
-        countdown = (f && strncmp(f, "enospc:", 7) == 0) ? atol(f + 7) : -1;
-    }
-    if (countdown < 0) return 0;
+    fault_countdown = nth > 0 ? nth : -1;
+}
+
+/* 1 when the current write is the one rs_fault_inject_enospc asked to fail. */
+static int fault_should_fail(void)
+{
+    if (fault_countdown < 0) return 0;
     int fail;
 #pragma omp critical(rs_fault)
-    fail = (--countdown == 0);
+    fail = (--fault_countdown == 0);
     return fail;
 }
 
@@ -39,7 +40,7 @@ int rs_atomic_open(rs_atomic_file *f, const char *path, rs_err *err)
 int rs_atomic_write(rs_atomic_file *f, const void *data, size_t n, rs_err *err)
 {
     if (f->failed) return -1;
-    if (rs_fault_should_fail()) {
+    if (fault_should_fail()) {
         f->failed = 1;
         errno = ENOSPC;
         return rs_err_errno(err, f->path, "write failed (fault injected); previous output kept");

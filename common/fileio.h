@@ -1,6 +1,6 @@
 /* fileio: atomic output files (write a temporary file beside the target, then rename),
  * checksums for provenance and rerun decisions, and path helpers.
- * A fault-injection switch (RHOSCAN_FAULT=enospc:N, fail the N-th write) lets tests
+ * A fault-injection switch (rs_fault_inject_enospc: fail the N-th write) lets tests
  * simulate a full disk. */
 #ifndef RS_FILEIO_H
 #define RS_FILEIO_H
@@ -43,7 +43,11 @@ int rs_mkdir_p(const char *path, rs_err *err);
 /* dir/name into out (size n); returns out. */
 char *rs_path_join(char *out, size_t n, const char *dir, const char *name);
 
-/* Fault injection for tests: returns 1 when the current write should fail with ENOSPC. */
-int rs_fault_should_fail(void);
+/* Fault injection for tests, which run as root where permissions cannot fail: the nth atomic
+ * write from now (1: the next) fails with ENOSPC as on a full disk, so that a test can check
+ * that earlier outputs survive; nth <= 0 turns it off. The programs set it from
+ * RHOSCAN_FAULT=enospc:N at start (pipeline/options.h: rs_program_start). Not thread-safe
+ * against writes in progress: call it before any. */
+void rs_fault_inject_enospc(long nth);
 
 #endif

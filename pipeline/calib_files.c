@@ -9,21 +9,6 @@
 #include "common/json.h"
 #include "pipeline/stage.h"
 
-int rs_calib_panorama_path(const rs_config *cfg, const char *section, char *out, size_t n, rs_err *err)
-{
-    if (strcmp(section, "capture") != 0 || !rs_config_has(cfg, "rig", "file")) return 0;
-    if (rs_config_has(cfg, "capture", "panorama"))
-        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
-                          "both [rig] file and [capture] panorama are set: expected one of them (the panorama "
-                          "stitched from the rig's frames becomes the capture's panorama)");
-    rs_work_path(cfg, RS_CALIB_PANO_FILE, out, n);
-    if (!rs_file_exists(out))
-        return rs_err_set(err, RS_ERR_INPUT, out, 0,
-                          "the stitched panorama is missing: run the calib stage first (rhoscan run, or "
-                          "rhoscan-calib CONFIG)");
-    return 1;
-}
-
 int rs_calib_pose_solved(const rs_config *cfg, const char *section)
 {
     /* The key table has these keys for capture sections only; asking [sky] would abort. */

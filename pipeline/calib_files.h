@@ -8,13 +8,8 @@
 #include "common/err.h"
 #include "common/pano.h"
 
-#define RS_CALIB_PANO_FILE "pano_stitched.exr" /* written when [rig] is set */
+#define RS_CALIB_PANO_FILE "pano_stitched.exr" /* written when [rig] is set (pipeline/panorama.h) */
 #define RS_CALIB_POSE_FILE "capture_pose.txt"  /* poses from [capture] correspondences and [colmap] */
-
-/* Where the capture's panorama comes from. Returns 1 and the stitched panorama's path in out when
- * [rig] file is set (section "capture" only), 0 when the capture reads its own [capture] panorama,
- * -1 when both are given or the stitched panorama has not been made yet (run the calib stage). */
-int rs_calib_panorama_path(const rs_config *cfg, const char *section, char *out, size_t n, rs_err *err);
 
 /* 1 when the calib stage solves the section's pose: [capture] correspondences or refine_edges,
  * or colmap_panorama in [capture] or [capture.NAME]. Position and rotation then only seed it. */

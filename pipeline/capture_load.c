@@ -3,14 +3,14 @@
 
 #include <string.h>
 #include "pipeline/calib_files.h"
+#include "pipeline/panorama.h"
 
 int rs_capture_load(const rs_config *cfg, const char *section, rs_capture *cap, rs_err *err)
 {
     memset(cap, 0, sizeof *cap);
-    /* With [rig], the calib stage's stitched panorama is the capture's panorama. */
-    int stitched = rs_calib_panorama_path(cfg, section, cap->path, sizeof cap->path, err);
-    if (stitched < 0) return -1;
-    if (!stitched && !rs_config_path(cfg, section, "panorama", cap->path, sizeof cap->path))
+    int found = rs_capture_panorama_path(cfg, section, cap->path, sizeof cap->path, err);
+    if (found < 0) return -1;
+    if (!found)
         return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
                           "[%s] panorama is not set: expected an equirectangular EXR or HDR file", section);
     rs_image *img = rs_image_read(cap->path, err);

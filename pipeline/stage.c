@@ -1,5 +1,5 @@
 /* stage: running a stage, its report and <stage>.json, fingerprints for rerun decisions,
- * and the shared program entry of rhoscan-<stage> (see stage.h). */
+ * the skips of a run, and the shared program entry of rhoscan-<stage> (see stage.h). */
 #include "pipeline/stage.h"
 
 #include <errno.h>
@@ -15,30 +15,30 @@
 #endif
 #include "common/fileio.h"
 #include "common/log.h"
+#include "pipeline/options.h"
 
-/* Every skip of this process, for the summary at the end of a run. */
-static char *skip_lines;
-static size_t skip_len;
-static const char *current_stage = "";
-
-static void remember_skip(const char *stage, const char *what, const char *why)
+void rs_skips_add(rs_skips *s, const char *stage, const char *what, const char *why)
 {
     char line[768];
     int n = snprintf(line, sizeof line, "  %s: %s: %s\n", stage, what, why);
     if (n <= 0) return;
-    char *grown = realloc(skip_lines, skip_len + (size_t)n + 1);
+    char *grown = realloc(s->lines, s->len + (size_t)n + 1);
     if (!grown) return;
-    memcpy(grown + skip_len, line, (size_t)n + 1);
-    skip_lines = grown;
-    skip_len += (size_t)n;
+    memcpy(grown + s->len, line, (size_t)n + 1);
+    s->lines = grown;
+    s->len += (size_t)n;
 }
 
-void rs_report_skips_summary(void)
+void rs_skips_log(const rs_skips *s)
 {
-    if (skip_len) rs_log_info("what was skipped, and why:\n%.*s", (int)skip_len - 1, skip_lines);
-    free(skip_lines);
-    skip_lines = NULL;
-    skip_len = 0;
+    if (s->len) rs_log_info("what was skipped, and why:\n%.*s", (int)s->len - 1, s->lines);
+}
+
+void rs_skips_release(rs_skips *s)
+{
+    free(s->lines);
+    s->lines = NULL;
+    s->len = 0;
 }
 
 void rs_report_skip(rs_report *rep, const char *what, const char *why_fmt, ...)
@@ -49,8 +49,9 @@ void rs_report_skip(rs_report *rep, const char *what, const char *why_fmt, ...)
     vsnprintf(why, sizeof why, why_fmt, ap);
     va_end(ap);
     rs_log_info("skipped %s: %s", what, why);
-    remember_skip(rep ? current_stage : "run", what, why);
-    if (!rep || !rep->skipped) return;
+    if (!rep) return;
+    if (rep->skips) rs_skips_add(rep->skips, rep->stage, what, why);
+    if (!rep->skipped) return;
     rs_json *o = rs_json_push_obj(rep->skipped);
     rs_json_set_str(o, "what", what);
     rs_json_set_str(o, "why", why);
@@ -222,13 +223,20 @@ static double peak_rss_mb(void)
     return kb / 1024;
 }
 
-int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_err *err)
+const rs_stage_def *rs_stage_lookup(const rs_stage_def *table, const char *name)
+{
+    for (const rs_stage_def *d = table; d->name; d++)
+        if (strcmp(d->name, name) == 0) return d;
+    return NULL;
+}
+
+int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_skips *skips, rs_err *err)
 {
     char dir[4096], path[4096];
     if (rs_workdir(cfg, dir, sizeof dir, err) != 0) return -1;
     if (rs_mkdir_p(rs_path_join(path, sizeof path, dir, ".rhoscan"), err) != 0) return -1;
 
-    rs_report rep = {rs_json_object(), NULL, NULL};
+    rs_report rep = {rs_json_object(), NULL, NULL, skips, def->name};
     if (!rep.metrics) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
     rs_json_set_str(rep.metrics, "stage", def->name);
     rs_json_set_str(rep.metrics, "program", "rhoscan " RHOSCAN_VERSION);
@@ -239,7 +247,6 @@ int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_err *err)
     rep.skipped = rs_json_set_arr(rep.metrics, "skipped");
 
     rs_log_info("%s: started", def->name);
-    current_stage = def->name;
     double t0 = rs_now();
     int rc = def->run(cfg, &rep, err);
     double wall = rs_now() - t0;
@@ -300,67 +307,82 @@ rs_config *rs_program_config(const char *path, const char *const *sets, int *exi
     return cfg;
 }
 
+enum { STAGE_SET, STAGE_PRINT_CONFIG, STAGE_QUIET, STAGE_VERBOSE, STAGE_HELP, STAGE_OPTIONS };
+static const rs_option stage_options[] = {
+    [STAGE_SET] = {"set", "section.key=value", "override a config key (repeatable); configs/KEYS.md lists them"},
+    [STAGE_PRINT_CONFIG] = {"print-config", NULL, "print the stage's config sections as in effect, run nothing"},
+    [STAGE_QUIET] = {"quiet", NULL, "warnings and errors only"},
+    [STAGE_VERBOSE] = {"verbose", NULL, "debugging messages too"},
+    [STAGE_HELP] = {"help", NULL, "this text", 'h'},
+    [STAGE_OPTIONS] = {NULL}};
+
+/* The stage's config sections as in effect on stdout. */
+static int print_config(const rs_stage_def *def, const rs_config *cfg, const char *prog)
+{
+    char words[256];
+    snprintf(words, sizeof words, "%s", def->sections);
+    for (char *s = strtok(words, " "); s; s = strtok(NULL, " ")) {
+        char *text = rs_config_section_text(cfg, s);
+        if (text) fputs(text, stdout);
+        free(text);
+    }
+    return rs_stdout_check(prog);
+}
+
+/* Runs the stage and logs the summary of its skips; the exit code. */
+static int run_stage(const rs_stage_def *def, const rs_config *cfg)
+{
+    rs_err err;
+    rs_err_clear(&err);
+    rs_skips skips = {0};
+    int rc = 0;
+    if (rs_stage_execute(def, cfg, &skips, &err) != 0) {
+        rs_log_error(&err);
+        rc = err.kind ? (int)err.kind : 3;
+    } else {
+        rs_skips_log(&skips);
+    }
+    rs_skips_release(&skips);
+    return rc;
+}
+
 int rs_stage_main(const rs_stage_def *def, int argc, char **argv)
 {
     const char *stage = def->name;
     char prog[128];
     snprintf(prog, sizeof prog, "rhoscan-%s", stage);
-    rs_log_init(prog);
+    rs_program_start(prog);
     const char **sets = calloc((size_t)argc + 1, sizeof *sets);
-    int nsets = 0, print_config = 0;
-    const char *config = NULL;
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        if (strcmp(a, "--set") == 0 && i + 1 < argc)
-            sets[nsets++] = argv[++i];
-        else if (strncmp(a, "--set=", 6) == 0)
-            sets[nsets++] = a + 6;
-        else if (strcmp(a, "--print-config") == 0)
-            print_config = 1;
-        else if (strcmp(a, "--quiet") == 0)
-            rs_log_set_level(RS_LOG_WARN);
-        else if (strcmp(a, "--verbose") == 0)
-            rs_log_set_level(RS_LOG_DEBUG);
-        else if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+    int nsets = 0, want_config = 0;
+    rs_opt_scan opt;
+    rs_opt_begin(&opt, stage_options, argc, argv, 1);
+    for (int o; (o = rs_opt_next(&opt)) != RS_OPT_END;) {
+        switch (o) {
+        case STAGE_SET: sets[nsets++] = opt.value; break;
+        case STAGE_PRINT_CONFIG: want_config = 1; break;
+        case STAGE_QUIET: rs_log_set_level(RS_LOG_WARN); break;
+        case STAGE_VERBOSE: rs_log_set_level(RS_LOG_DEBUG); break;
+        case STAGE_HELP:
             stage_usage(stage, stdout);
             free(sets);
             return rs_stdout_check(prog);
-        } else if (a[0] == '-' || config) {
-            fprintf(stderr, "%s: unexpected argument '%s'\n", prog, a);
+        default:
+            rs_opt_unexpected(&opt, prog);
             stage_usage(stage, stderr);
             free(sets);
             return 1;
-        } else
-            config = a;
+        }
     }
-    if (!config) {
+    if (!opt.operand) {
         stage_usage(stage, stderr);
         free(sets);
         return 1;
     }
     int rc = 0;
-    rs_config *cfg = rs_program_config(config, sets, &rc);
+    rs_config *cfg = rs_program_config(opt.operand, sets, &rc);
     free(sets);
     if (!cfg) return rc;
-    rs_err err;
-    rs_err_clear(&err);
-    if (print_config) {
-        char words[256];
-        snprintf(words, sizeof words, "%s", def->sections);
-        for (char *s = strtok(words, " "); s; s = strtok(NULL, " ")) {
-            char *text = rs_config_section_text(cfg, s);
-            if (text) fputs(text, stdout);
-            free(text);
-        }
-        rc = rs_stdout_check(prog);
-    } else {
-        if (rs_stage_execute(def, cfg, &err) != 0) {
-            rs_log_error(&err);
-            rc = err.kind ? (int)err.kind : 3;
-        } else {
-            rs_report_skips_summary();
-        }
-    }
+    rc = want_config ? print_config(def, cfg, prog) : run_stage(def, cfg);
     rs_config_free(cfg);
     return rc;
 }

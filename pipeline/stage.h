@@ -2,26 +2,41 @@
  *     int rs_<name>_run(const rs_config *cfg, rs_report *rep, rs_err *err)
  * that reads its inputs from the work folder and its config sections, writes its outputs
  * atomically, and records counts, timings and skips in rep. rs_stage_main() turns it into a
- * program; the driver (rhoscan run) calls the same functions through rs_stage_table. */
+ * program; the driver (pipeline/driver.h: rhoscan run) calls the same functions through a
+ * table of stages (stages/stages.h: rs_stage_table). */
 #ifndef RS_STAGE_H
 #define RS_STAGE_H
 
+#include <stddef.h>
 #include <stdint.h>
 #include "common/config.h"
 #include "common/err.h"
 #include "common/json.h"
 
+/* What a run skipped, in order, for the summary at its end: a line "  stage: what: why" per
+ * skip. The program (a stage program or the driver) owns it; start with {0}. */
+typedef struct rs_skips {
+    char *lines;
+    size_t len;
+} rs_skips;
+
+void rs_skips_add(rs_skips *s, const char *stage, const char *what, const char *why);
+/* Logs "what was skipped, and why:" and the lines; nothing when there are none. */
+void rs_skips_log(const rs_skips *s);
+void rs_skips_release(rs_skips *s);
+
 typedef struct rs_report {
-    rs_json *metrics; /* the stage's <stage>.json object; add fields freely */
-    rs_json *skipped; /* array of {"what", "why"} */
-    rs_json *timings; /* object: step -> seconds */
+    rs_json *metrics;  /* the stage's <stage>.json object; add fields freely */
+    rs_json *skipped;  /* array of {"what", "why"}, or NULL */
+    rs_json *timings;  /* object: step -> seconds, or NULL */
+    rs_skips *skips;   /* the run's skips, for its summary; NULL when none is kept */
+    const char *stage; /* the name its skips are listed under in skips ("mesh") */
 } rs_report;
 
-/* Records that something was skipped and why (also logged). */
+/* Records that something was skipped and why: logged, added to rep->skipped and rep->skips
+ * (rep may be NULL: logged only). */
 void rs_report_skip(rs_report *rep, const char *what, const char *why_fmt, ...) __attribute__((format(printf, 3, 4)));
 void rs_report_time(rs_report *rep, const char *step, double seconds);
-/* Logs every skip recorded by this process ("stage: what: why"), then forgets them. */
-void rs_report_skips_summary(void);
 
 typedef int (*rs_stage_fn)(const rs_config *cfg, rs_report *rep, rs_err *err);
 
@@ -34,10 +49,8 @@ typedef struct rs_stage_def {
     const char *help;
 } rs_stage_def;
 
-/* In pipeline order, ended by {NULL} (stages/stages.c: it references every stage's code, so
- * only the driver and the tests use it; a stage program passes its own def). */
-extern const rs_stage_def rs_stage_table[];
-const rs_stage_def *rs_stage_find(const char *name);
+/* The stage called name in table (ended by {NULL}), or NULL. */
+const rs_stage_def *rs_stage_lookup(const rs_stage_def *table, const char *name);
 
 /* The work folder of a config ([pipeline] workdir, resolved), created if needed. */
 int rs_workdir(const rs_config *cfg, char *out, size_t n, rs_err *err);
@@ -45,8 +58,9 @@ int rs_workdir(const rs_config *cfg, char *out, size_t n, rs_err *err);
 const char *rs_work_path(const rs_config *cfg, const char *name, char *out, size_t n);
 
 /* Runs one stage: calls def->run, writes <stage>.json (metrics, timings, skips, fingerprint,
- * input checksums) and the state file used for rerun decisions. */
-int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_err *err);
+ * input checksums) and the state file used for rerun decisions. The stage's skips are also
+ * added to skips (may be NULL), under the stage's name. */
+int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_skips *skips, rs_err *err);
 
 /* The fingerprint of a stage's inputs: program version, its config sections as in effect,
  * and the contents of every input file (work-folder inputs and the files its keys name). */
@@ -64,7 +78,8 @@ int rs_stdout_check(const char *prog);
 rs_config *rs_program_config(const char *path, const char *const *sets, int *exit_code);
 
 /* Shared program entry for rhoscan-<stage>: options --set section.key=value (repeatable),
- * --print-config, --quiet, --verbose, --help; CONFIG anywhere among them. Returns the exit code. */
+ * --print-config, --quiet, --verbose, --help (pipeline/options.h); CONFIG anywhere among them.
+ * Logs the summary of what the stage skipped. Returns the exit code. */
 int rs_stage_main(const rs_stage_def *def, int argc, char **argv);
 
 #endif

@@ -2,15 +2,11 @@
  * the rerun decisions are built on this table. */
 #include "stages/stages.h"
 
-#include <string.h>
-
 const rs_stage_def rs_stage_table[] = {
     RS_STAGE_DEF_INGEST,     RS_STAGE_DEF_MESH,        RS_STAGE_DEF_CALIB,  RS_STAGE_DEF_OBSERVE,
     RS_STAGE_DEF_IRRADIANCE, RS_STAGE_DEF_REFLECTANCE, RS_STAGE_DEF_RENDER, {NULL, NULL, NULL, NULL, NULL, NULL}};
 
 const rs_stage_def *rs_stage_find(const char *name)
 {
-    for (const rs_stage_def *d = rs_stage_table; d->name; d++)
-        if (strcmp(d->name, name) == 0) return d;
-    return NULL;
+    return rs_stage_lookup(rs_stage_table, name);
 }

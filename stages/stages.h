@@ -56,4 +56,11 @@ int rs_render_run(const rs_config *cfg, rs_report *rep, rs_err *err);      /* ->
             "re-render the panorama from the albedo and compare with the observation"                                 \
     }
 
+/* Every stage in pipeline order, ended by {NULL} (stages.c): the driver's table. It references
+ * every stage's code, so only the driver and the tests use it; a stage program passes its own
+ * def. */
+extern const rs_stage_def rs_stage_table[];
+/* The stage of rs_stage_table called name, or NULL. */
+const rs_stage_def *rs_stage_find(const char *name);
+
 #endif

@@ -11,6 +11,7 @@
 #include "stages/calib/edge_pose.h"
 #include "common/capture.h"
 #include "pipeline/capture_load.h"
+#include "pipeline/panorama.h"
 #include "common/fileio.h"
 #include "common/log.h"
 #include "calib/register.h"
@@ -342,9 +343,9 @@ out:
 static int panorama_size(const rs_config *cfg, int *width, int *height, rs_err *err)
 {
     char path[4096];
-    int stitched = rs_calib_panorama_path(cfg, "capture", path, sizeof path, err);
-    if (stitched < 0) return -1;
-    if (!stitched && !rs_config_path(cfg, "capture", "panorama", path, sizeof path))
+    int found = rs_capture_panorama_path(cfg, "capture", path, sizeof path, err);
+    if (found < 0) return -1;
+    if (!found)
         return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
                           "[capture] correspondences is set but there is no panorama: expected [capture] panorama "
                           "or [rig] file and frames");
@@ -361,10 +362,7 @@ int rs_calib_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     char path[4096];
     int have_rig = rs_config_has(cfg, "rig", "file");
     int have_pairs = rs_config_has(cfg, "capture", "correspondences");
-    if (have_rig && rs_config_has(cfg, "capture", "panorama"))
-        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
-                          "both [rig] file and [capture] panorama are set: expected one of them (the panorama "
-                          "stitched from the rig's frames becomes the capture's panorama)");
+    if (rs_capture_panorama_check(cfg, err) != 0) return -1;
     if (have_rig) {
         double t0 = rs_now();
         if (stitch_rig(cfg, rs_work_path(cfg, RS_CALIB_PANO_FILE, path, sizeof path), 0, rep, err) != 0) return -1;

@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <string.h>
 #include "pipeline/calib_files.h"
+#include "pipeline/panorama.h"
 #include "calib/edge_refine.h"
 #include "common/fileio.h"
 #include "common/log.h"
@@ -64,9 +65,9 @@ int rs_calib_edge_pose_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         return rs_err_set(err, RS_ERR_INPUT, mesh_path, 0,
                           "[capture] refine_edges = true needs the model: run the "
                           "mesh stage first (rhoscan run, or rhoscan-mesh CONFIG)");
-    int stitched = rs_calib_panorama_path(cfg, "capture", pano_path, sizeof pano_path, err);
-    if (stitched < 0) return -1;
-    if (!stitched && !rs_config_path(cfg, "capture", "panorama", pano_path, sizeof pano_path))
+    int found = rs_capture_panorama_path(cfg, "capture", pano_path, sizeof pano_path, err);
+    if (found < 0) return -1;
+    if (!found)
         return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
                           "[capture] refine_edges = true but there is no "
                           "panorama: expected [capture] panorama or [rig] file and frames");

@@ -11,13 +11,11 @@
 #include "meshing/denoise.h"
 #include "common/fileio.h"
 #include "meshing/grid.h"
-#include "common/image.h"
 #include "common/log.h"
 #include "common/mesh.h"
+#include "pipeline/panorama.h"
 #include "meshing/meshreport.h"
 #include "meshing/nadir.h"
-#include "calib/rig.h"
-#include "calib/stitch.h"
 #include "meshing/overlap.h"
 #include "meshing/simplify.h"
 #include "meshing/unorganized.h"
@@ -147,22 +145,12 @@ static int derive_facet_size(const rs_config *cfg, const rs_mesh *m, double *fac
 {
     char pano[4096];
     int width = 0;
-    if (rs_config_path(cfg, "capture", "panorama", pano, sizeof pano)) {
-        rs_image *img = rs_image_read(pano, err);
-        if (!img) return -1;
-        width = img->width;
-        rs_image_free(img);
-    } else if (rs_config_path(cfg, "rig", "file", pano, sizeof pano)) {
-        /* The calib stage stitches the panorama after meshing: its width follows from the rig. */
-        rs_rig rig;
-        if (rs_rig_load(pano, &rig, err) != 0) return -1;
-        width = rs_stitch_width(&rig, (int)rs_config_int(cfg, "rig", "width"));
-        rs_rig_release(&rig);
-    } else {
+    int found = rs_capture_panorama_width(cfg, &width, pano, sizeof pano, err);
+    if (found < 0) return -1;
+    if (!found)
         return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
                           "[mesh] facet_size is not set and there is no [capture] panorama or [rig] file to derive it "
                           "from; expected [mesh] facet_size = <metres> (or facets = <count>) or a panorama");
-    }
     double cam[3] = {0, 0, 0};
     rs_config_reals(cfg, "capture", "position", cam);
     double *dist = malloc((m->nverts ? m->nverts : 1) * sizeof *dist);

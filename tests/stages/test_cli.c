@@ -8,6 +8,7 @@
 #include "common/image.h"
 #include "tests/meshgen.h"
 #include "common/ply.h"
+#include "pipeline/options.h"
 #include "tests/testutil.h"
 
 static const char *prog(const char *name)
@@ -221,6 +222,57 @@ static void test_reruns(void **state)
     rs_test_rmtree(dir);
 }
 
+/* The option parser: --opt VALUE and --opt=VALUE alike, CONFIG among the options, and what
+ * it refuses (an unknown option, a flag with a value, a value option without one, a second
+ * CONFIG). */
+static void test_options(void **state)
+{
+    (void)state;
+    enum { FORCE, SET, HELP, COUNT };
+    static const rs_option table[] = {[FORCE] = {"force", NULL, "run every stage"},
+                                      [SET] = {"set", "s.k=v", "override a key"},
+                                      [HELP] = {"help", NULL, "this text", 'h'},
+                                      [COUNT] = {NULL}};
+    char *argv[] = {"prog", "--set", "a.b=1", "CONFIG", "--set=c.d=2", "--force", "-h", NULL};
+    rs_opt_scan s;
+    rs_opt_begin(&s, table, 7, argv, 1);
+    assert_int_equal(rs_opt_next(&s), SET);
+    assert_string_equal(s.value, "a.b=1");
+    assert_int_equal(rs_opt_next(&s), SET);
+    assert_string_equal(s.value, "c.d=2");
+    assert_int_equal(rs_opt_next(&s), FORCE);
+    assert_null(s.value);
+    assert_int_equal(rs_opt_next(&s), HELP);
+    assert_int_equal(rs_opt_next(&s), RS_OPT_END);
+    assert_string_equal(s.operand, "CONFIG");
+
+    char *bad[][3] = {{"prog", "--forc", NULL},   {"prog", "--force=1", NULL}, {"prog", "--set", NULL},
+                      {"prog", "--settle", NULL}, {"prog", "-", NULL},         {"prog", "--", NULL}};
+    for (size_t k = 0; k < sizeof bad / sizeof *bad; k++) {
+        rs_opt_begin(&s, table, 2, bad[k], 1);
+        assert_int_equal(rs_opt_next(&s), RS_OPT_BAD);
+        assert_string_equal(s.bad, bad[k][1]);
+    }
+    char *two[] = {"prog", "one.ini", "two.ini", NULL};
+    rs_opt_begin(&s, table, 3, two, 1);
+    assert_int_equal(rs_opt_next(&s), RS_OPT_BAD);
+    assert_string_equal(s.bad, "two.ini");
+    assert_string_equal(s.operand, "one.ini");
+}
+
+/* The driver takes --only=STAGE as --only STAGE (and checks the stage before reading CONFIG). */
+static void test_run_options(void **state)
+{
+    (void)state;
+    char *out = NULL;
+    assert_int_equal(run("absent.ini", "--only=nosuch", &out), 1);
+    assert_non_null(strstr(out, "rhoscan: unknown stage 'nosuch'"));
+    free(out);
+    assert_int_equal(run("absent.ini", "--frobnicate", &out), 1);
+    assert_non_null(strstr(out, "rhoscan: unexpected argument '--frobnicate'"));
+    free(out);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -228,6 +280,7 @@ int main(void)
         cmocka_unit_test(test_missing_file),     cmocka_unit_test(test_truncated_ptx),
         cmocka_unit_test(test_truncated_ply),    cmocka_unit_test(test_pano_not_2_to_1),
         cmocka_unit_test(test_nonfinite_pixels), cmocka_unit_test(test_reruns),
+        cmocka_unit_test(test_options),          cmocka_unit_test(test_run_options),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -40,6 +40,7 @@ static void report_init(rs_report *rep)
     rep->metrics = rs_json_object();
     rep->skipped = rs_json_array();
     rep->timings = rs_json_object();
+    rep->skips = NULL;
 }
 
 static void report_free(rs_report *rep)

@@ -14,7 +14,7 @@
 #include "common/mesh.h"
 #include "tests/meshgen.h"
 #include "common/scene.h"
-#include "pipeline/stage.h"
+#include "stages/stages.h"
 #include "tests/testutil.h"
 #include "light/transport.h"
 
@@ -146,7 +146,7 @@ static inline int stress_run_stage(const char *stage, const char *dir, const cha
     snprintf(text, sizeof text, "[pipeline]\nworkdir = %s\n%s", dir, extra);
     rs_config *cfg = rs_config_load_string(text, "stress.ini", dir, NULL, err);
     if (!cfg) fail_msg("config: %s", err->msg);
-    int rc = rs_stage_execute(rs_stage_find(stage), cfg, err);
+    int rc = rs_stage_execute(rs_stage_find(stage), cfg, NULL, err);
     rs_config_free(cfg);
     return rc;
 }

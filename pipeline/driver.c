@@ -1,0 +1,186 @@
+/* driver: rhoscan run over a table of stages (see driver.h). */
+#include "pipeline/driver.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "common/fileio.h"
+#include "common/log.h"
+#include "pipeline/options.h"
+
+enum { RUN_FROM, RUN_ONLY, RUN_FORCE, RUN_SET, RUN_QUIET, RUN_VERBOSE, RUN_OPTIONS };
+static const rs_option run_options[] = {
+    [RUN_FROM] = {"from", "STAGE", "run STAGE and every later stage, whether or not they changed"},
+    [RUN_ONLY] = {"only", "STAGE", "run STAGE alone"},
+    [RUN_FORCE] = {"force", NULL, "run every stage"},
+    [RUN_SET] = {"set", "s.k=v", "override a config key (repeatable); configs/KEYS.md lists them"},
+    [RUN_QUIET] = {"quiet", NULL, NULL},
+    [RUN_VERBOSE] = {"verbose", NULL, NULL},
+    [RUN_OPTIONS] = {NULL}};
+
+static void usage(const rs_stage_def *stages, FILE *out)
+{
+    fprintf(out,
+            "usage: rhoscan run [--from STAGE] [--only STAGE] [--force] [--set section.key=value]... CONFIG\n"
+            "       rhoscan help\n"
+            "Options may stand before or after CONFIG.\n");
+    rs_options_print(out, run_options);
+    fprintf(out, "Stages, in order (each is also a program rhoscan-STAGE CONFIG):\n");
+    for (const rs_stage_def *d = stages; d->name; d++) fprintf(out, "  %-12s %s\n", d->name, d->help);
+}
+
+int rs_merge_metrics(const rs_stage_def *stages, const rs_config *cfg, const rs_json *run, rs_err *err)
+{
+    rs_json *all = rs_json_object();
+    if (!all) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+    rs_json_set_str(all, "program", "rhoscan " RHOSCAN_VERSION);
+    rs_json_set_str(all, "config", rs_config_file(cfg));
+    rs_json *by_stage = rs_json_set_obj(all, "stages");
+    for (const rs_stage_def *d = stages; d->name; d++) {
+        char name[128], path[4096];
+        char *text = NULL;
+        size_t size;
+        snprintf(name, sizeof name, "%s.json", d->name);
+        if (rs_read_file(rs_work_path(cfg, name, path, sizeof path), &text, &size, NULL) == 0 && size > 1)
+            rs_json_set_raw(by_stage, d->name, text);
+        free(text);
+    }
+    char *run_text = rs_json_text(run);
+    if (run_text) {
+        run_text[strlen(run_text) - 1] = 0; /* drop the newline */
+        rs_json_set_raw(all, "run", run_text);
+    }
+    free(run_text);
+    char path[4096];
+    int rc = rs_json_write(all, rs_work_path(cfg, "metrics.json", path, sizeof path), err);
+    rs_json_free(all);
+    return rc;
+}
+
+/* Why stage d is not run, into why ("" when it is run). */
+static void why_not_run(const rs_stage_def *d, const rs_config *cfg, const rs_run_opts *opts, int reached_from,
+                        char *why, size_t n)
+{
+    if (!reached_from) {
+        snprintf(why, n, "before --from %s", opts->from);
+    } else if (opts->force || opts->only || opts->from) {
+        why[0] = 0;
+    } else if (rs_stage_up_to_date(d, cfg, why, n)) {
+        /* why holds the reason it is current */
+    } else {
+        rs_log_info("%s: rerun: %s", d->name, why);
+        why[0] = 0;
+    }
+}
+
+int rs_run_pipeline(const rs_stage_def *stages, const rs_config *cfg, const rs_run_opts *opts, rs_err *err)
+{
+    rs_skips skips = {0};
+    rs_report run_rep = {NULL, NULL, NULL, &skips, "run"}; /* the driver's own skips: whole stages */
+    rs_json *run = rs_json_object();
+    rs_json *ran = rs_json_set_arr(run, "ran"), *skipped = rs_json_set_arr(run, "skipped");
+    int reached_from = opts->from == NULL, rc = 0, nran = 0;
+    double t0 = rs_now();
+    for (const rs_stage_def *d = stages; d->name; d++) {
+        char why[512];
+        if (opts->from && strcmp(d->name, opts->from) == 0) reached_from = 1;
+        if (opts->only && strcmp(d->name, opts->only) != 0) continue;
+        why_not_run(d, cfg, opts, reached_from, why, sizeof why);
+        if (why[0]) {
+            rs_log_info("skipped stage %s: %s", d->name, why);
+            char what[64];
+            snprintf(what, sizeof what, "stage %s", d->name);
+            rs_report_skip(&run_rep, what, "%s", why);
+            rs_json *o = rs_json_push_obj(skipped);
+            rs_json_set_str(o, "stage", d->name);
+            rs_json_set_str(o, "why", why);
+            continue;
+        }
+        if (rs_stage_execute(d, cfg, &skips, err) != 0) {
+            rc = -1;
+            break;
+        }
+        rs_json_push_str(ran, d->name);
+        nran++;
+    }
+    rs_json_set_num(run, "wall_time_s", rs_now() - t0);
+    if (rc == 0) {
+        rs_skips_log(&skips);
+        rc = rs_merge_metrics(stages, cfg, run, err);
+        if (rc == 0)
+            rs_log_info("done in %.1f s: %d stage%s run, the rest up to date (see metrics.json)", rs_now() - t0, nran,
+                        nran == 1 ? "" : "s");
+    }
+    rs_skips_release(&skips);
+    rs_json_free(run);
+    return rc;
+}
+
+/* `rhoscan run`'s options after the word run into opts, sets and *config; 0, or the exit code
+ * after saying what was wrong. */
+static int read_run_options(const rs_stage_def *stages, int argc, char **argv, rs_run_opts *opts, const char **sets,
+                            const char **config)
+{
+    int nsets = 0;
+    rs_opt_scan opt;
+    rs_opt_begin(&opt, run_options, argc, argv, 2);
+    for (int o; (o = rs_opt_next(&opt)) != RS_OPT_END;) {
+        switch (o) {
+        case RUN_FROM: opts->from = opt.value; break;
+        case RUN_ONLY: opts->only = opt.value; break;
+        case RUN_FORCE: opts->force = 1; break;
+        case RUN_SET: sets[nsets++] = opt.value; break;
+        case RUN_QUIET: rs_log_set_level(RS_LOG_WARN); break;
+        case RUN_VERBOSE: rs_log_set_level(RS_LOG_DEBUG); break;
+        default:
+            rs_opt_unexpected(&opt, "rhoscan");
+            usage(stages, stderr);
+            return 1;
+        }
+    }
+    *config = opt.operand;
+    const char *stage_arg = opts->from ? opts->from : opts->only;
+    int unknown = stage_arg && !rs_stage_lookup(stages, stage_arg);
+    if (!*config || unknown || (opts->from && opts->only)) {
+        if (unknown)
+            fprintf(stderr, "rhoscan: unknown stage '%s'\n", stage_arg);
+        else if (opts->from && opts->only)
+            fprintf(stderr, "rhoscan: give --from or --only, not both\n");
+        usage(stages, stderr);
+        return 1;
+    }
+    return 0;
+}
+
+int rs_driver_main(const rs_stage_def *stages, int argc, char **argv)
+{
+    rs_program_start("rhoscan");
+    if (argc < 2 || strcmp(argv[1], "help") == 0 || strcmp(argv[1], "--help") == 0) {
+        usage(stages, argc < 2 ? stderr : stdout);
+        return argc < 2 ? 1 : rs_stdout_check("rhoscan");
+    }
+    if (strcmp(argv[1], "run") != 0) {
+        fprintf(stderr, "rhoscan: unknown command '%s'\n", argv[1]);
+        usage(stages, stderr);
+        return 1;
+    }
+    const char **sets = calloc((size_t)argc + 1, sizeof *sets);
+    const char *config = NULL;
+    rs_run_opts opts = {NULL, NULL, 0};
+    int rc = read_run_options(stages, argc, argv, &opts, sets, &config);
+    if (rc != 0) {
+        free(sets);
+        return rc;
+    }
+    rs_config *cfg = rs_program_config(config, sets, &rc);
+    free(sets);
+    if (!cfg) return rc;
+    rs_err err;
+    rs_err_clear(&err);
+    if (rs_run_pipeline(stages, cfg, &opts, &err) != 0) {
+        rs_log_error(&err);
+        rc = err.kind ? (int)err.kind : 3;
+    }
+    rs_config_free(cfg);
+    return rc;
+}
