@@ -101,6 +101,18 @@ rs_mesh *rs_fx_unit_square(void)
     return rs_meshgen_done(&g);
 }
 
+rs_gather_ctx rs_fx_gather_ctx(const rs_scene *scene, const rs_skyenv *env, int samples, int sun_samples, uint32_t seed)
+{
+    rs_gather_ctx g = {.scene = scene,
+                       .env = env,
+                       .samples = samples,
+                       .sky_samples = samples,
+                       .sun_samples = sun_samples,
+                       .seed = seed,
+                       .skip_convex = 1};
+    return g;
+}
+
 void rs_fx_release(rs_skyenv *env, rs_capture *cap, rs_scene *scene, rs_mesh *m)
 {
     if (env) rs_skyenv_release(env);

@@ -11,6 +11,7 @@
 #include "common/image.h"
 #include "common/mesh.h"
 #include "common/scene.h"
+#include "light/gather.h"
 #include "pipeline/stage.h"
 #include "sky/skyenv.h"
 #include "tests/meshgen.h"
@@ -52,6 +53,10 @@ void rs_fx_random_sky(int w, float sun, int dark_every, rs_capture *cap, rs_skye
 rs_scene *rs_fx_scene(const rs_mesh *m);
 /* A 1 x 1 m square at the origin (z = 0, facing +z), two triangles. */
 rs_mesh *rs_fx_unit_square(void);
+/* The gather most tests trace with: samples cosine and as many sky rays, sun_samples sun rays,
+ * seed, and facets with the whole model below their plane skipped; every other setting 0. */
+rs_gather_ctx rs_fx_gather_ctx(const rs_scene *scene, const rs_skyenv *env, int samples, int sun_samples,
+                               uint32_t seed);
 /* Releases what a gather test set up; any argument may be NULL. */
 void rs_fx_release(rs_skyenv *env, rs_capture *cap, rs_scene *scene, rs_mesh *m);
 

@@ -32,6 +32,9 @@ void rs_test_json_rgb(const char *path, const char *key, double v[3]);
 /* RHOSCAN_SHARED_DIR when it exists. When it does not: prints why and exits 77 (ctest skip),
  * or exits 1 under CI=true, where the data must be there. */
 const char *rs_test_shared_dir(void);
+/* RHOSCAN_SHARED_DIR/rel when the variable is set and the file is there, else NULL (the test
+ * then skips: skip()); a static buffer (4 slots). */
+const char *rs_test_shared_file(const char *rel);
 /* The source tree and the build tree (set by ctest). */
 const char *rs_test_source_dir(void);
 const char *rs_test_bin_dir(void);

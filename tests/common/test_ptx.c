@@ -249,11 +249,8 @@ static void test_read_file(void **state)
 static void test_reference_scans(void **state)
 {
     (void)state;
-    const char *shared = getenv("RHOSCAN_SHARED_DIR");
-    char path[1024];
-    struct stat st;
-    snprintf(path, sizeof path, "%s/reference/step_park/scan.ptx", shared ? shared : "");
-    if (!shared || stat(path, &st) != 0) skip();
+    const char *path = rs_test_shared_file("reference/step_park/scan.ptx");
+    if (!path) skip();
     rs_err err = {0};
     rs_cloud *c = rs_ptx_read(path, &err);
     if (!c) fail_msg("%s", err.msg);

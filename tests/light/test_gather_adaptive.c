@@ -53,8 +53,7 @@ static void test_adaptive_shadow_edge(void **state)
     rs_v3 sun;
     sun_sky(&cap, &env, &sun);
     const double target = 0.05;
-    rs_gather_ctx base = {
-        .scene = scene, .env = &env, .samples = 32, .sky_samples = 32, .sun_samples = 32, .seed = 3, .skip_convex = 1};
+    rs_gather_ctx base = rs_fx_gather_ctx(scene, &env, 32, 32, 3);
     rs_gather_ctx adapt = base, ref = base, off = base;
     adapt.target_error = target;
     off.target_error = 0;

@@ -80,8 +80,7 @@ static void test_run_threads_and_closure(void **state)
     rs_skyenv env;
     random_sky(256, &cap, &env);
     size_t nf = m->nfaces;
-    rs_gather_ctx g = {
-        .scene = scene, .env = &env, .samples = 64, .sky_samples = 64, .sun_samples = 16, .seed = 7, .skip_convex = 1};
+    rs_gather_ctx g = rs_fx_gather_ctx(scene, &env, 64, 16, 7);
     rs_facet_gather *one = calloc(nf, sizeof *one), *two = calloc(nf, sizeof *two), *part = calloc(nf, sizeof *part);
     rs_gather_stats st;
 #ifdef _OPENMP
@@ -182,14 +181,7 @@ static void test_sun_without_sun_rays(void **state)
     rs_skyenv env;
     random_sky(128, &cap, &env);
     rs_gather_scratch *s = rs_gather_scratch_new(1 << 18);
-    rs_gather_ctx with = {.scene = scene,
-                          .env = &env,
-                          .samples = 256,
-                          .sky_samples = 256,
-                          .sun_samples = 256,
-                          .seed = 3,
-                          .skip_convex = 1},
-                  without = with;
+    rs_gather_ctx with = rs_fx_gather_ctx(scene, &env, 256, 256, 3), without = with;
     without.sun_samples = 0;
     without.samples = 1 << 18; /* enough cosine rays to find the sun */
     rs_facet_gather a, b;
@@ -216,14 +208,7 @@ static void test_adaptive_sun(void **state)
     rs_skyenv env;
     random_sky(256, &cap, &env);
     rs_gather_scratch *s = rs_gather_scratch_new(1024);
-    rs_gather_ctx base = {.scene = scene,
-                          .env = &env,
-                          .samples = 64,
-                          .sky_samples = 64,
-                          .sun_samples = 16,
-                          .seed = 5,
-                          .skip_convex = 1},
-                  adapt = base, ref = base;
+    rs_gather_ctx base = rs_fx_gather_ctx(scene, &env, 64, 16, 5), adapt = base, ref = base;
     adapt.sun_target_error = 0.01;
     ref.sun_samples = 256;
     int lit_only = 0, extra = 0;
@@ -265,14 +250,7 @@ static void test_convex_skip(void **state)
     rs_skyenv env;
     random_sky(128, &cap, &env);
     rs_gather_scratch *s = rs_gather_scratch_new(64);
-    rs_gather_ctx on = {.scene = scene,
-                        .env = &env,
-                        .samples = 64,
-                        .sky_samples = 64,
-                        .sun_samples = 16,
-                        .seed = 9,
-                        .skip_convex = 1},
-                  off = on;
+    rs_gather_ctx on = rs_fx_gather_ctx(scene, &env, 64, 16, 9), off = on;
     off.skip_convex = 0;
     size_t skipped = 0;
     for (uint32_t f = 0; f < m->nfaces; f++) {

@@ -250,8 +250,7 @@ static void test_gather_uses_it(void **state)
     rs_skysh sh;
     assert_int_equal(rs_skysh_build(&env, 0.01, 256, &sh, &err), 0);
     assert_true(sh.usable);
-    rs_gather_ctx rays = {
-        .scene = scene, .env = &env, .samples = 64, .sky_samples = 64, .sun_samples = 16, .seed = 11, .skip_convex = 1};
+    rs_gather_ctx rays = rs_fx_gather_ctx(scene, &env, 64, 16, 11);
     rs_gather_ctx with = rays, many = rays;
     with.sky_sh = &sh;
     many.samples = many.sky_samples = 4096;

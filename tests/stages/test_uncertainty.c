@@ -161,13 +161,7 @@ static void test_mc_sigma(void **state)
         double sum = 0, sum_sq = 0, rep = 0;
         const int seeds = 128;
         for (int seed = 0; seed < seeds; seed++) {
-            rs_gather_ctx g = {.scene = scene,
-                               .env = &env,
-                               .samples = counts[c],
-                               .sky_samples = counts[c],
-                               .sun_samples = counts[c] / 4,
-                               .seed = (uint32_t)seed,
-                               .skip_convex = 1};
+            rs_gather_ctx g = rs_fx_gather_ctx(scene, &env, counts[c], counts[c] / 4, (uint32_t)seed);
             rs_facet_gather r;
             assert_int_equal(rs_gather_facet(&g, 2, s, &r), 0);
             double e = r.esky_lum;
@@ -212,13 +206,7 @@ static void test_mc_calibration(void **state)
     rs_facet_gather *fg = calloc(nf, sizeof *fg);
     rs_gather_stats st;
     for (int seed = 0; seed < SEEDS; seed++) {
-        rs_gather_ctx g = {.scene = scene,
-                           .env = &env,
-                           .samples = 64,
-                           .sky_samples = 64,
-                           .sun_samples = 16,
-                           .seed = (uint32_t)(100 + seed),
-                           .skip_convex = 1};
+        rs_gather_ctx g = rs_fx_gather_ctx(scene, &env, 64, 16, (uint32_t)(100 + seed));
         assert_int_equal(rs_gather_run(&g, nf, NULL, fg, NULL, NULL, &st), 0);
         double fac;
         size_t used;
