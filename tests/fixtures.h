@@ -43,8 +43,8 @@ void rs_fx_sky_env_opts(const rs_capture *cap, const float *facet_id, const rs_s
                         rs_skyenv_info *info);
 
 /* A w x w/2 sky of random luminance (0.05 to 1.05 per pixel, grey; 0 at every dark_every-th
- * pixel when dark_every > 0) with a sun of 6 x 3 pixels of radiance sun at about 40 degrees
- * elevation, and its sky map (sun sets up to 0.01 sr). */
+ * pixel when dark_every > 0) with a sun of 6 x 3 pixels of radiance sun about 45 degrees up,
+ * and its sky map (sun sets up to 0.01 sr). */
 void rs_fx_random_sky(int w, float sun, int dark_every, rs_capture *cap, rs_skyenv *env);
 
 /* ---- scenes ---- */

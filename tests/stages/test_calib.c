@@ -142,6 +142,16 @@ static void write_config(const char *dir, const char *frames, const char *extra)
     rs_test_write(rs_test_path(dir, "calib.ini"), text);
 }
 
+/* rhoscan-calib on dir/calib.ini succeeds; prints what it said. */
+static void expect_success(const char *dir)
+{
+    char *out = NULL;
+    int rc = run_calib(rs_test_path(dir, "calib.ini"), &out);
+    print_message("%s", out);
+    assert_int_equal(rc, 0);
+    free(out);
+}
+
 static void expect_failure(const char *dir, const char *needle)
 {
     char *out = NULL;
@@ -181,11 +191,7 @@ static void test_stitch_and_register(void **state)
     }
     fclose(f);
     write_config(dir, frames, "[capture]\ncorrespondences = pairs.txt\nposition = 11 -3 1\n");
-    char *out = NULL;
-    int rc = run_calib(rs_test_path(dir, "calib.ini"), &out);
-    print_message("%s", out);
-    assert_int_equal(rc, 0);
-    free(out);
+    expect_success(dir);
 
     /* The stitched panorama against the known one, leaving out pixels that any camera sees
      * within 8 px of its image border, and those no camera sees. */
@@ -315,11 +321,7 @@ static void test_brackets(void **state)
     char list[2048];
     write_brackets(dir, &rig, times, list, sizeof list);
     write_config(dir, list, "exposure_times_s = 0.005 0.02 0.08\n");
-    char *out = NULL;
-    int rc = run_calib(rs_test_path(dir, "calib.ini"), &out);
-    print_message("%s", out);
-    assert_int_equal(rc, 0);
-    free(out);
+    expect_success(dir);
     /* Debevec's radiance has one free scale: fix it by the median ratio, then compare. */
     rs_image *pano = rs_image_read(rs_test_path(dir, "out/" RS_CALIB_PANO_FILE), &err);
     assert_non_null(pano);
@@ -343,7 +345,8 @@ static void test_brackets(void **state)
     char extra[256];
     snprintf(extra, sizeof extra, "exposure_times_s = 0.005 0.02 0.08\nresponse_file = gamma.txt\n");
     write_config(dir, list, extra);
-    rc = run_calib(rs_test_path(dir, "calib.ini"), &out);
+    char *out = NULL;
+    int rc = run_calib(rs_test_path(dir, "calib.ini"), &out);
     if (rc != 0) print_message("%s", out);
     assert_int_equal(rc, 0);
     free(out);
