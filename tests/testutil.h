@@ -50,4 +50,13 @@ void rs_test_rhoscan(const char *dir, const char *sets);
  * 3 per facet (caller frees); *nf: the facet count. */
 double *rs_test_read_irradiance(const char *dir, int with_inter, size_t *nf);
 
+/* A test program's main(): runs the tests given (cmocka_unit_test(name), ...) as one group, with
+ * the group's setup and teardown (NULL: none); exits with the number of tests that failed. */
+#define RS_TEST_MAIN(group_setup, group_teardown, ...)                     \
+    int main(void)                                                         \
+    {                                                                      \
+        const struct CMUnitTest tests[] = {__VA_ARGS__};                   \
+        return cmocka_run_group_tests(tests, group_setup, group_teardown); \
+    }
+
 #endif

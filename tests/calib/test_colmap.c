@@ -295,11 +295,5 @@ static void test_stage(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_umeyama_synthetic), cmocka_unit_test(test_real_model), cmocka_unit_test(test_bad_files),
-        cmocka_unit_test(test_pose_file),         cmocka_unit_test(test_stage),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_umeyama_synthetic), cmocka_unit_test(test_real_model),
+             cmocka_unit_test(test_bad_files), cmocka_unit_test(test_pose_file), cmocka_unit_test(test_stage))

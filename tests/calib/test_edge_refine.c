@@ -277,12 +277,7 @@ static void test_calib_stage_featureless(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_recovers_perturbed_pose), cmocka_unit_test(test_recovers_other_perturbation),
-        cmocka_unit_test(test_featureless_refused),     cmocka_unit_test(test_model_out_of_sight_refused),
-        cmocka_unit_test(test_calib_stage_refines),     cmocka_unit_test(test_calib_stage_featureless),
-    };
-    return cmocka_run_group_tests(tests, setup, teardown);
-}
+RS_TEST_MAIN(setup, teardown, cmocka_unit_test(test_recovers_perturbed_pose),
+             cmocka_unit_test(test_recovers_other_perturbation), cmocka_unit_test(test_featureless_refused),
+             cmocka_unit_test(test_model_out_of_sight_refused), cmocka_unit_test(test_calib_stage_refines),
+             cmocka_unit_test(test_calib_stage_featureless))

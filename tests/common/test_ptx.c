@@ -265,18 +265,8 @@ static void test_reference_scans(void **state)
     rs_cloud_free(c);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_pdal_with_color),
-        cmocka_unit_test(test_pdal_complex_transform),
-        cmocka_unit_test(test_pdal_multiple_and_transform),
-        cmocka_unit_test(test_pdal_no_color),
-        cmocka_unit_test(test_synthetic_two_scans),
-        cmocka_unit_test(test_errors),
-        cmocka_unit_test(test_every_truncation),
-        cmocka_unit_test(test_read_file),
-        cmocka_unit_test(test_reference_scans),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_pdal_with_color), cmocka_unit_test(test_pdal_complex_transform),
+             cmocka_unit_test(test_pdal_multiple_and_transform), cmocka_unit_test(test_pdal_no_color),
+             cmocka_unit_test(test_synthetic_two_scans), cmocka_unit_test(test_errors),
+             cmocka_unit_test(test_every_truncation), cmocka_unit_test(test_read_file),
+             cmocka_unit_test(test_reference_scans))

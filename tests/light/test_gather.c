@@ -178,13 +178,5 @@ static void test_closed_cavity(void **state)
     rs_mesh_free(m);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_uniform_sky),
-        cmocka_unit_test(test_sun_pixel),
-        cmocka_unit_test(test_floor_wall_view_factor),
-        cmocka_unit_test(test_closed_cavity),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_uniform_sky), cmocka_unit_test(test_sun_pixel),
+             cmocka_unit_test(test_floor_wall_view_factor), cmocka_unit_test(test_closed_cavity))

@@ -174,11 +174,4 @@ static void test_adaptive_kernel_row(void **state)
     rs_fx_release(&env, &cap, scene, m);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_adaptive_shadow_edge),
-        cmocka_unit_test(test_adaptive_kernel_row),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_adaptive_shadow_edge), cmocka_unit_test(test_adaptive_kernel_row))

@@ -274,14 +274,6 @@ static void test_convex_skip(void **state)
     rs_fx_release(&env, &cap, scene, m);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_pick_matches_binary_search),
-        cmocka_unit_test(test_run_threads_and_closure),
-        cmocka_unit_test(test_sun_without_sun_rays),
-        cmocka_unit_test(test_adaptive_sun),
-        cmocka_unit_test(test_convex_skip),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_pick_matches_binary_search),
+             cmocka_unit_test(test_run_threads_and_closure), cmocka_unit_test(test_sun_without_sun_rays),
+             cmocka_unit_test(test_adaptive_sun), cmocka_unit_test(test_convex_skip))

@@ -122,10 +122,4 @@ static void test_ground_albedo_from_scan(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_ground_albedo_from_scan),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_ground_albedo_from_scan))

@@ -241,12 +241,5 @@ static void test_no_sun_found(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_clipped_sun),
-        cmocka_unit_test(test_sun_color),
-        cmocka_unit_test(test_no_sun_found),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_clipped_sun), cmocka_unit_test(test_sun_color),
+             cmocka_unit_test(test_no_sun_found))

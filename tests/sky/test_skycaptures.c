@@ -216,11 +216,4 @@ static void test_coarse_loses(void **state)
     free(ids);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_silhouette_loses),
-        cmocka_unit_test(test_coarse_loses),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_silhouette_loses), cmocka_unit_test(test_coarse_loses))

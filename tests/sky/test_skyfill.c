@@ -460,17 +460,7 @@ static void test_cv_on_coarser_map(void **state)
     assert_int_equal(order[1], order[0]);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_low_sun_courtyard),
-        cmocka_unit_test(test_ground_near_bands_and_model),
-        cmocka_unit_test(test_fill_sigma_grows_with_distance),
-        cmocka_unit_test(test_cv_on_coarser_map),
-        cmocka_unit_test(test_sky_panorama),
-        cmocka_unit_test(test_two_captures),
-        cmocka_unit_test(test_find_hidden_sun),
-        cmocka_unit_test(test_solar_position),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_low_sun_courtyard), cmocka_unit_test(test_ground_near_bands_and_model),
+             cmocka_unit_test(test_fill_sigma_grows_with_distance), cmocka_unit_test(test_cv_on_coarser_map),
+             cmocka_unit_test(test_sky_panorama), cmocka_unit_test(test_two_captures),
+             cmocka_unit_test(test_find_hidden_sun), cmocka_unit_test(test_solar_position))

@@ -311,11 +311,5 @@ static void test_gather_uses_it(void **state)
     rs_fx_release(&env, &cap, scene, m);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_smooth_sky_is_exact), cmocka_unit_test(test_closed_form),    cmocka_unit_test(test_sun),
-        cmocka_unit_test(test_local_bound),         cmocka_unit_test(test_gather_uses_it),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_smooth_sky_is_exact), cmocka_unit_test(test_closed_form),
+             cmocka_unit_test(test_sun), cmocka_unit_test(test_local_bound), cmocka_unit_test(test_gather_uses_it))

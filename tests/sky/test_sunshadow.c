@@ -422,16 +422,7 @@ static void test_cues_disagree(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_estimator),
-        cmocka_unit_test(test_fallback),
-        cmocka_unit_test(test_hidden_sun),
-        cmocka_unit_test(test_searched_sun),
-        cmocka_unit_test(test_searched_sun_refits_model),
-        cmocka_unit_test(test_no_sun_to_find),
-        cmocka_unit_test(test_cues_disagree),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_estimator), cmocka_unit_test(test_fallback),
+             cmocka_unit_test(test_hidden_sun), cmocka_unit_test(test_searched_sun),
+             cmocka_unit_test(test_searched_sun_refits_model), cmocka_unit_test(test_no_sun_to_find),
+             cmocka_unit_test(test_cues_disagree))

@@ -467,9 +467,5 @@ static void test_facet_size_from_rig(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {cmocka_unit_test(test_stitch_and_register), cmocka_unit_test(test_brackets),
-                                       cmocka_unit_test(test_facet_size_from_rig)};
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_stitch_and_register), cmocka_unit_test(test_brackets),
+             cmocka_unit_test(test_facet_size_from_rig))

@@ -199,13 +199,7 @@ static void test_reruns(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_misspelt_key),     cmocka_unit_test(test_bad_value_and_rotation),
-        cmocka_unit_test(test_missing_file),     cmocka_unit_test(test_truncated_ptx),
-        cmocka_unit_test(test_truncated_ply),    cmocka_unit_test(test_pano_not_2_to_1),
-        cmocka_unit_test(test_nonfinite_pixels), cmocka_unit_test(test_reruns),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_misspelt_key), cmocka_unit_test(test_bad_value_and_rotation),
+             cmocka_unit_test(test_missing_file), cmocka_unit_test(test_truncated_ptx),
+             cmocka_unit_test(test_truncated_ply), cmocka_unit_test(test_pano_not_2_to_1),
+             cmocka_unit_test(test_nonfinite_pixels), cmocka_unit_test(test_reruns))

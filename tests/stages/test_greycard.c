@@ -107,8 +107,4 @@ static void test_grey_card(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {cmocka_unit_test(test_grey_card)};
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_grey_card))

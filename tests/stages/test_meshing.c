@@ -456,13 +456,7 @@ static void test_two_planes_reference(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_plane_orientation),    cmocka_unit_test(test_depth_discontinuity),
-        cmocka_unit_test(test_open_sweep),           cmocka_unit_test(test_grazing),
-        cmocka_unit_test(test_stages_synthetic),     cmocka_unit_test(test_input_mesh),
-        cmocka_unit_test(test_programs_unorganized), cmocka_unit_test(test_two_planes_reference),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_plane_orientation), cmocka_unit_test(test_depth_discontinuity),
+             cmocka_unit_test(test_open_sweep), cmocka_unit_test(test_grazing), cmocka_unit_test(test_stages_synthetic),
+             cmocka_unit_test(test_input_mesh), cmocka_unit_test(test_programs_unorganized),
+             cmocka_unit_test(test_two_planes_reference))

@@ -702,16 +702,7 @@ static void test_reference_two_scans(void **state)
     if (!any) skip();
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_text_reader),
-        cmocka_unit_test(test_pcd_reader),
-        cmocka_unit_test(test_cleaning),
-        cmocka_unit_test(test_georeferenced_text),
-        cmocka_unit_test(test_georeferenced_ptx),
-        cmocka_unit_test(test_reference_single),
-        cmocka_unit_test(test_reference_two_scans),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_text_reader), cmocka_unit_test(test_pcd_reader),
+             cmocka_unit_test(test_cleaning), cmocka_unit_test(test_georeferenced_text),
+             cmocka_unit_test(test_georeferenced_ptx), cmocka_unit_test(test_reference_single),
+             cmocka_unit_test(test_reference_two_scans))

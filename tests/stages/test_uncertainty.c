@@ -240,12 +240,5 @@ static void test_mc_calibration(void **state)
     rs_fx_release(&env, &cap, scene, m);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_radiance_sigma),
-        cmocka_unit_test(test_mc_sigma),
-        cmocka_unit_test(test_mc_calibration),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_radiance_sigma), cmocka_unit_test(test_mc_sigma),
+             cmocka_unit_test(test_mc_calibration))

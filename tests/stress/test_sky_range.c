@@ -78,10 +78,4 @@ static void test_sun_over_shadows(void **state)
     rs_image_free(pano);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_sun_over_shadows),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_sun_over_shadows))
