@@ -49,6 +49,18 @@ void rs_test_write(const char *path, const char *text)
     assert_int_equal(fclose(f), 0);
 }
 
+const char *rs_test_shared_file(const char *rel)
+{
+    static char buf[4][4096];
+    static int next;
+    const char *shared = getenv("RHOSCAN_SHARED_DIR");
+    struct stat st;
+    if (!shared) return NULL;
+    char *b = buf[next++ % 4];
+    snprintf(b, sizeof buf[0], "%s/%s", shared, rel);
+    return stat(b, &st) == 0 ? b : NULL;
+}
+
 const char *rs_test_shared_dir(void)
 {
     const char *d = getenv("RHOSCAN_SHARED_DIR");

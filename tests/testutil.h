@@ -32,6 +32,9 @@ void rs_test_json_rgb(const char *path, const char *key, double v[3]);
 /* RHOSCAN_SHARED_DIR when it exists. When it does not: prints why and exits 77 (ctest skip),
  * or exits 1 under CI=true, where the data must be there. */
 const char *rs_test_shared_dir(void);
+/* RHOSCAN_SHARED_DIR/rel when the variable is set and the file is there, else NULL (the test
+ * then skips: skip()); a static buffer (4 slots). */
+const char *rs_test_shared_file(const char *rel);
 /* The source tree and the build tree (set by ctest). */
 const char *rs_test_source_dir(void);
 const char *rs_test_bin_dir(void);
@@ -46,5 +49,14 @@ void rs_test_rhoscan(const char *dir, const char *sets);
 /* irradiance_sky (+ irradiance_inter when with_inter) of every facet in dir/work/irradiance.ply,
  * 3 per facet (caller frees); *nf: the facet count. */
 double *rs_test_read_irradiance(const char *dir, int with_inter, size_t *nf);
+
+/* A test program's main(): runs the tests given (cmocka_unit_test(name), ...) as one group, with
+ * the group's setup and teardown (NULL: none); exits with the number of tests that failed. */
+#define RS_TEST_MAIN(group_setup, group_teardown, ...)                     \
+    int main(void)                                                         \
+    {                                                                      \
+        const struct CMUnitTest tests[] = {__VA_ARGS__};                   \
+        return cmocka_run_group_tests(tests, group_setup, group_teardown); \
+    }
 
 #endif

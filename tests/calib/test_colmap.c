@@ -163,14 +163,21 @@ static void test_real_model(void **state)
     rs_colmap_release(&m);
 }
 
+/* A fresh folder holding a text model of the three files. */
+static const char *write_model(const char *tag, const char *cams, const char *imgs, const char *pts)
+{
+    const char *dir = rs_test_tmpdir(tag);
+    rs_test_write(rs_test_path(dir, "cameras.txt"), cams);
+    rs_test_write(rs_test_path(dir, "images.txt"), imgs);
+    rs_test_write(rs_test_path(dir, "points3D.txt"), pts);
+    return dir;
+}
+
 /* A bad model file: the error names the file, the line and the field. */
 static void expect_model_error(const char *cams, const char *imgs, const char *pts, const char *file, long line,
                                const char *text)
 {
-    const char *dir = rs_test_tmpdir("colmap_bad");
-    rs_test_write(rs_test_path(dir, "cameras.txt"), cams);
-    rs_test_write(rs_test_path(dir, "images.txt"), imgs);
-    rs_test_write(rs_test_path(dir, "points3D.txt"), pts);
+    const char *dir = write_model("colmap_bad", cams, imgs, pts);
     rs_colmap_model m;
     rs_err err = {0};
     assert_int_equal(rs_colmap_read(dir, &m, &err), -1);
@@ -186,10 +193,7 @@ static void test_bad_files(void **state)
     const char *imgs = "# i\n1 1 0 0 0 0 0 0 1 a.png\n10 20 7 11 30 -1\n2 1 0 0 0 1 0 0 1 b.png\n\n";
     const char *pts = "7 1 2 3 255 0 0 0.5 1 0\n";
     /* The good files read. */
-    const char *dir = rs_test_tmpdir("colmap_good");
-    rs_test_write(rs_test_path(dir, "cameras.txt"), cams);
-    rs_test_write(rs_test_path(dir, "images.txt"), imgs);
-    rs_test_write(rs_test_path(dir, "points3D.txt"), pts);
+    const char *dir = write_model("colmap_good", cams, imgs, pts);
     rs_colmap_model m;
     rs_err err = {0};
     assert_int_equal(rs_colmap_read(dir, &m, &err), 0);
@@ -291,11 +295,5 @@ static void test_stage(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_umeyama_synthetic), cmocka_unit_test(test_real_model), cmocka_unit_test(test_bad_files),
-        cmocka_unit_test(test_pose_file),         cmocka_unit_test(test_stage),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_umeyama_synthetic), cmocka_unit_test(test_real_model),
+             cmocka_unit_test(test_bad_files), cmocka_unit_test(test_pose_file), cmocka_unit_test(test_stage))

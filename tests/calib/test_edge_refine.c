@@ -10,6 +10,7 @@
 #include "calib/edge_refine.h"
 #include "common/fileio.h"
 #include "common/log.h"
+#include "tests/fixtures.h"
 #include "tests/meshgen.h"
 #include "tests/testutil.h"
 
@@ -214,15 +215,10 @@ static const char *write_run(fixture *f, const char *tag, const rs_image *pano, 
 {
     const char *dir = rs_test_tmpdir(tag);
     char out[4096], text[4096];
-    rs_err err;
     snprintf(out, sizeof out, "%s/out", dir);
     assert_int_equal(mkdir(out, 0777), 0);
-    rs_ply *ply = rs_ply_new();
-    rs_mesh_to_ply(f->mesh, ply);
-    assert_int_equal(rs_ply_write(ply, rs_test_path(out, "mesh.ply"), 1, &err), 0);
-    rs_ply_free(ply);
-    static const char *const names[] = {"R", "G", "B"};
-    assert_int_equal(rs_image_write_exr(pano, rs_test_path(dir, "pano.exr"), names, 0, NULL, &err), 0);
+    rs_meshgen_write(f->mesh, rs_test_path(out, "mesh.ply"));
+    rs_fx_write_pano(pano, dir);
     const double *r = start->rot;
     snprintf(text, sizeof text,
              "[pipeline]\nworkdir = out\n[capture]\npanorama = pano.exr\nposition = %.17g %.17g "
@@ -233,11 +229,16 @@ static const char *write_run(fixture *f, const char *tag, const rs_image *pano, 
     return dir;
 }
 
-static int run_calib(const char *dir, char **output)
+/* Runs rhoscan-calib on dir/calib.ini: it must exit with rc, saying needle. */
+static void expect_calib(const char *dir, int rc, const char *needle)
 {
-    char cmd[4096];
+    char cmd[4096], *output = NULL;
     snprintf(cmd, sizeof cmd, "'%s/rhoscan-calib' '%s'", rs_test_bin_dir(), rs_test_path(dir, "calib.ini"));
-    return rs_test_run(cmd, output);
+    int got = rs_test_run(cmd, &output);
+    print_message("exit %d: %s", got, output);
+    assert_int_equal(got, rc);
+    assert_non_null(strstr(output, needle));
+    free(output);
 }
 
 /* The calib stage with [capture] refine_edges: the refined pose lands in capture_pose.txt, where
@@ -247,12 +248,7 @@ static void test_calib_stage_refines(void **state)
     fixture *f = *state;
     rs_pose start = perturbed(&f->truth, rs_v3_make(0.2, -1, 0.5), 2.0, rs_v3_make(0.3, 1, 0.1), 0.3);
     const char *dir = write_run(f, "edge_stage", f->pano, &start);
-    char *output = NULL;
-    int rc = run_calib(dir, &output);
-    print_message("exit %d: %s", rc, output);
-    assert_int_equal(rc, 0);
-    assert_non_null(strstr(output, "edges refined the pose"));
-    free(output);
+    expect_calib(dir, 0, "edges refined the pose");
     rs_pose got;
     rs_err err;
     char pose_dir[4096];
@@ -277,21 +273,11 @@ static void test_calib_stage_featureless(void **state)
     for (size_t k = 0; k < (size_t)512 * 256 * 3; k++) flat->data[k] = 0.7f;
     const char *dir = write_run(f, "edge_flat", flat, &f->truth);
     rs_image_free(flat);
-    char *output = NULL;
-    int rc = run_calib(dir, &output);
-    print_message("exit %d: %s", rc, output);
-    assert_int_equal(rc, 1);
-    assert_non_null(strstr(output, "[capture] refine_edges = true: the panorama shows 0 edge pixels"));
-    free(output);
+    expect_calib(dir, 1, "[capture] refine_edges = true: the panorama shows 0 edge pixels");
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_recovers_perturbed_pose), cmocka_unit_test(test_recovers_other_perturbation),
-        cmocka_unit_test(test_featureless_refused),     cmocka_unit_test(test_model_out_of_sight_refused),
-        cmocka_unit_test(test_calib_stage_refines),     cmocka_unit_test(test_calib_stage_featureless),
-    };
-    return cmocka_run_group_tests(tests, setup, teardown);
-}
+RS_TEST_MAIN(setup, teardown, cmocka_unit_test(test_recovers_perturbed_pose),
+             cmocka_unit_test(test_recovers_other_perturbation), cmocka_unit_test(test_featureless_refused),
+             cmocka_unit_test(test_model_out_of_sight_refused), cmocka_unit_test(test_calib_stage_refines),
+             cmocka_unit_test(test_calib_stage_featureless))

@@ -62,8 +62,4 @@ static void test_merge_and_clipped_sun(void **state)
     rs_image_free(truth);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {cmocka_unit_test(test_merge_and_clipped_sun)};
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_merge_and_clipped_sun))

@@ -182,12 +182,6 @@ static void test_pairs_file(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_align_similarity), cmocka_unit_test(test_register_noise_outliers),
-        cmocka_unit_test(test_register_guess),   cmocka_unit_test(test_register_errors),
-        cmocka_unit_test(test_pairs_file),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_align_similarity), cmocka_unit_test(test_register_noise_outliers),
+             cmocka_unit_test(test_register_guess), cmocka_unit_test(test_register_errors),
+             cmocka_unit_test(test_pairs_file))

@@ -148,12 +148,5 @@ static void test_bad_rig_files(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_projection_matches_opencv),
-        cmocka_unit_test(test_fold_back),
-        cmocka_unit_test(test_bad_rig_files),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_projection_matches_opencv), cmocka_unit_test(test_fold_back),
+             cmocka_unit_test(test_bad_rig_files))

@@ -378,12 +378,5 @@ static void test_calib_stage(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_parallax_corrected),
-        cmocka_unit_test(test_sky),
-        cmocka_unit_test(test_calib_stage),
-    };
-    return cmocka_run_group_tests(tests, setup, teardown);
-}
+RS_TEST_MAIN(setup, teardown, cmocka_unit_test(test_parallax_corrected), cmocka_unit_test(test_sky),
+             cmocka_unit_test(test_calib_stage))

@@ -169,12 +169,5 @@ static void test_corrupt(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_round_trip),
-        cmocka_unit_test(test_append_and_foreign),
-        cmocka_unit_test(test_corrupt),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_round_trip), cmocka_unit_test(test_append_and_foreign),
+             cmocka_unit_test(test_corrupt))

@@ -506,26 +506,11 @@ static void test_keys_md(void **state)
                  path);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_defaults),
-        cmocka_unit_test(test_file_values_and_comments),
-        cmocka_unit_test(test_precedence),
-        cmocka_unit_test(test_unknown_names),
-        cmocka_unit_test(test_bad_values),
-        cmocka_unit_test(test_duplicates),
-        cmocka_unit_test(test_missing_and_binary_files),
-        cmocka_unit_test(test_override_errors),
-        cmocka_unit_test(test_capture_sections),
-        cmocka_unit_test(test_rotation),
-        cmocka_unit_test(test_long_lines),
-        cmocka_unit_test(test_paths),
-        cmocka_unit_test(test_section_text),
-        cmocka_unit_test(test_table_and_checker),
-        cmocka_unit_test(test_getter_misuse_aborts),
-        cmocka_unit_test(test_garbage),
-        cmocka_unit_test(test_keys_md),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_defaults), cmocka_unit_test(test_file_values_and_comments),
+             cmocka_unit_test(test_precedence), cmocka_unit_test(test_unknown_names), cmocka_unit_test(test_bad_values),
+             cmocka_unit_test(test_duplicates), cmocka_unit_test(test_missing_and_binary_files),
+             cmocka_unit_test(test_override_errors), cmocka_unit_test(test_capture_sections),
+             cmocka_unit_test(test_rotation), cmocka_unit_test(test_long_lines), cmocka_unit_test(test_paths),
+             cmocka_unit_test(test_section_text), cmocka_unit_test(test_table_and_checker),
+             cmocka_unit_test(test_getter_misuse_aborts), cmocka_unit_test(test_garbage),
+             cmocka_unit_test(test_keys_md))

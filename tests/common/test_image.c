@@ -825,29 +825,13 @@ static void test_blender_dwa(void **state)
     rs_image_free(img);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_srgb),
-        cmocka_unit_test(test_png_codes_exact),
-        cmocka_unit_test(test_new_rejects_bad_sizes),
-        cmocka_unit_test(test_exr_round_trip),
-        cmocka_unit_test(test_exr_many_chunks),
-        cmocka_unit_test(test_exr_note_and_determinism),
-        cmocka_unit_test(test_exr_windows_tiles_types),
-        cmocka_unit_test(test_exr_channel_errors),
-        cmocka_unit_test(test_exr_write_failure),
-        cmocka_unit_test(test_hdr_from_memory),
-        cmocka_unit_test(test_hdr_nul_header_zero_run),
-        cmocka_unit_test(test_png_chunk_past_end),
-        cmocka_unit_test(test_exr_subsampled_channel),
-        cmocka_unit_test(test_png_linearised),
-        cmocka_unit_test(test_jpeg_and_stb_guards),
-        cmocka_unit_test(test_png_preview_round_trip),
-        cmocka_unit_test(test_bad_inputs),
-        cmocka_unit_test(test_shared_pano_exr),
-        cmocka_unit_test(test_shared_sky_hdr),
-        cmocka_unit_test(test_blender_dwa),
-    };
-    return cmocka_run_group_tests(tests, setup, teardown);
-}
+RS_TEST_MAIN(setup, teardown, cmocka_unit_test(test_srgb), cmocka_unit_test(test_png_codes_exact),
+             cmocka_unit_test(test_new_rejects_bad_sizes), cmocka_unit_test(test_exr_round_trip),
+             cmocka_unit_test(test_exr_many_chunks), cmocka_unit_test(test_exr_note_and_determinism),
+             cmocka_unit_test(test_exr_windows_tiles_types), cmocka_unit_test(test_exr_channel_errors),
+             cmocka_unit_test(test_exr_write_failure), cmocka_unit_test(test_hdr_from_memory),
+             cmocka_unit_test(test_hdr_nul_header_zero_run), cmocka_unit_test(test_png_chunk_past_end),
+             cmocka_unit_test(test_exr_subsampled_channel), cmocka_unit_test(test_png_linearised),
+             cmocka_unit_test(test_jpeg_and_stb_guards), cmocka_unit_test(test_png_preview_round_trip),
+             cmocka_unit_test(test_bad_inputs), cmocka_unit_test(test_shared_pano_exr),
+             cmocka_unit_test(test_shared_sky_hdr), cmocka_unit_test(test_blender_dwa))

@@ -146,13 +146,5 @@ static void test_vertex_index(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_read_polygons),
-        cmocka_unit_test(test_round_trip),
-        cmocka_unit_test(test_errors),
-        cmocka_unit_test(test_vertex_index),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_read_polygons), cmocka_unit_test(test_round_trip),
+             cmocka_unit_test(test_errors), cmocka_unit_test(test_vertex_index))

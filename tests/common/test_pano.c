@@ -81,14 +81,6 @@ static void test_bilinear(void **state)
     rs_image_free(img);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_axes),
-        cmocka_unit_test(test_round_trip),
-        cmocka_unit_test(test_solid_angle_sums_to_sphere),
-        cmocka_unit_test(test_pose),
-        cmocka_unit_test(test_bilinear),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_axes), cmocka_unit_test(test_round_trip),
+             cmocka_unit_test(test_solid_angle_sums_to_sphere), cmocka_unit_test(test_pose),
+             cmocka_unit_test(test_bilinear))

@@ -590,17 +590,10 @@ static void test_shared_truth(void **state)
     rs_ply_free(ply);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_roundtrip_ascii),    cmocka_unit_test(test_roundtrip_binary),
-        cmocka_unit_test(test_ascii_text),         cmocka_unit_test(test_convert_saturate),
-        cmocka_unit_test(test_big_endian),         cmocka_unit_test(test_foreign_header),
-        cmocka_unit_test(test_header_errors),      cmocka_unit_test(test_ascii_data_errors),
-        cmocka_unit_test(test_binary_data_errors), cmocka_unit_test(test_truncated_binary),
-        cmocka_unit_test(test_mutations),          cmocka_unit_test(test_builders),
-        cmocka_unit_test(test_write_errors),       cmocka_unit_test(test_large_binary),
-        cmocka_unit_test(test_shared_truth),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_roundtrip_ascii), cmocka_unit_test(test_roundtrip_binary),
+             cmocka_unit_test(test_ascii_text), cmocka_unit_test(test_convert_saturate),
+             cmocka_unit_test(test_big_endian), cmocka_unit_test(test_foreign_header),
+             cmocka_unit_test(test_header_errors), cmocka_unit_test(test_ascii_data_errors),
+             cmocka_unit_test(test_binary_data_errors), cmocka_unit_test(test_truncated_binary),
+             cmocka_unit_test(test_mutations), cmocka_unit_test(test_builders), cmocka_unit_test(test_write_errors),
+             cmocka_unit_test(test_large_binary), cmocka_unit_test(test_shared_truth))

@@ -313,13 +313,5 @@ static void test_transport_read(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_write_same_bytes),
-        cmocka_unit_test(test_read_same_values),
-        cmocka_unit_test(test_read_errors),
-        cmocka_unit_test(test_transport_read),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_write_same_bytes), cmocka_unit_test(test_read_same_values),
+             cmocka_unit_test(test_read_errors), cmocka_unit_test(test_transport_read))

@@ -249,11 +249,8 @@ static void test_read_file(void **state)
 static void test_reference_scans(void **state)
 {
     (void)state;
-    const char *shared = getenv("RHOSCAN_SHARED_DIR");
-    char path[1024];
-    struct stat st;
-    snprintf(path, sizeof path, "%s/reference/step_park/scan.ptx", shared ? shared : "");
-    if (!shared || stat(path, &st) != 0) skip();
+    const char *path = rs_test_shared_file("reference/step_park/scan.ptx");
+    if (!path) skip();
     rs_err err = {0};
     rs_cloud *c = rs_ptx_read(path, &err);
     if (!c) fail_msg("%s", err.msg);
@@ -268,18 +265,8 @@ static void test_reference_scans(void **state)
     rs_cloud_free(c);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_pdal_with_color),
-        cmocka_unit_test(test_pdal_complex_transform),
-        cmocka_unit_test(test_pdal_multiple_and_transform),
-        cmocka_unit_test(test_pdal_no_color),
-        cmocka_unit_test(test_synthetic_two_scans),
-        cmocka_unit_test(test_errors),
-        cmocka_unit_test(test_every_truncation),
-        cmocka_unit_test(test_read_file),
-        cmocka_unit_test(test_reference_scans),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_pdal_with_color), cmocka_unit_test(test_pdal_complex_transform),
+             cmocka_unit_test(test_pdal_multiple_and_transform), cmocka_unit_test(test_pdal_no_color),
+             cmocka_unit_test(test_synthetic_two_scans), cmocka_unit_test(test_errors),
+             cmocka_unit_test(test_every_truncation), cmocka_unit_test(test_read_file),
+             cmocka_unit_test(test_reference_scans))

@@ -113,12 +113,6 @@ static void test_sincos_pi(void **state)
     }
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_sobol_stratified),  cmocka_unit_test(test_sobol_seeds_differ),
-        cmocka_unit_test(test_cosine_hemisphere), cmocka_unit_test(test_triangle_points),
-        cmocka_unit_test(test_sobol_reference),   cmocka_unit_test(test_sincos_pi),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_sobol_stratified), cmocka_unit_test(test_sobol_seeds_differ),
+             cmocka_unit_test(test_cosine_hemisphere), cmocka_unit_test(test_triangle_points),
+             cmocka_unit_test(test_sobol_reference), cmocka_unit_test(test_sincos_pi))

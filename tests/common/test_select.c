@@ -72,8 +72,4 @@ static void test_select_matches_sort(void **state)
     check_all_k(v, N);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {cmocka_unit_test(test_select_matches_sort)};
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_select_matches_sort))

@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "light/gather.h"
+#include "tests/fixtures.h"
 #include "tests/meshgen.h"
 #include "tests/testutil.h"
 #include "light/transport.h"
@@ -39,20 +40,14 @@ static rs_facet_gather gather_one(const rs_scene *scene, const rs_skyenv *env, u
 static void test_uniform_sky(void **state)
 {
     (void)state;
-    rs_meshgen g = rs_meshgen_new(16, 8);
-    rs_meshgen_rect(&g, rs_v3_make(0, 0, 0), rs_v3_make(1, 0, 0), rs_v3_make(0, 1, 0), 1, 1);
-    rs_mesh *m = rs_meshgen_done(&g);
-    rs_err err;
-    rs_scene *scene = rs_scene_new(m, &err);
-    assert_non_null(scene);
+    rs_mesh *m = rs_fx_unit_square();
+    rs_scene *scene = rs_fx_scene(m);
     rs_skyenv env = uniform_env(256, 2.0f);
     rs_facet_gather out = gather_one(scene, &env, 0, 256, 0);
     for (int ch = 0; ch < 3; ch++) assert_true(fabs(out.esky[ch] - 2 * M_PI) / (2 * M_PI) < 0.005);
     assert_int_equal(out.nentries, 0);
     free(out.entries);
-    rs_skyenv_release(&env);
-    rs_scene_free(scene);
-    rs_mesh_free(m);
+    rs_fx_release(&env, NULL, scene, m);
 }
 
 /* A dark sky with one bright pixel (a sun at 30 degrees elevation): explicit sampling must give
@@ -60,24 +55,13 @@ static void test_uniform_sky(void **state)
 static void test_sun_pixel(void **state)
 {
     (void)state;
-    rs_meshgen g = rs_meshgen_new(16, 8);
-    rs_meshgen_rect(&g, rs_v3_make(0, 0, 0), rs_v3_make(1, 0, 0), rs_v3_make(0, 1, 0), 1, 1);
-    rs_mesh *m = rs_meshgen_done(&g);
-    rs_err err;
-    rs_scene *scene = rs_scene_new(m, &err);
+    rs_mesh *m = rs_fx_unit_square();
+    rs_scene *scene = rs_fx_scene(m);
     int w = 512, h = 256;
-    rs_capture cap;
-    memset(&cap, 0, sizeof cap);
-    cap.pano = rs_image_new(w, h, 3);
-    rs_m3_identity(cap.pose.rot);
-    for (size_t k = 0; k < 3 * (size_t)w * h; k++) cap.pano->data[k] = 0.01f;
     int sr = h / 3, sc = w / 2 + 10; /* polar angle ~60 degrees */
-    float *px = rs_image_px(cap.pano, sc, sr);
-    px[0] = px[1] = px[2] = 1e5f;
-    float *ids = malloc((size_t)w * h * sizeof *ids);
-    for (size_t k = 0; k < (size_t)w * h; k++) ids[k] = -1;
+    rs_capture cap = rs_fx_sun_pixel_capture(w, h, 0.01f, 1e5f, sc, sr);
     rs_skyenv env;
-    assert_int_equal(rs_skyenv_build(&cap, ids, 50, 0.01, 1, &env, &err), 0);
+    rs_fx_sky_env(&cap, 0.01, 1, &env);
     assert_int_equal(env.bright_pixels, 1);
     assert_non_null(env.cdf);
     /* Exact value for the piecewise-constant map: sum over the upper hemisphere's pixels. */
@@ -95,11 +79,7 @@ static void test_sun_pixel(void **state)
     print_message("sun part: %.5g, expected %.5g\n", out.esun[0], sun);
     assert_true(fabs(out.esun[0] - sun) / sun < 0.005);
     free(out.entries);
-    free(ids);
-    rs_skyenv_release(&env);
-    rs_capture_release(&cap);
-    rs_scene_free(scene);
-    rs_mesh_free(m);
+    rs_fx_release(&env, &cap, scene, m);
 }
 
 /* Floor and a wall meeting at 90 degrees, long and high enough to be infinite-ish: a floor
@@ -114,9 +94,7 @@ static void test_floor_wall_view_factor(void **state)
     rs_meshgen_rect(&g, rs_v3_make(-0.05, -x - 0.05, 0), rs_v3_make(0.1, 0, 0), rs_v3_make(0, 0.1, 0), 1, 1);
     size_t wall = rs_meshgen_rect(&g, rs_v3_make(-len / 2, 0, 0), rs_v3_make(0, 0, H), rs_v3_make(len, 0, 0), 4, 4);
     rs_mesh *m = rs_meshgen_done(&g);
-    rs_err err;
-    rs_scene *scene = rs_scene_new(m, &err);
-    assert_non_null(scene);
+    rs_scene *scene = rs_fx_scene(m);
     rs_skyenv env = uniform_env(512, 1.0f);
     rs_facet_gather out = gather_one(scene, &env, 0, 4096, 0);
     double F = 0.5 * (1 - x / sqrt(x * x + H * H)), kwall = 0;
@@ -129,9 +107,7 @@ static void test_floor_wall_view_factor(void **state)
     assert_true(fabs(kwall / M_PI - F) / F < 0.005);
     assert_true(fabs(out.esky[0] / M_PI - (1 - F)) / (1 - F) < 0.005);
     free(out.entries);
-    rs_skyenv_release(&env);
-    rs_scene_free(scene);
-    rs_mesh_free(m);
+    rs_fx_release(&env, NULL, scene, m);
 }
 
 /* A closed box seen from inside: every ray hits, so K's rows sum to pi; the forward solve with
@@ -142,9 +118,7 @@ static void test_closed_cavity(void **state)
     rs_meshgen g = rs_meshgen_new(6 * 25, 6 * 32);
     rs_meshgen_box(&g, rs_v3_make(0, 0, 0), rs_v3_make(2, 3, 1.5), 4, 1);
     rs_mesh *m = rs_meshgen_done(&g);
-    rs_err err;
-    rs_scene *scene = rs_scene_new(m, &err);
-    assert_non_null(scene);
+    rs_scene *scene = rs_fx_scene(m);
     size_t nf = m->nfaces, ne = 0;
     rs_facet_gather *rows = calloc(nf, sizeof *rows);
     for (uint32_t f = 0; f < nf; f++) {
@@ -204,13 +178,5 @@ static void test_closed_cavity(void **state)
     rs_mesh_free(m);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_uniform_sky),
-        cmocka_unit_test(test_sun_pixel),
-        cmocka_unit_test(test_floor_wall_view_factor),
-        cmocka_unit_test(test_closed_cavity),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_uniform_sky), cmocka_unit_test(test_sun_pixel),
+             cmocka_unit_test(test_floor_wall_view_factor), cmocka_unit_test(test_closed_cavity))

@@ -4,6 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "light/gather.h"
+#include "tests/fixtures.h"
 #include "tests/meshgen.h"
 #include "tests/testutil.h"
 
@@ -15,20 +16,11 @@ static const double WALL_BOTTOM = 0.404, WALL_TOP = 6, WALL_X = 0.05; /* wall fa
 static void sun_sky(rs_capture *cap, rs_skyenv *env, rs_v3 *sun)
 {
     int w = 512, h = 256;
-    memset(cap, 0, sizeof *cap);
-    cap->pano = rs_image_new(w, h, 3);
-    rs_m3_identity(cap->pose.rot);
-    for (size_t k = 0; k < 3 * (size_t)w * h; k++) cap->pano->data[k] = 1.0f;
     int sr = h / 3, sc = w / 2; /* polar angle 60 degrees, azimuth 0 */
-    float *px = rs_image_px(cap->pano, sc, sr);
-    px[0] = px[1] = px[2] = 1e6f;
+    *cap = rs_fx_sun_pixel_capture(w, h, 1.0f, 1e6f, sc, sr);
     *sun = rs_pano_pixel_dir(w, h, sc, sr);
-    float *ids = malloc((size_t)w * h * sizeof *ids);
-    for (size_t k = 0; k < (size_t)w * h; k++) ids[k] = -1;
-    rs_err err;
-    assert_int_equal(rs_skyenv_build(cap, ids, 50, 0.01, 1, env, &err), 0);
+    rs_fx_sky_env(cap, 0.01, 1, env);
     assert_int_equal(env->bright_pixels, 1);
-    free(ids);
 }
 
 /* -1: facet f of the floor lies in the wall's shadow, 1 in the sun (each with a margin for the
@@ -55,16 +47,13 @@ static void test_adaptive_shadow_edge(void **state)
     rs_meshgen_box(&mg, rs_v3_make(-WALL_X, -20, WALL_BOTTOM), rs_v3_make(2 * WALL_X, 40, WALL_TOP - WALL_BOTTOM), 1,
                    0);
     rs_mesh *m = rs_meshgen_done(&mg);
-    rs_err err;
-    rs_scene *scene = rs_scene_new(m, &err);
-    assert_non_null(scene);
+    rs_scene *scene = rs_fx_scene(m);
     rs_capture cap;
     rs_skyenv env;
     rs_v3 sun;
     sun_sky(&cap, &env, &sun);
     const double target = 0.05;
-    rs_gather_ctx base = {
-        .scene = scene, .env = &env, .samples = 32, .sky_samples = 32, .sun_samples = 32, .seed = 3, .skip_convex = 1};
+    rs_gather_ctx base = rs_fx_gather_ctx(scene, &env, 32, 32, 3);
     rs_gather_ctx adapt = base, ref = base, off = base;
     adapt.target_error = target;
     off.target_error = 0;
@@ -119,10 +108,7 @@ static void test_adaptive_shadow_edge(void **state)
         free(a.entries), free(b.entries);
     }
     rs_gather_scratch_free(s);
-    rs_skyenv_release(&env);
-    rs_capture_release(&cap);
-    rs_scene_free(scene);
-    rs_mesh_free(m);
+    rs_fx_release(&env, &cap, scene, m);
 }
 
 /* Rays into K count the hit facet's radiance in the stopping rule: under a dark sky, floor
@@ -144,9 +130,7 @@ static void test_adaptive_kernel_row(void **state)
     size_t nfloor = mg.nf;
     rs_meshgen_rect(&mg, rs_v3_make(-2, 1, 0), rs_v3_make(4, 0, 0), rs_v3_make(0, 0, 3), 4, 4); /* wall */
     rs_mesh *m = rs_meshgen_done(&mg);
-    rs_err err;
-    rs_scene *scene = rs_scene_new(m, &err);
-    assert_non_null(scene);
+    rs_scene *scene = rs_fx_scene(m);
     rs_capture cap;
     rs_skyenv env;
     rs_v3 sun;
@@ -187,17 +171,7 @@ static void test_adaptive_kernel_row(void **state)
     assert_true(rms_adapt < target);
     free(rad);
     rs_gather_scratch_free(s);
-    rs_skyenv_release(&env);
-    rs_capture_release(&cap);
-    rs_scene_free(scene);
-    rs_mesh_free(m);
+    rs_fx_release(&env, &cap, scene, m);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_adaptive_shadow_edge),
-        cmocka_unit_test(test_adaptive_kernel_row),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_adaptive_shadow_edge), cmocka_unit_test(test_adaptive_kernel_row))

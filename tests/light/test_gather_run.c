@@ -9,6 +9,7 @@
 #include <omp.h>
 #endif
 #include "light/gather.h"
+#include "tests/fixtures.h"
 #include "tests/meshgen.h"
 #include "common/sampling.h"
 #include "tests/testutil.h"
@@ -16,27 +17,9 @@
 /* A sky of random luminance with a few bright pixels (the sun set), in world axes. */
 static void random_sky(int w, rs_capture *cap, rs_skyenv *env)
 {
-    int h = w / 2;
-    memset(cap, 0, sizeof *cap);
-    cap->pano = rs_image_new(w, h, 3);
-    rs_m3_identity(cap->pose.rot);
-    for (size_t k = 0; k < (size_t)w * h; k++) {
-        float v = 0.05f + (rs_hash_u32((uint32_t)k) >> 8) / 16777216.0f;
-        if (k % 97 == 0) v = 0; /* pixels without power inside the map */
-        for (int ch = 0; ch < 3; ch++) cap->pano->data[3 * k + ch] = v;
-    }
-    for (int c = 0; c < 6; c++) /* a sun of 6 x 3 pixels at about 40 degrees */
-        for (int r = 0; r < 3; r++) {
-            float *px = rs_image_px(cap->pano, w / 2 + 20 + c, h / 4 + r);
-            px[0] = px[1] = px[2] = 1e4f;
-        }
-    float *ids = malloc((size_t)w * h * sizeof *ids);
-    for (size_t k = 0; k < (size_t)w * h; k++) ids[k] = -1;
-    rs_err err;
-    assert_int_equal(rs_skyenv_build(cap, ids, 50, 0.01, 1, env, &err), 0);
+    rs_fx_random_sky(w, 1e4f, 97, cap, env);
     assert_non_null(env->cdf);
     assert_non_null(env->sun_cdf);
-    free(ids);
 }
 
 static void test_pick_matches_binary_search(void **state)
@@ -92,15 +75,12 @@ static void test_run_threads_and_closure(void **state)
     (void)state;
     size_t hidden;
     rs_mesh *m = scene_mesh(&hidden);
-    rs_err err;
-    rs_scene *scene = rs_scene_new(m, &err);
-    assert_non_null(scene);
+    rs_scene *scene = rs_fx_scene(m);
     rs_capture cap;
     rs_skyenv env;
     random_sky(256, &cap, &env);
     size_t nf = m->nfaces;
-    rs_gather_ctx g = {
-        .scene = scene, .env = &env, .samples = 64, .sky_samples = 64, .sun_samples = 16, .seed = 7, .skip_convex = 1};
+    rs_gather_ctx g = rs_fx_gather_ctx(scene, &env, 64, 16, 7);
     rs_facet_gather *one = calloc(nf, sizeof *one), *two = calloc(nf, sizeof *two), *part = calloc(nf, sizeof *part);
     rs_gather_stats st;
 #ifdef _OPENMP
@@ -187,10 +167,7 @@ static void test_run_threads_and_closure(void **state)
         free(part[f].entries);
     }
     free(one), free(two), free(part), free(needed), free(gathered);
-    rs_skyenv_release(&env);
-    rs_capture_release(&cap);
-    rs_scene_free(scene);
-    rs_mesh_free(m);
+    rs_fx_release(&env, &cap, scene, m);
 }
 
 /* sun_samples = 0 with a sun set in the map: the cosine rays must count the sun (they used to
@@ -198,23 +175,13 @@ static void test_run_threads_and_closure(void **state)
 static void test_sun_without_sun_rays(void **state)
 {
     (void)state;
-    rs_meshgen mg = rs_meshgen_new(16, 8);
-    rs_meshgen_rect(&mg, rs_v3_make(0, 0, 0), rs_v3_make(1, 0, 0), rs_v3_make(0, 1, 0), 1, 1);
-    rs_mesh *m = rs_meshgen_done(&mg);
-    rs_err err;
-    rs_scene *scene = rs_scene_new(m, &err);
+    rs_mesh *m = rs_fx_unit_square();
+    rs_scene *scene = rs_fx_scene(m);
     rs_capture cap;
     rs_skyenv env;
     random_sky(128, &cap, &env);
     rs_gather_scratch *s = rs_gather_scratch_new(1 << 18);
-    rs_gather_ctx with = {.scene = scene,
-                          .env = &env,
-                          .samples = 256,
-                          .sky_samples = 256,
-                          .sun_samples = 256,
-                          .seed = 3,
-                          .skip_convex = 1},
-                  without = with;
+    rs_gather_ctx with = rs_fx_gather_ctx(scene, &env, 256, 256, 3), without = with;
     without.sun_samples = 0;
     without.samples = 1 << 18; /* enough cosine rays to find the sun */
     rs_facet_gather a, b;
@@ -223,10 +190,7 @@ static void test_sun_without_sun_rays(void **state)
     print_message("E with sun rays %.5g, cosine rays only %.5g\n", a.esky[0], b.esky[0]);
     assert_true(fabs(b.esky[0] - a.esky[0]) / a.esky[0] < 0.03);
     rs_gather_scratch_free(s);
-    rs_skyenv_release(&env);
-    rs_capture_release(&cap);
-    rs_scene_free(scene);
-    rs_mesh_free(m);
+    rs_fx_release(&env, &cap, scene, m);
 }
 
 /* A floor half in the shadow of a thin blade: adaptive sun rays add rays on the facets that
@@ -239,20 +203,12 @@ static void test_adaptive_sun(void **state)
     rs_meshgen_rect(&mg, rs_v3_make(-4, -4, 0), rs_v3_make(8, 0, 0), rs_v3_make(0, 8, 0), 8, 8);
     rs_meshgen_box(&mg, rs_v3_make(-0.05, -10, 0.5), rs_v3_make(0.05, 10, 6), 1, 0);
     rs_mesh *m = rs_meshgen_done(&mg);
-    rs_err err;
-    rs_scene *scene = rs_scene_new(m, &err);
+    rs_scene *scene = rs_fx_scene(m);
     rs_capture cap;
     rs_skyenv env;
     random_sky(256, &cap, &env);
     rs_gather_scratch *s = rs_gather_scratch_new(1024);
-    rs_gather_ctx base = {.scene = scene,
-                          .env = &env,
-                          .samples = 64,
-                          .sky_samples = 64,
-                          .sun_samples = 16,
-                          .seed = 5,
-                          .skip_convex = 1},
-                  adapt = base, ref = base;
+    rs_gather_ctx base = rs_fx_gather_ctx(scene, &env, 64, 16, 5), adapt = base, ref = base;
     adapt.sun_target_error = 0.01;
     ref.sun_samples = 256;
     int lit_only = 0, extra = 0;
@@ -276,10 +232,7 @@ static void test_adaptive_sun(void **state)
     assert_true(extra > 0 && lit_only > extra);
     assert_true(err_adapt < err_base);
     rs_gather_scratch_free(s);
-    rs_skyenv_release(&env);
-    rs_capture_release(&cap);
-    rs_scene_free(scene);
-    rs_mesh_free(m);
+    rs_fx_release(&env, &cap, scene, m);
 }
 
 /* skip_convex: a box on a wide floor. The box's top sees nothing (the model lies below its
@@ -292,20 +245,12 @@ static void test_convex_skip(void **state)
     size_t box = mg.nf;
     rs_meshgen_box(&mg, rs_v3_make(-1, -1, 0), rs_v3_make(1, 1, 2), 2, 0);
     rs_mesh *m = rs_meshgen_done(&mg);
-    rs_err err;
-    rs_scene *scene = rs_scene_new(m, &err);
+    rs_scene *scene = rs_fx_scene(m);
     rs_capture cap;
     rs_skyenv env;
     random_sky(128, &cap, &env);
     rs_gather_scratch *s = rs_gather_scratch_new(64);
-    rs_gather_ctx on = {.scene = scene,
-                        .env = &env,
-                        .samples = 64,
-                        .sky_samples = 64,
-                        .sun_samples = 16,
-                        .seed = 9,
-                        .skip_convex = 1},
-                  off = on;
+    rs_gather_ctx on = rs_fx_gather_ctx(scene, &env, 64, 16, 9), off = on;
     off.skip_convex = 0;
     size_t skipped = 0;
     for (uint32_t f = 0; f < m->nfaces; f++) {
@@ -326,20 +271,9 @@ static void test_convex_skip(void **state)
     }
     assert_int_equal(skipped, 16); /* top and bottom: 2 x 2 cells of two triangles each */
     rs_gather_scratch_free(s);
-    rs_skyenv_release(&env);
-    rs_capture_release(&cap);
-    rs_scene_free(scene);
-    rs_mesh_free(m);
+    rs_fx_release(&env, &cap, scene, m);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_pick_matches_binary_search),
-        cmocka_unit_test(test_run_threads_and_closure),
-        cmocka_unit_test(test_sun_without_sun_rays),
-        cmocka_unit_test(test_adaptive_sun),
-        cmocka_unit_test(test_convex_skip),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_pick_matches_binary_search),
+             cmocka_unit_test(test_run_threads_and_closure), cmocka_unit_test(test_sun_without_sun_rays),
+             cmocka_unit_test(test_adaptive_sun), cmocka_unit_test(test_convex_skip))

@@ -14,6 +14,7 @@
 #include <string.h>
 #include "common/faceprop.h"
 #include "common/image.h"
+#include "tests/fixtures.h"
 #include "tests/meshgen.h"
 #include "common/pano.h"
 #include "common/ply.h"
@@ -28,37 +29,15 @@
 
 static const double albedo[3] = {0.45, 0.4, 0.3};
 
-/* The camera at (0, 0, 1.6) along d: 0 sky or far ground, 1 the model's ground, 2 the wall. */
-static int camera_sees(rs_v3 d)
+static double uniform_sky(rs_v3 d, const void *ctx)
 {
-    static const rs_meshgen_wall_ground scene = {-EDGE, EDGE, -EDGE, EDGE, EDGE, -5, 5, WALL_H};
-    return rs_meshgen_wall_ground_sees(&scene, rs_v3_make(0, 0, 1.6), d);
+    (void)d, (void)ctx;
+    return L_SKY;
 }
 
-/* Sky, far ground, the wall, and ground pixels at ground[3 f..] of their facet (NULL: 0.2). */
-static void write_pano(const char *dir, const rs_image *facet_id, const double *ground)
-{
-    rs_image *img = rs_image_new(W, W / 2, 3);
-    for (int r = 0; r < W / 2; r++)
-        for (int c = 0; c < W; c++) {
-            rs_v3 d = rs_pano_pixel_dir(W, W / 2, c, r);
-            int what = camera_sees(d);
-            float *px = rs_image_px(img, c, r);
-            for (int ch = 0; ch < 3; ch++) {
-                double v = d.z > 0 ? L_SKY : L_FAR;
-                if (what == 2) v = L_WALL;
-                if (what == 1) {
-                    float id = facet_id ? facet_id->data[(size_t)r * W + c] : -1;
-                    v = ground && id >= 0 ? ground[3 * (size_t)id + ch] : 0.2;
-                }
-                px[ch] = (float)v;
-            }
-        }
-    static const char *const rgb[] = {"R", "G", "B"};
-    rs_err err;
-    assert_int_equal(rs_image_write_exr(img, rs_test_path(dir, "pano.exr"), rgb, 0, NULL, &err), 0);
-    rs_image_free(img);
-}
+/* The camera at (0, 0, 1.6): sky, far ground, the wall, and the model's ground. */
+static const rs_fx_wall_ground_view view = {
+    {-EDGE, EDGE, -EDGE, EDGE, EDGE, -5, 5, WALL_H}, {0, 0, 1.6}, uniform_sky, NULL, L_FAR, L_WALL};
 
 /* Green E_sky summed over the outward wall's facets (from wall0 on). */
 static double wall_esky(const char *dir, size_t nf, size_t wall0)
@@ -71,11 +50,6 @@ static double wall_esky(const char *dir, size_t nf, size_t wall0)
     return sum;
 }
 
-#define SCENE                                                                                                     \
-    "[pipeline]\nworkdir = work\n[mesh]\ninput_mesh = mesh.ply\n[capture]\npanorama = pano.exr\n"                 \
-    "position = 0 0 1.6\n[irradiance]\nsamples = 128\nsky_samples = 128\nsun_samples = 16\nskip_unseen = false\n" \
-    "[sky]\nfill = model\n"
-
 static void test_ground_albedo_from_scan(void **state)
 {
     (void)state;
@@ -87,8 +61,8 @@ static void test_ground_albedo_from_scan(void **state)
     rs_mesh *m = rs_meshgen_done(&g);
     size_t nf = m->nfaces;
     rs_meshgen_write(m, rs_test_path(dir, "mesh.ply"));
-    write_pano(dir, NULL, NULL);
-    rs_test_write(rs_test_path(dir, "scene.ini"), SCENE);
+    rs_fx_write_wall_ground_pano(dir, W, &view, NULL, NULL);
+    rs_fx_write_scene_ini(dir, "0 0 1.6", 128, 16, "skip_unseen = false\n[sky]\nfill = model\n");
     rs_test_rhoscan(dir, "--set sky.ground_albedo_from=config");
     size_t n;
     double *e = rs_test_read_irradiance(dir, 1, &n), *ground = calloc(3 * nf, sizeof *ground);
@@ -98,7 +72,7 @@ static void test_ground_albedo_from_scan(void **state)
     rs_err err;
     rs_image *ids = rs_image_read(rs_test_path(dir, "work/facet_id.exr"), &err);
     assert_non_null(ids);
-    write_pano(dir, ids, ground);
+    rs_fx_write_wall_ground_pano(dir, W, &view, ids, ground);
     rs_image_free(ids);
 
     rs_test_rhoscan(dir, "");
@@ -148,10 +122,4 @@ static void test_ground_albedo_from_scan(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_ground_albedo_from_scan),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_ground_albedo_from_scan))

@@ -8,6 +8,7 @@
 #include <string.h>
 #include "common/faceprop.h"
 #include "common/image.h"
+#include "tests/fixtures.h"
 #include "tests/meshgen.h"
 #include "common/pano.h"
 #include "common/ply.h"
@@ -39,6 +40,20 @@ static double true_radiance(rs_v3 d)
  * camera 2 m above the origin; the clipped panorama. Returns, through the pointers, the direct
  * normal irradiance of the sun and halo over the sky (what a pyrheliometer reads) and the part
  * of it the clip took away, both over the panorama's pixels. */
+typedef struct {
+    double dni, clipped_dni;
+} sun_sums;
+
+/* The clipped panorama's pixel, adding the pixel's part of the DNI and of what the clip took. */
+static void clipped_radiance(rs_v3 d, size_t k, double rgb[3], void *ctx)
+{
+    sun_sums *sums = ctx;
+    double L = true_radiance(d), om = rs_pano_pixel_solid_angle(W, W / 2, (int)(k / W));
+    if (L > L_SKY && d.z > 0) sums->dni += (L - L_SKY) * om;
+    if (L > CLIP) sums->clipped_dni += (L - CLIP) * om;
+    rgb[0] = rgb[1] = rgb[2] = fmin(L, CLIP);
+}
+
 static void write_scene(const char *dir, double *dni, double *clipped_dni)
 {
     rs_meshgen g = rs_meshgen_new(1000, 1000);
@@ -46,26 +61,14 @@ static void write_scene(const char *dir, double *dni, double *clipped_dni)
     rs_meshgen_rect(&g, rs_v3_make(-2, -1, 1), rs_v3_make(1, 0, 0), rs_v3_make(0, 2, 0), 2, 4);
     rs_mesh *m = rs_meshgen_done(&g);
     rs_meshgen_write(m, rs_test_path(dir, "mesh.ply"));
-    rs_err err;
     rs_mesh_free(m);
-    rs_image *img = rs_image_new(W, W / 2, 3);
-    *dni = *clipped_dni = 0;
-    for (int r = 0; r < W / 2; r++)
-        for (int c = 0; c < W; c++) {
-            rs_v3 d = rs_pano_pixel_dir(W, W / 2, c, r);
-            double L = true_radiance(d), om = rs_pano_pixel_solid_angle(W, W / 2, r);
-            if (L > L_SKY && d.z > 0) *dni += (L - L_SKY) * om;
-            if (L > CLIP) *clipped_dni += (L - CLIP) * om;
-            float *px = rs_image_px(img, c, r);
-            px[0] = px[1] = px[2] = (float)fmin(L, CLIP);
-        }
-    static const char *const rgb[] = {"R", "G", "B"};
-    assert_int_equal(rs_image_write_exr(img, rs_test_path(dir, "pano.exr"), rgb, 0, NULL, &err), 0);
+    sun_sums sums = {0, 0};
+    rs_image *img = rs_fx_pano(W, W / 2, clipped_radiance, &sums);
+    *dni = sums.dni;
+    *clipped_dni = sums.clipped_dni;
+    rs_fx_write_pano(img, dir);
     rs_image_free(img);
-    rs_test_write(rs_test_path(dir, "scene.ini"),
-                  "[pipeline]\nworkdir = work\n[mesh]\ninput_mesh = mesh.ply\n[capture]\npanorama = pano.exr\n"
-                  "position = 0 0 2\n[irradiance]\nsamples = 128\nsky_samples = 128\nsun_samples = 16\n"
-                  "skip_unseen = false\n[sky]\nfill = row\n");
+    rs_fx_write_scene_ini(dir, "0 0 2", 128, 16, "skip_unseen = false\n[sky]\nfill = row\n");
 }
 
 /* Runs the pipeline up to irradiance with extra --set options; reads E_sky of channel ch per
@@ -238,12 +241,5 @@ static void test_no_sun_found(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_clipped_sun),
-        cmocka_unit_test(test_sun_color),
-        cmocka_unit_test(test_no_sun_found),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_clipped_sun), cmocka_unit_test(test_sun_color),
+             cmocka_unit_test(test_no_sun_found))

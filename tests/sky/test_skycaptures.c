@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "sky/skyenv.h"
+#include "tests/fixtures.h"
 #include "tests/testutil.h"
 
 #define W    512
@@ -42,36 +43,28 @@ static int dist_to(const uint8_t *hidden, int w, int h, size_t k)
 /* A panorama (identity pose) of the truth sky times exposure; pixels next to the hidden ones
  * (hidden = the model in this capture) mixed with the wall as a pixel filter would: half at
  * 1 px, a fifth at 2 px. */
-static rs_capture make_capture(int w, int h, double exposure, const uint8_t *hidden)
+typedef struct {
+    int w, h;
+    double exposure;
+    const uint8_t *hidden;
+} capture_view;
+
+static void seen_radiance(rs_v3 d, size_t k, double rgb[3], void *ctx)
 {
-    rs_capture cap;
-    memset(&cap, 0, sizeof cap);
-    cap.pano = rs_image_new(w, h, 3);
-    rs_m3_identity(cap.pose.rot);
-    for (int r = 0; r < h; r++)
-        for (int c = 0; c < w; c++) {
-            size_t k = (size_t)r * w + c;
-            double rgb[3], mix = 0;
-            truth_sky(rs_pano_pixel_dir(w, h, c, r), rgb);
-            if (hidden) {
-                int d = hidden[k] ? 0 : dist_to(hidden, w, h, k);
-                mix = d == 0 ? 1 : d == 1 ? 0.5 : d == 2 ? 0.2 : 0;
-            }
-            for (int ch = 0; ch < 3; ch++)
-                rs_image_px(cap.pano, c, r)[ch] = (float)(exposure * ((1 - mix) * rgb[ch] + mix * WALL));
-        }
-    return cap;
+    const capture_view *v = ctx;
+    double mix = 0;
+    truth_sky(d, rgb);
+    if (v->hidden) {
+        int dist = v->hidden[k] ? 0 : dist_to(v->hidden, v->w, v->h, k);
+        mix = dist == 0 ? 1 : dist == 1 ? 0.5 : dist == 2 ? 0.2 : 0;
+    }
+    for (int ch = 0; ch < 3; ch++) rgb[ch] = v->exposure * ((1 - mix) * rgb[ch] + mix * WALL);
 }
 
-static rs_skyenv_opts opts(void)
+static rs_capture make_capture(int w, int h, double exposure, const uint8_t *hidden)
 {
-    rs_skyenv_opts o;
-    memset(&o, 0, sizeof o);
-    o.sun_threshold = 50;
-    o.max_sr = 2 * M_PI * (1 - cos(3 * M_PI / 180));
-    o.explicit_sun = 1;
-    o.fill.method = RS_SKYFILL_ROW;
-    return o;
+    capture_view v = {w, h, exposure, hidden};
+    return rs_fx_capture(w, h, seen_radiance, &v);
 }
 
 static double rel_err(const float *v, const rs_capture *truth_cap, size_t k)
@@ -106,14 +99,13 @@ static void test_silhouette_loses(void **state)
     for (size_t k = 0; k < (size_t)W * H; k++) mask_b[k] = !hid_b[k];
     const rs_capture *others[1] = {&b};
     const uint8_t *masks[1] = {mask_b};
-    rs_skyenv_opts o = opts();
+    rs_skyenv_opts o = rs_fx_sky_opts(RS_SKYFILL_ROW);
     o.others = others;
     o.other_masks = masks;
     o.nothers = 1;
     rs_skyenv env;
     rs_skyenv_info info;
-    rs_err err;
-    assert_int_equal(rs_skyenv_build_opts(&a, ids, &o, &env, &info, &err), 0);
+    rs_fx_sky_env_opts(&a, ids, &o, &env, &info);
     print_message("exposure %.4f %.4f %.4f over %.3f sr; %zu pixels from B, %zu seen by both\n", info.other_scale[0][0],
                   info.other_scale[0][1], info.other_scale[0][2], info.other_overlap_sr[0], info.other_pixels,
                   info.blended_pixels);
@@ -193,14 +185,13 @@ static void test_coarse_loses(void **state)
         }
     const rs_capture *others[2] = {&fine, &coarse};
     const uint8_t *masks[2] = {mask_f, mask_c};
-    rs_skyenv_opts o = opts();
+    rs_skyenv_opts o = rs_fx_sky_opts(RS_SKYFILL_ROW);
     o.others = others;
     o.other_masks = masks;
     o.nothers = 2;
     rs_skyenv env;
     rs_skyenv_info info;
-    rs_err err;
-    assert_int_equal(rs_skyenv_build_opts(&a, ids, &o, &env, &info, &err), 0);
+    rs_fx_sky_env_opts(&a, ids, &o, &env, &info);
     double got = 0, truth = 0;
     for (int r = 0; r < H; r++)
         for (int c = 0; c < W; c++) {
@@ -225,11 +216,4 @@ static void test_coarse_loses(void **state)
     free(ids);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_silhouette_loses),
-        cmocka_unit_test(test_coarse_loses),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_silhouette_loses), cmocka_unit_test(test_coarse_loses))

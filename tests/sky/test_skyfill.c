@@ -7,6 +7,7 @@
 #include "sky/skydist.h"
 #include "sky/skyenv.h"
 #include "sky/solar.h"
+#include "tests/fixtures.h"
 #include "tests/testutil.h"
 
 /* The panorama's size: 512 x 256 but for test_cv_on_coarser_map. */
@@ -36,19 +37,16 @@ static void truth_sky(rs_v3 d, rs_v3 sun, double rgb[3])
     }
 }
 
+static void truth_radiance(rs_v3 d, size_t k, double rgb[3], void *sun)
+{
+    (void)k;
+    truth_sky(d, *(const rs_v3 *)sun, rgb);
+}
+
 /* A panorama (identity pose) of the truth sky with a sun of one pixel at 1e5 x. */
 static rs_capture make_capture(rs_v3 sun)
 {
-    rs_capture cap;
-    memset(&cap, 0, sizeof cap);
-    cap.pano = rs_image_new(W, H, 3);
-    rs_m3_identity(cap.pose.rot);
-    for (int r = 0; r < H; r++)
-        for (int c = 0; c < W; c++) {
-            double rgb[3];
-            truth_sky(rs_pano_pixel_dir(W, H, c, r), sun, rgb);
-            for (int ch = 0; ch < 3; ch++) rs_image_px(cap.pano, c, r)[ch] = (float)rgb[ch];
-        }
+    rs_capture cap = rs_fx_capture(W, H, truth_radiance, &sun);
     int c, r;
     rs_pano_world_to_pixel(&cap.pose, W, H, sun, &c, &r);
     for (int ch = 0; ch < 3; ch++) rs_image_px(cap.pano, c, r)[ch] = 1e5f;
@@ -91,12 +89,7 @@ static void irradiance_pair(const rs_skyenv *env, const rs_capture *cap, const u
 
 static rs_skyenv_opts opts(rs_skyfill_method method)
 {
-    rs_skyenv_opts o;
-    memset(&o, 0, sizeof o);
-    o.sun_threshold = 50;
-    o.max_sr = 2 * M_PI * (1 - cos(3 * M_PI / 180));
-    o.explicit_sun = 1;
-    o.fill.method = method;
+    rs_skyenv_opts o = rs_fx_sky_opts(method);
     o.fill.sun_mask_rad = 4 * M_PI / 180;
     o.fill.sh_order = 2;
     o.fill.sh_ridge = 1e-3;
@@ -113,13 +106,12 @@ static void test_low_sun_courtyard(void **state)
     const double sun_az = 30, sun_el = 8;
     rs_capture cap = make_capture(sun_dir(sun_az, sun_el));
     float *ids = courtyard_ids(sun_az);
-    rs_err err;
     double worst_model = 0, worst_row = 0, sum_model = 0, sum_row = 0;
     rs_skyenv env[2];
     rs_skyenv_info info[2];
     for (int m = 0; m < 2; m++) {
         rs_skyenv_opts o = opts(m ? RS_SKYFILL_MODEL : RS_SKYFILL_ROW);
-        assert_int_equal(rs_skyenv_build_opts(&cap, ids, &o, &env[m], &info[m], &err), 0);
+        rs_fx_sky_env_opts(&cap, ids, &o, &env[m], &info[m]);
     }
     rs_v3 s = info[1].fill.sun_dir;
     print_message("sun found %.2f deg from the truth; held-out error rows %.3f, model %.3f (%d blocks); "
@@ -168,11 +160,10 @@ static void test_ground_near_bands_and_model(void **state)
             double el = asin(rs_pano_pixel_dir(W, H, c, r).z) * 180 / M_PI;
             ids[(size_t)r * W + c] = el > 40 || (el < 0 && el > -4) ? -1.0f : 0.0f;
         }
-    rs_err err;
     rs_skyenv env;
     rs_skyenv_info info;
     rs_skyenv_opts o = opts(RS_SKYFILL_MODEL);
-    assert_int_equal(rs_skyenv_build_opts(&cap, ids, &o, &env, &info, &err), 0);
+    rs_fx_sky_env_opts(&cap, ids, &o, &env, &info);
     const double *eh = info.fill.horizontal_irradiance;
     size_t near = 0, model = 0, bad = 0;
     for (int r = 0; r < H; r++)
@@ -229,11 +220,10 @@ static void test_fill_sigma_grows_with_distance(void **state)
         tgt[k] = !src[k];
     }
     assert_int_equal(rs_skydist_to_source(W, H, src, tgt, dist), 0);
-    rs_err err;
     rs_skyenv env;
     rs_skyenv_info info;
     rs_skyenv_opts o = opts(RS_SKYFILL_MODEL);
-    assert_int_equal(rs_skyenv_build_opts(&cap, ids, &o, &env, &info, &err), 0);
+    rs_fx_sky_env_opts(&cap, ids, &o, &env, &info);
     double rate = rs_skyfill_rate_used(&info.fill, RS_SKYFILL_MODEL);
     print_message("fill uncertainty %.3f per sqrt(radian) (%d blocks)\n", rate, info.fill.cv_folds);
     assert_true(rate > 0);
@@ -292,9 +282,7 @@ static void test_sky_panorama(void **state)
     rs_capture cap = make_capture(sun);
     float *ids = courtyard_ids(30);
     /* Sky panorama: local frame turned 90 degrees about Z (an exact shift of W / 4 columns). */
-    rs_capture sky;
-    memset(&sky, 0, sizeof sky);
-    sky.pano = rs_image_new(W, H, 3);
+    rs_capture sky = rs_fx_capture(W, H, NULL, NULL);
     double rot[9] = {0, -1, 0, 1, 0, 0, 0, 0, 1};
     memcpy(sky.pose.rot, rot, sizeof rot);
     uint8_t *mask = malloc((size_t)W * H);
@@ -311,8 +299,7 @@ static void test_sky_panorama(void **state)
     o.sky_mask = mask;
     rs_skyenv env;
     rs_skyenv_info info;
-    rs_err err;
-    assert_int_equal(rs_skyenv_build_opts(&cap, ids, &o, &env, &info, &err), 0);
+    rs_fx_sky_env_opts(&cap, ids, &o, &env, &info);
     print_message("sky panorama: %zu pixels used, exposure %.4f %.4f %.4f over %.3f sr, %zu filled\n",
                   info.sky_pano_pixels, info.sky_pano_scale[0], info.sky_pano_scale[1], info.sky_pano_scale[2],
                   info.sky_overlap_sr, env.filled_pixels);
@@ -349,10 +336,7 @@ static void test_two_captures(void **state)
     rs_v3 sun = sun_dir(30, 8);
     rs_capture cap = make_capture(sun);
     float *ids = courtyard_ids(30);
-    rs_capture other;
-    memset(&other, 0, sizeof other);
-    other.pano = rs_image_new(W, H, 3);
-    rs_m3_identity(other.pose.rot);
+    rs_capture other = rs_fx_capture(W, H, NULL, NULL);
     uint8_t *mask = malloc((size_t)W * H);
     for (int r = 0; r < H; r++)
         for (int c = 0; c < W; c++) {
@@ -369,8 +353,7 @@ static void test_two_captures(void **state)
     o.nothers = 1;
     rs_skyenv env;
     rs_skyenv_info info;
-    rs_err err;
-    assert_int_equal(rs_skyenv_build_opts(&cap, ids, &o, &env, &info, &err), 0);
+    rs_fx_sky_env_opts(&cap, ids, &o, &env, &info);
     print_message("second capture: %zu pixels, exposure %.4f %.4f %.4f over %.3f sr\n", info.other_pixels,
                   info.other_scale[0][0], info.other_scale[0][1], info.other_scale[0][2], info.other_overlap_sr[0]);
     for (int ch = 0; ch < 3; ch++) assert_true(fabs(info.other_scale[0][ch] - 1.25) < 1e-3);
@@ -456,11 +439,10 @@ static void test_cv_on_coarser_map(void **state)
         H = W / 2;
         rs_capture cap = make_capture(sun_dir(sun_az, sun_el));
         float *ids = courtyard_ids(sun_az);
-        rs_err err;
         rs_skyenv env;
         rs_skyenv_info info;
         rs_skyenv_opts o = opts(RS_SKYFILL_MODEL);
-        assert_int_equal(rs_skyenv_build_opts(&cap, ids, &o, &env, &info, &err), 0);
+        rs_fx_sky_env_opts(&cap, ids, &o, &env, &info);
         rel[i] = info.fill.cv_rel_model;
         rate[i] = rs_skyfill_rate_used(&info.fill, RS_SKYFILL_MODEL);
         order[i] = info.fill.model.sh_order;
@@ -478,17 +460,7 @@ static void test_cv_on_coarser_map(void **state)
     assert_int_equal(order[1], order[0]);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_low_sun_courtyard),
-        cmocka_unit_test(test_ground_near_bands_and_model),
-        cmocka_unit_test(test_fill_sigma_grows_with_distance),
-        cmocka_unit_test(test_cv_on_coarser_map),
-        cmocka_unit_test(test_sky_panorama),
-        cmocka_unit_test(test_two_captures),
-        cmocka_unit_test(test_find_hidden_sun),
-        cmocka_unit_test(test_solar_position),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_low_sun_courtyard), cmocka_unit_test(test_ground_near_bands_and_model),
+             cmocka_unit_test(test_fill_sigma_grows_with_distance), cmocka_unit_test(test_cv_on_coarser_map),
+             cmocka_unit_test(test_sky_panorama), cmocka_unit_test(test_two_captures),
+             cmocka_unit_test(test_find_hidden_sun), cmocka_unit_test(test_solar_position))

@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "light/gather.h"
+#include "tests/fixtures.h"
 #include "tests/meshgen.h"
 #include "common/sampling.h"
 #include "sky/skysh.h"
@@ -14,32 +15,30 @@ static const rs_v3 SUN = {0.59, 0.35, 0.7274}; /* about 46.7 degrees up; normali
 
 /* Constant + linear + quadratic per channel (order <= 2: the projection is exact for it), plus
  * a sun disc of half-angle sun_deg and radiance sun_L when sun_L > 0, in world axes. */
+typedef struct {
+    double sun_L, sun_deg;
+} smooth_sun;
+
+static void smooth_radiance(rs_v3 d, size_t k, double rgb[3], void *ctx)
+{
+    (void)k;
+    const smooth_sun *sun = ctx;
+    rgb[0] = 1 + 0.5 * d.z + 0.3 * d.x + 0.2 * d.x * d.y + 0.3 * d.z * d.z;
+    rgb[1] = 0.8 + 0.4 * d.z - 0.2 * d.y + 0.25 * d.z * d.z;
+    rgb[2] = 0.6 + 0.45 * d.z + 0.1 * d.x * d.z;
+    if (sun->sun_L > 0 && rs_v3_dot(d, rs_v3_norm(SUN)) > cos(sun->sun_deg * M_PI / 180))
+        rgb[0] = rgb[1] = rgb[2] = sun->sun_L;
+}
+
 static void smooth_sky(int w, double sun_L, double sun_deg, rs_capture *cap)
 {
-    int h = w / 2;
-    memset(cap, 0, sizeof *cap);
-    cap->pano = rs_image_new(w, h, 3);
-    rs_m3_identity(cap->pose.rot);
-    rs_v3 s = rs_v3_norm(SUN);
-    for (int r = 0; r < h; r++)
-        for (int c = 0; c < w; c++) {
-            rs_v3 d = rs_pano_pixel_dir(w, h, c, r);
-            float *px = rs_image_px(cap->pano, c, r);
-            px[0] = (float)(1 + 0.5 * d.z + 0.3 * d.x + 0.2 * d.x * d.y + 0.3 * d.z * d.z);
-            px[1] = (float)(0.8 + 0.4 * d.z - 0.2 * d.y + 0.25 * d.z * d.z);
-            px[2] = (float)(0.6 + 0.45 * d.z + 0.1 * d.x * d.z);
-            if (sun_L > 0 && rs_v3_dot(d, s) > cos(sun_deg * M_PI / 180)) px[0] = px[1] = px[2] = (float)sun_L;
-        }
+    smooth_sun sun = {sun_L, sun_deg};
+    *cap = rs_fx_capture(w, w / 2, smooth_radiance, &sun);
 }
 
 static void build_env(const rs_capture *cap, int explicit_sun, rs_skyenv *env)
 {
-    size_t n = (size_t)cap->pano->width * cap->pano->height;
-    float *ids = malloc(n * sizeof *ids);
-    for (size_t k = 0; k < n; k++) ids[k] = -1;
-    rs_err err;
-    assert_int_equal(rs_skyenv_build(cap, ids, 50, 2 * M_PI * (1 - cos(3 * M_PI / 180)), explicit_sun, env, &err), 0);
-    free(ids);
+    rs_fx_sky_env(cap, RS_FX_SUN_MAX_SR, explicit_sun, env);
 }
 
 /* The worst relative error over the test normals, by brute force (rs_skysh_exact). */
@@ -98,10 +97,8 @@ static void test_smooth_sky_is_exact(void **state)
 static void test_closed_form(void **state)
 {
     (void)state;
-    rs_capture cap;
-    memset(&cap, 0, sizeof cap);
     int w = 256, h = 128;
-    cap.pano = rs_image_new(w, h, 3);
+    rs_capture cap = rs_fx_capture(w, h, NULL, NULL);
     /* a capture turned 90 degrees about z: the map's frame is not the world's */
     double rot[9] = {0, -1, 0, 1, 0, 0, 0, 0, 1};
     memcpy(cap.pose.rot, rot, sizeof rot);
@@ -181,6 +178,13 @@ static void test_sun(void **state)
     rs_capture_release(&cap);
 }
 
+/* CIE overcast (1 + 2 cos theta) / 3 over a ground of 0.05. */
+static void overcast_radiance(rs_v3 d, size_t k, double rgb[3], void *ctx)
+{
+    (void)k, (void)ctx;
+    rgb[0] = rgb[1] = rgb[2] = d.z > 0 ? 0.8 * (1 + 2 * d.z) / 3 : 0.05;
+}
+
 /* An overcast sky over a darker ground (CIE overcast (1 + 2 cos theta) / 3, a step at the
  * horizon): order 2 is good enough for some normals and not for others. Where a facet takes
  * the harmonics, its bound holds against the exact sum; where it does not, the bound is above
@@ -188,17 +192,7 @@ static void test_sun(void **state)
 static void test_local_bound(void **state)
 {
     (void)state;
-    rs_capture cap;
-    memset(&cap, 0, sizeof cap);
-    int w = 512, h = 256;
-    cap.pano = rs_image_new(w, h, 3);
-    rs_m3_identity(cap.pose.rot);
-    for (int r = 0; r < h; r++)
-        for (int c = 0; c < w; c++) {
-            rs_v3 d = rs_pano_pixel_dir(w, h, c, r);
-            float *px = rs_image_px(cap.pano, c, r);
-            px[0] = px[1] = px[2] = (float)(d.z > 0 ? 0.8 * (1 + 2 * d.z) / 3 : 0.05);
-        }
+    rs_capture cap = rs_fx_capture(512, 256, overcast_radiance, NULL);
     rs_skyenv env;
     build_env(&cap, 1, &env);
     rs_skysh sh;
@@ -247,8 +241,7 @@ static void test_gather_uses_it(void **state)
     rs_meshgen_box(&mg, rs_v3_make(3, 3, 0), rs_v3_make(4, 4, 1), 1, 0);
     rs_mesh *m = rs_meshgen_done(&mg);
     rs_err err;
-    rs_scene *scene = rs_scene_new(m, &err);
-    assert_non_null(scene);
+    rs_scene *scene = rs_fx_scene(m);
     rs_capture cap;
     rs_skyenv env;
     smooth_sky(256, 2e3, 1.5, &cap);
@@ -257,8 +250,7 @@ static void test_gather_uses_it(void **state)
     rs_skysh sh;
     assert_int_equal(rs_skysh_build(&env, 0.01, 256, &sh, &err), 0);
     assert_true(sh.usable);
-    rs_gather_ctx rays = {
-        .scene = scene, .env = &env, .samples = 64, .sky_samples = 64, .sun_samples = 16, .seed = 11, .skip_convex = 1};
+    rs_gather_ctx rays = rs_fx_gather_ctx(scene, &env, 64, 16, 11);
     rs_gather_ctx with = rays, many = rays;
     with.sky_sh = &sh;
     many.samples = many.sky_samples = 4096;
@@ -316,17 +308,8 @@ static void test_gather_uses_it(void **state)
     assert_int_equal(nsh, used);
     free(fa), free(fb);
     rs_gather_scratch_free(s);
-    rs_skyenv_release(&env);
-    rs_capture_release(&cap);
-    rs_scene_free(scene);
-    rs_mesh_free(m);
+    rs_fx_release(&env, &cap, scene, m);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_smooth_sky_is_exact), cmocka_unit_test(test_closed_form),    cmocka_unit_test(test_sun),
-        cmocka_unit_test(test_local_bound),         cmocka_unit_test(test_gather_uses_it),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_smooth_sky_is_exact), cmocka_unit_test(test_closed_form),
+             cmocka_unit_test(test_sun), cmocka_unit_test(test_local_bound), cmocka_unit_test(test_gather_uses_it))

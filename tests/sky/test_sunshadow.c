@@ -13,6 +13,7 @@
 #include <string.h>
 #include "common/faceprop.h"
 #include "common/image.h"
+#include "tests/fixtures.h"
 #include "tests/meshgen.h"
 #include "common/pano.h"
 #include "common/ply.h"
@@ -198,60 +199,38 @@ static void test_fallback(void **state)
 
 static const double albedo[3] = {0.5, 0.4, 0.3};
 
-/* What the camera at (0, 0, 1.6) sees along d: 0 sky or far ground, 1 the ground
- * (x in [-14, 3], y in [-10, 10]), 2 the wall (x = 3, y in [-10, 10], z in [0, 6]). */
-static int camera_sees(rs_v3 d)
-{
-    static const rs_meshgen_wall_ground scene = {-14, WALL_X, -10, 10, WALL_X, -10, 10, WALL_H};
-    return rs_meshgen_wall_ground_sees(&scene, rs_v3_make(0, 0, 1.6), d);
-}
-
 /* The sky: 1, or with glow the CIE clear sky (standard type 12: Perez a..e = -1, -0.32, 10,
- * -3, 0.45) around the sun, 1 at the zenith: the circumsolar glow tells the sky model where a
- * clear sky's sun is. */
-static double sky_radiance(rs_v3 d, int glow, double glow_az)
+ * -3, 0.45) around the sun at azimuth glow_az, 1 at the zenith: the circumsolar glow tells the
+ * sky model where a clear sky's sun is. */
+typedef struct {
+    int glow;
+    double glow_az;
+} sky_glow;
+
+static double sky_radiance(rs_v3 d, const void *ctx)
 {
     static const double cie12[5] = {-1, -0.32, 10, -3, 0.45};
+    const sky_glow *g = ctx;
     double el = SUN_EL_DEG * M_PI / 180;
-    double cosang = (d.x * cos(glow_az) + d.y * sin(glow_az)) * cos(el) + d.z * sin(el);
-    if (!glow) return L_SKY;
+    double cosang = (d.x * cos(g->glow_az) + d.y * sin(g->glow_az)) * cos(el) + d.z * sin(el);
+    if (!g->glow) return L_SKY;
     return L_SKY * rs_skymodel_perez(cie12, d.z, acos(fmax(-1, fmin(1, cosang)))) /
         rs_skymodel_perez(cie12, 1, M_PI / 2 - el);
 }
 
-/* The panorama: sky, far ground, the black wall, and ground pixels at ground[3 f..] of the facet
- * facet_id gives (NULL: 0.2, what the first run reads does not depend on it: flat ground sees
- * no ground). */
+/* The panorama from (0, 0, 1.6): sky, far ground, the black wall (x = 3, y in [-10, 10], z in
+ * [0, 6]), and the ground (x in [-14, 3], y in [-10, 10]) at ground[3 f..] of the facet facet_id
+ * gives (NULL: 0.2, what the first run reads does not depend on it: flat ground sees no ground). */
 static void write_pano(const char *dir, const rs_image *facet_id, const double *ground, int glow, double glow_az)
 {
-    rs_image *img = rs_image_new(W, W / 2, 3);
-    for (int r = 0; r < W / 2; r++)
-        for (int c = 0; c < W; c++) {
-            rs_v3 d = rs_pano_pixel_dir(W, W / 2, c, r);
-            int what = camera_sees(d);
-            float *px = rs_image_px(img, c, r);
-            for (int ch = 0; ch < 3; ch++) {
-                double v = d.z > 0 ? sky_radiance(d, glow, glow_az) : L_FAR;
-                if (what == 2) v = 0; /* the black wall */
-                if (what == 1) {
-                    v = 0.2;
-                    float id = facet_id ? facet_id->data[(size_t)r * W + c] : -1;
-                    if (ground && id >= 0) v = ground[3 * (size_t)id + ch];
-                }
-                px[ch] = (float)v;
-            }
-        }
-    static const char *const rgb[] = {"R", "G", "B"};
-    rs_err err;
-    assert_int_equal(rs_image_write_exr(img, rs_test_path(dir, "pano.exr"), rgb, 0, NULL, &err), 0);
-    rs_image_free(img);
+    sky_glow g = {glow, glow_az};
+    rs_fx_wall_ground_view view = {
+        {-14, WALL_X, -10, 10, WALL_X, -10, 10, WALL_H}, {0, 0, 1.6}, sky_radiance, &g, L_FAR, 0};
+    rs_fx_write_wall_ground_pano(dir, W, &view, facet_id, ground);
 }
 
-#define SCENE_HEAD                                                                                                \
-    "[pipeline]\nworkdir = work\n[mesh]\ninput_mesh = mesh.ply\n[capture]\npanorama = pano.exr\n"                 \
-    "position = 0 0 1.6\n[irradiance]\nsamples = 128\nsky_samples = 128\nsun_samples = 16\nskip_unseen = false\n" \
-    "[sky]\nfill = row\n"
-#define SUN_GIVEN "sun_azimuth_deg = 0\nsun_elevation_deg = 30\n"
+#define SCENE_TAIL "skip_unseen = false\n[sky]\nfill = row\n"
+#define SUN_GIVEN  "sun_azimuth_deg = 0\nsun_elevation_deg = 30\n"
 
 /* The ground and the wall (10 m wide, narrower than the ground, so that the shadow has side
  * edges that fix the sun's azimuth); a clear sky around the sun when there is one. A first
@@ -269,7 +248,7 @@ static rs_mesh *hidden_sun_scene(const char *dir, double dni, int keep_direction
     rs_meshgen_write(m, rs_test_path(dir, "mesh.ply"));
     rs_err err;
     write_pano(dir, NULL, NULL, dni > 0, glow_az);
-    rs_test_write(rs_test_path(dir, "scene.ini"), SCENE_HEAD SUN_GIVEN);
+    rs_fx_write_scene_ini(dir, "0 0 1.6", 128, 16, SCENE_TAIL SUN_GIVEN);
     char sets[256];
     snprintf(sets, sizeof sets, "--set sky.sun_irradiance=%g%s", dni, model_fill ? " --set sky.fill=model" : "");
     rs_test_rhoscan(dir, sets);
@@ -286,7 +265,7 @@ static rs_mesh *hidden_sun_scene(const char *dir, double dni, int keep_direction
     rs_image_free(ids);
     free(e);
     free(ground);
-    rs_test_write(rs_test_path(dir, "scene.ini"), keep_direction ? SCENE_HEAD SUN_GIVEN : SCENE_HEAD);
+    rs_fx_write_scene_ini(dir, "0 0 1.6", 128, 16, keep_direction ? SCENE_TAIL SUN_GIVEN : SCENE_TAIL);
     return m;
 }
 
@@ -443,16 +422,7 @@ static void test_cues_disagree(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_estimator),
-        cmocka_unit_test(test_fallback),
-        cmocka_unit_test(test_hidden_sun),
-        cmocka_unit_test(test_searched_sun),
-        cmocka_unit_test(test_searched_sun_refits_model),
-        cmocka_unit_test(test_no_sun_to_find),
-        cmocka_unit_test(test_cues_disagree),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_estimator), cmocka_unit_test(test_fallback),
+             cmocka_unit_test(test_hidden_sun), cmocka_unit_test(test_searched_sun),
+             cmocka_unit_test(test_searched_sun_refits_model), cmocka_unit_test(test_no_sun_to_find),
+             cmocka_unit_test(test_cues_disagree))

@@ -14,6 +14,7 @@
 #include "calib/register.h"
 #include "calib/rig.h"
 #include "calib/stitch.h"
+#include "tests/fixtures.h"
 #include "tests/testutil.h"
 
 #define NCAM   6
@@ -110,6 +111,22 @@ static void write_frames(const char *dir, const rs_rig *rig, const rs_image *tru
     }
 }
 
+/* The known panorama (returned; caller frees), dir/rig.yaml (loaded into rig) and the frames
+ * rendered from the panorama through it, with the sensors' gains. */
+static rs_image *write_rig_and_frames(const char *dir, rs_rig *rig, double *gains)
+{
+    rs_image *truth = rs_image_new(PANO_W, PANO_W / 2, 3);
+    for (int r = 0; r < PANO_W / 2; r++)
+        for (int c = 0; c < PANO_W; c++)
+            for (int ch = 0; ch < 3; ch++)
+                rs_image_px(truth, c, r)[ch] = truth_value(rs_pano_pixel_dir(PANO_W, PANO_W / 2, c, r), ch);
+    write_rig_file(rs_test_path(dir, "rig.yaml"), NCAM);
+    rs_err err = {0};
+    assert_int_equal(rs_rig_load(rs_test_path(dir, "rig.yaml"), rig, &err), 0);
+    write_frames(dir, rig, truth, gains);
+    return truth;
+}
+
 static int run_calib(const char *config, char **out)
 {
     char cmd[4096];
@@ -123,6 +140,16 @@ static void write_config(const char *dir, const char *frames, const char *extra)
     snprintf(text, sizeof text, "[pipeline]\nworkdir = out\n[rig]\nfile = rig.yaml\nframes = %s\nwidth = %d\n%s\n",
              frames, PANO_W, extra ? extra : "");
     rs_test_write(rs_test_path(dir, "calib.ini"), text);
+}
+
+/* rhoscan-calib on dir/calib.ini succeeds; prints what it said. */
+static void expect_success(const char *dir)
+{
+    char *out = NULL;
+    int rc = run_calib(rs_test_path(dir, "calib.ini"), &out);
+    print_message("%s", out);
+    assert_int_equal(rc, 0);
+    free(out);
 }
 
 static void expect_failure(const char *dir, const char *needle)
@@ -139,17 +166,10 @@ static void test_stitch_and_register(void **state)
 {
     (void)state;
     const char *dir = rs_test_tmpdir("calib");
-    rs_image *truth = rs_image_new(PANO_W, PANO_W / 2, 3);
-    for (int r = 0; r < PANO_W / 2; r++)
-        for (int c = 0; c < PANO_W; c++)
-            for (int ch = 0; ch < 3; ch++)
-                rs_image_px(truth, c, r)[ch] = truth_value(rs_pano_pixel_dir(PANO_W, PANO_W / 2, c, r), ch);
-    write_rig_file(rs_test_path(dir, "rig.yaml"), NCAM);
     rs_rig rig;
-    rs_err err = {0};
-    assert_int_equal(rs_rig_load(rs_test_path(dir, "rig.yaml"), &rig, &err), 0);
     double gains[NCAM];
-    write_frames(dir, &rig, truth, gains);
+    rs_image *truth = write_rig_and_frames(dir, &rig, gains);
+    rs_err err = {0};
     const char *frames = "cam0.exr cam1.exr cam2.exr cam3.exr cam4.exr cam5.exr";
 
     /* Pairs: 20 points 15-25 m away seen from a known pose, plus 4 wrong pairs. */
@@ -171,11 +191,7 @@ static void test_stitch_and_register(void **state)
     }
     fclose(f);
     write_config(dir, frames, "[capture]\ncorrespondences = pairs.txt\nposition = 11 -3 1\n");
-    char *out = NULL;
-    int rc = run_calib(rs_test_path(dir, "calib.ini"), &out);
-    print_message("%s", out);
-    assert_int_equal(rc, 0);
-    free(out);
+    expect_success(dir);
 
     /* The stitched panorama against the known one, leaving out pixels that any camera sees
      * within 8 px of its image border, and those no camera sees. */
@@ -297,26 +313,15 @@ static void test_brackets(void **state)
 {
     (void)state;
     const char *dir = rs_test_tmpdir("calibhdr");
-    rs_image *truth = rs_image_new(PANO_W, PANO_W / 2, 3);
-    for (int r = 0; r < PANO_W / 2; r++)
-        for (int c = 0; c < PANO_W; c++)
-            for (int ch = 0; ch < 3; ch++)
-                rs_image_px(truth, c, r)[ch] = truth_value(rs_pano_pixel_dir(PANO_W, PANO_W / 2, c, r), ch);
-    write_rig_file(rs_test_path(dir, "rig.yaml"), NCAM);
     rs_rig rig;
-    rs_err err = {0};
-    assert_int_equal(rs_rig_load(rs_test_path(dir, "rig.yaml"), &rig, &err), 0);
     double gains[NCAM];
-    write_frames(dir, &rig, truth, gains);
+    rs_image *truth = write_rig_and_frames(dir, &rig, gains);
+    rs_err err = {0};
     const double times[3] = {1.0 / 200, 1.0 / 50, 1.0 / 12.5};
     char list[2048];
     write_brackets(dir, &rig, times, list, sizeof list);
     write_config(dir, list, "exposure_times_s = 0.005 0.02 0.08\n");
-    char *out = NULL;
-    int rc = run_calib(rs_test_path(dir, "calib.ini"), &out);
-    print_message("%s", out);
-    assert_int_equal(rc, 0);
-    free(out);
+    expect_success(dir);
     /* Debevec's radiance has one free scale: fix it by the median ratio, then compare. */
     rs_image *pano = rs_image_read(rs_test_path(dir, "out/" RS_CALIB_PANO_FILE), &err);
     assert_non_null(pano);
@@ -340,7 +345,8 @@ static void test_brackets(void **state)
     char extra[256];
     snprintf(extra, sizeof extra, "exposure_times_s = 0.005 0.02 0.08\nresponse_file = gamma.txt\n");
     write_config(dir, list, extra);
-    rc = run_calib(rs_test_path(dir, "calib.ini"), &out);
+    char *out = NULL;
+    int rc = run_calib(rs_test_path(dir, "calib.ini"), &out);
     if (rc != 0) print_message("%s", out);
     assert_int_equal(rc, 0);
     free(out);
@@ -442,8 +448,7 @@ static void test_facet_size_from_rig(void **state)
     write_rig_file(rs_test_path(dir, "rig.yaml"), NCAM);
     rs_image *img = rs_image_new(1024, 512, 3);
     rs_err err = {0};
-    static const char *const rgb[] = {"R", "G", "B"};
-    assert_int_equal(rs_image_write_exr(img, rs_test_path(dir, "pano.exr"), rgb, 0, NULL, &err), 0);
+    rs_fx_write_pano(img, dir);
     rs_image_free(img);
     double from_pano = facet_size_with(dir, "[capture]\npanorama = pano.exr\nposition = 0 0 0\n");
     double from_rig = facet_size_with(dir, "[capture]\nposition = 0 0 0\n[rig]\nfile = rig.yaml\nwidth = 1024\n");
@@ -462,9 +467,5 @@ static void test_facet_size_from_rig(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {cmocka_unit_test(test_stitch_and_register), cmocka_unit_test(test_brackets),
-                                       cmocka_unit_test(test_facet_size_from_rig)};
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_stitch_and_register), cmocka_unit_test(test_brackets),
+             cmocka_unit_test(test_facet_size_from_rig))

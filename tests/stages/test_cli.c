@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "common/image.h"
+#include "tests/fixtures.h"
 #include "tests/meshgen.h"
 #include "common/ply.h"
 #include "pipeline/options.h"
@@ -44,40 +45,17 @@ static void expect_failure(const char *config, const char *const *needles)
 /* A wall and a floor as a mesh file, and a panorama of a uniform radiance. */
 static void write_scene(const char *dir, int pano_w, int pano_h, int nan_pixels)
 {
-    rs_meshgen g = rs_meshgen_new(400, 400);
-    rs_meshgen_rect(&g, rs_v3_make(-5, -5, 0), rs_v3_make(10, 0, 0), rs_v3_make(0, 10, 0), 8, 8);
-    rs_meshgen_rect(&g, rs_v3_make(-5, 5, 0), rs_v3_make(10, 0, 0), rs_v3_make(0, 0, 6), 8, 5);
-    rs_mesh *m = rs_meshgen_done(&g);
-    /* the wall's normal must face the camera (-y): swap its winding */
-    for (size_t f = 128; f < m->nfaces; f++) {
-        uint32_t t = m->tris[3 * f + 1];
-        m->tris[3 * f + 1] = m->tris[3 * f + 2];
-        m->tris[3 * f + 2] = t;
-    }
-    rs_ply *ply = rs_ply_new();
-    rs_mesh_to_ply(m, ply);
-    rs_err err;
-    assert_int_equal(rs_ply_write(ply, rs_test_path(dir, "mesh.ply"), 1, &err), 0);
-    rs_ply_free(ply);
-    rs_mesh_free(m);
+    rs_fx_write_floor_wall(dir, 8, 8, 5);
     rs_image *img = rs_image_new(pano_w, pano_h, 3);
     for (size_t k = 0; k < 3 * (size_t)pano_w * pano_h; k++) img->data[k] = 0.5f;
     for (int k = 0; k < nan_pixels; k++) img->data[3 * ((size_t)k * 7919 % ((size_t)pano_w * pano_h))] = NAN;
-    static const char *const rgb[] = {"R", "G", "B"};
-    assert_int_equal(rs_image_write_exr(img, rs_test_path(dir, "pano.exr"), rgb, 0, NULL, &err), 0);
+    rs_fx_write_pano(img, dir);
     rs_image_free(img);
 }
 
 static const char *write_config(const char *dir, const char *extra)
 {
-    static char text[4096];
-    snprintf(text, sizeof text,
-             "[pipeline]\nworkdir = work\n[mesh]\ninput_mesh = mesh.ply\n[capture]\npanorama = pano.exr\n"
-             "position = 0 -4 1.5\n[irradiance]\nsamples = 64\nsky_samples = 64\nsun_samples = 16\n%s",
-             extra ? extra : "");
-    const char *path = rs_test_path(dir, "scene.ini");
-    rs_test_write(path, text);
-    return path;
+    return rs_fx_write_scene_ini(dir, "0 -4 1.5", 64, 16, extra);
 }
 
 static void test_misspelt_key(void **state)
@@ -273,14 +251,8 @@ static void test_run_options(void **state)
     free(out);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_misspelt_key),     cmocka_unit_test(test_bad_value_and_rotation),
-        cmocka_unit_test(test_missing_file),     cmocka_unit_test(test_truncated_ptx),
-        cmocka_unit_test(test_truncated_ply),    cmocka_unit_test(test_pano_not_2_to_1),
-        cmocka_unit_test(test_nonfinite_pixels), cmocka_unit_test(test_reruns),
-        cmocka_unit_test(test_options),          cmocka_unit_test(test_run_options),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_misspelt_key), cmocka_unit_test(test_bad_value_and_rotation),
+             cmocka_unit_test(test_missing_file), cmocka_unit_test(test_truncated_ptx),
+             cmocka_unit_test(test_truncated_ply), cmocka_unit_test(test_pano_not_2_to_1),
+             cmocka_unit_test(test_nonfinite_pixels), cmocka_unit_test(test_reruns), cmocka_unit_test(test_options),
+             cmocka_unit_test(test_run_options))

@@ -233,12 +233,5 @@ static void test_denoise_bad_values(void **state)
     rs_mesh_free(m);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_denoise_strip),
-        cmocka_unit_test(test_denoise_exact),
-        cmocka_unit_test(test_denoise_bad_values),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_denoise_strip), cmocka_unit_test(test_denoise_exact),
+             cmocka_unit_test(test_denoise_bad_values))

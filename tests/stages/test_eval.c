@@ -276,12 +276,5 @@ static void test_program_exit_codes(void **state)
     cleanup(&s);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_albedo_statistics),
-        cmocka_unit_test(test_unobserved_lowers_coverage),
-        cmocka_unit_test(test_program_exit_codes),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_albedo_statistics), cmocka_unit_test(test_unobserved_lowers_coverage),
+             cmocka_unit_test(test_program_exit_codes))

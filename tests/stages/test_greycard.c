@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "common/image.h"
+#include "tests/fixtures.h"
 #include "tests/meshgen.h"
 #include "common/pano.h"
 #include "common/ply.h"
@@ -17,35 +18,29 @@
 
 /* A 40 x 40 m grey floor at z = 0; the camera 1.5 m above its centre; a uniform sky of radiance
  * 1, the floor at ALBEDO x pi x 1 / pi times object_gain (lower hemisphere). */
+static void sky_over_floor(rs_v3 d, size_t k, double rgb[3], void *object_gain)
+{
+    (void)k;
+    rgb[0] = rgb[1] = rgb[2] = d.z > 0 ? 1.0 : ALBEDO * *(const double *)object_gain;
+}
+
 static void write_scene(const char *dir, double object_gain)
 {
     rs_meshgen g = rs_meshgen_new(2000, 2000);
     rs_meshgen_rect(&g, rs_v3_make(-20, -20, 0), rs_v3_make(40, 0, 0), rs_v3_make(0, 40, 0), 20, 20);
     rs_mesh *m = rs_meshgen_done(&g);
     rs_meshgen_write(m, rs_test_path(dir, "mesh.ply"));
-    rs_err err;
     rs_mesh_free(m);
-    rs_image *img = rs_image_new(W, W / 2, 3);
-    for (int r = 0; r < W / 2; r++)
-        for (int c = 0; c < W; c++) {
-            float *px = rs_image_px(img, c, r);
-            double v = rs_pano_pixel_dir(W, W / 2, c, r).z > 0 ? 1.0 : ALBEDO * object_gain;
-            px[0] = px[1] = px[2] = (float)v;
-        }
-    static const char *const rgb[] = {"R", "G", "B"};
-    assert_int_equal(rs_image_write_exr(img, rs_test_path(dir, "pano.exr"), rgb, 0, NULL, &err), 0);
+    rs_image *img = rs_fx_pano(W, W / 2, sky_over_floor, &object_gain);
+    rs_fx_write_pano(img, dir);
     rs_image_free(img);
 }
 
 static int run(const char *dir, const char *region, char **out)
 {
-    char text[1024], cmd[4096];
-    snprintf(text, sizeof text,
-             "[pipeline]\nworkdir = work\n[mesh]\ninput_mesh = mesh.ply\n[capture]\npanorama = pano.exr\n"
-             "position = 0 0 1.5\n[irradiance]\nsamples = 64\nsky_samples = 64\nsun_samples = 0\n"
-             "[calib]\ngrey_card_region = %s\ngrey_card_albedo = %g\n",
-             region, ALBEDO);
-    rs_test_write(rs_test_path(dir, "scene.ini"), text);
+    char extra[1024], cmd[4096];
+    snprintf(extra, sizeof extra, "[calib]\ngrey_card_region = %s\ngrey_card_albedo = %g\n", region, ALBEDO);
+    rs_fx_write_scene_ini(dir, "0 0 1.5", 64, 0, extra);
     snprintf(cmd, sizeof cmd, "cd '%s' && '%s/rhoscan' run scene.ini", dir, rs_test_bin_dir());
     return rs_test_run(cmd, out);
 }
@@ -112,8 +107,4 @@ static void test_grey_card(void **state)
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {cmocka_unit_test(test_grey_card)};
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_grey_card))

@@ -136,10 +136,4 @@ static void test_stride_and_coarse_cap(void **state)
     rs_cloud_free(c);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_stride_and_coarse_cap),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_stride_and_coarse_cap))

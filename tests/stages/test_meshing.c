@@ -1,6 +1,7 @@
 /* test_meshing: grid triangulation of synthetic scans (orientation, depth jumps, missing
  * returns, open sweeps, grazing angles) and the ingest and mesh stages end to end: on a
  * synthetic scan, on [mesh] input_mesh, and on the two_planes_sky reference scan. */
+#include "tests/fixtures.h"
 #include "tests/testutil.h"
 
 #include <math.h>
@@ -193,21 +194,6 @@ typedef struct run {
     int rc;
 } run;
 
-static void report_init(rs_report *rep)
-{
-    rep->metrics = rs_json_object();
-    rep->skipped = rs_json_array();
-    rep->timings = rs_json_object();
-    rep->skips = NULL;
-}
-
-static void report_free(rs_report *rep)
-{
-    rs_json_free(rep->metrics);
-    rs_json_free(rep->skipped);
-    rs_json_free(rep->timings);
-}
-
 static rs_config *config(const char *dir, const char *text)
 {
     rs_err err = {0};
@@ -254,7 +240,7 @@ static void test_stages_synthetic(void **state)
                             "[pipeline]\nworkdir = out\n[ingest]\nscan = scan.ptx\n"
                             "[capture]\npanorama = pano.exr\nposition = 3 0 1.5\n");
     rs_report rep;
-    report_init(&rep);
+    rs_fx_report_init(&rep);
     /* Mesh before ingest: cloud.ply is missing, and the message says what to do. */
     assert_int_equal(rs_mesh_run(cfg, &rep, &err), -1);
     assert_non_null(strstr(err.file, "cloud.ply"));
@@ -263,8 +249,8 @@ static void test_stages_synthetic(void **state)
     assert_float_equal(metric(&rep, "points"), 90 * 30, 0);
     assert_float_equal(metric(&rep, "valid"), 90 * 30, 0);
     assert_float_equal(metric(&rep, "scans"), 1, 0);
-    report_free(&rep);
-    report_init(&rep);
+    rs_fx_report_free(&rep);
+    rs_fx_report_init(&rep);
     if (rs_mesh_run(cfg, &rep, &err) != 0) fail_msg("mesh: %s", err.msg);
 
     /* The facet size the stage chose, from the same triangulation done here. */
@@ -318,15 +304,15 @@ static void test_stages_synthetic(void **state)
     assert_true(me >= 0.5 * want);
     rs_ply_free(ply);
     rs_mesh_free(m);
-    report_free(&rep);
+    rs_fx_report_free(&rep);
     rs_config_free(cfg);
 
     /* Without facet_size and without a panorama: a clear error. */
     cfg = config(dir, "[pipeline]\nworkdir = out\n[ingest]\nscan = scan.ptx\n");
-    report_init(&rep);
+    rs_fx_report_init(&rep);
     assert_int_equal(rs_mesh_run(cfg, &rep, &err), -1);
     assert_non_null(strstr(err.msg, "[mesh] facet_size is not set"));
-    report_free(&rep);
+    rs_fx_report_free(&rep);
     rs_config_free(cfg);
     rs_cloud_free(c);
     rs_test_rmtree(dir);
@@ -343,14 +329,14 @@ static void test_input_mesh(void **state)
                   "0 0 0\n1 0 0\n1 1 0\n2 2 0\n9 9 9\n3 0 1 2\n3 0 2 3\n3 1 1 2\n");
     rs_config *cfg = config(dir, "[pipeline]\nworkdir = out\n[mesh]\ninput_mesh = in.ply\n");
     rs_report rep;
-    report_init(&rep);
+    rs_fx_report_init(&rep);
     rs_err err = {0};
     assert_int_equal(rs_ingest_run(cfg, &rep, &err), 0);
     char *skipped = rs_json_text(rep.skipped);
     assert_non_null(strstr(skipped, "[mesh] input_mesh given"));
     free(skipped);
-    report_free(&rep);
-    report_init(&rep);
+    rs_fx_report_free(&rep);
+    rs_fx_report_init(&rep);
     if (rs_mesh_run(cfg, &rep, &err) != 0) fail_msg("%s", err.msg);
     assert_float_equal(metric(&rep, "dropped_zero_area"), 2, 0); /* collinear 0 2 3 and repeated 1 1 2 */
     assert_float_equal(metric(&rep, "dropped_unused_vertices"), 2, 0);
@@ -360,7 +346,7 @@ static void test_input_mesh(void **state)
     assert_int_equal(m->nfaces, 1);
     assert_int_equal(m->nverts, 3);
     rs_mesh_free(m);
-    report_free(&rep);
+    rs_fx_report_free(&rep);
     rs_config_free(cfg);
 
     /* A mesh with an index out of range: the message names the file and the face. */
@@ -368,11 +354,11 @@ static void test_input_mesh(void **state)
                   "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
                   "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n3 0 1 7\n");
     cfg = config(dir, "[pipeline]\nworkdir = out\n[mesh]\ninput_mesh = in.ply\n");
-    report_init(&rep);
+    rs_fx_report_init(&rep);
     assert_int_equal(rs_mesh_run(cfg, &rep, &err), -1);
     assert_non_null(strstr(err.file, "in.ply"));
     assert_non_null(strstr(err.msg, "face 0: vertex index 7"));
-    report_free(&rep);
+    rs_fx_report_free(&rep);
     rs_config_free(cfg);
     rs_test_rmtree(dir);
 }
@@ -428,21 +414,18 @@ static double slab_distance(const double lo[3], const double hi[3], rs_v3 p, int
 static void test_two_planes_reference(void **state)
 {
     (void)state;
-    const char *shared = getenv("RHOSCAN_SHARED_DIR");
-    char scan[1024];
-    struct stat st;
-    snprintf(scan, sizeof scan, "%s/reference/two_planes_sky/scan.ptx", shared ? shared : "");
-    if (!shared || stat(scan, &st) != 0) skip();
+    const char *scan = rs_test_shared_file("reference/two_planes_sky/scan.ptx");
+    if (!scan) skip();
     const char *dir = rs_test_tmpdir("meshing");
     char text[2048];
     snprintf(text, sizeof text, "[pipeline]\nworkdir = out\n[ingest]\nscan = %s\n[mesh]\nfacet_size = 0.3\n", scan);
     rs_config *cfg = config(dir, text);
     rs_report rep;
-    report_init(&rep);
+    rs_fx_report_init(&rep);
     rs_err err = {0};
     if (rs_ingest_run(cfg, &rep, &err) != 0) fail_msg("ingest: %s", err.msg);
-    report_free(&rep);
-    report_init(&rep);
+    rs_fx_report_free(&rep);
+    rs_fx_report_init(&rep);
     if (rs_mesh_run(cfg, &rep, &err) != 0) fail_msg("mesh: %s", err.msg);
     char path[4096];
     rs_mesh *m = rs_mesh_read(rs_work_path(cfg, "mesh.ply", path, sizeof path), NULL, &err);
@@ -468,18 +451,12 @@ static void test_two_planes_reference(void **state)
     const double scanner[3] = {0.5, -9, 4.2};
     assert_faces_scanner(m, scanner);
     rs_mesh_free(m);
-    report_free(&rep);
+    rs_fx_report_free(&rep);
     rs_config_free(cfg);
     rs_test_rmtree(dir);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_plane_orientation),    cmocka_unit_test(test_depth_discontinuity),
-        cmocka_unit_test(test_open_sweep),           cmocka_unit_test(test_grazing),
-        cmocka_unit_test(test_stages_synthetic),     cmocka_unit_test(test_input_mesh),
-        cmocka_unit_test(test_programs_unorganized), cmocka_unit_test(test_two_planes_reference),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_plane_orientation), cmocka_unit_test(test_depth_discontinuity),
+             cmocka_unit_test(test_open_sweep), cmocka_unit_test(test_grazing), cmocka_unit_test(test_stages_synthetic),
+             cmocka_unit_test(test_input_mesh), cmocka_unit_test(test_programs_unorganized),
+             cmocka_unit_test(test_two_planes_reference))

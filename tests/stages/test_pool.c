@@ -269,14 +269,6 @@ static void test_threads(void **state)
     rs_mesh_free(m);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_noise_falls_mean_stays),
-        cmocka_unit_test(test_planes_radius_and_unusable),
-        cmocka_unit_test(test_parallel_step),
-        cmocka_unit_test(test_threads),
-        cmocka_unit_test(test_reflectance_keeps_the_shadow_edge),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_noise_falls_mean_stays),
+             cmocka_unit_test(test_planes_radius_and_unusable), cmocka_unit_test(test_parallel_step),
+             cmocka_unit_test(test_threads), cmocka_unit_test(test_reflectance_keeps_the_shadow_edge))

@@ -141,10 +141,4 @@ static void test_uncertainty_images(void **state)
     rs_test_rmtree(tmp);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_uncertainty_images),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_uncertainty_images))

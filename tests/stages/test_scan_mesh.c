@@ -1,6 +1,7 @@
 /* test_scan_mesh: scan to mesh at survey scale: text and PCD readers, PCL cleaning, recentred
  * georeferenced clouds, unorganized meshing, several overlapping scans, and the accuracy of
  * the meshes of the reference scenes against their true surfaces. */
+#include "tests/fixtures.h"
 #include "tests/testutil.h"
 #include "tests/meshgen.h"
 
@@ -35,21 +36,6 @@ static double gauss(void)
     return sqrt(-2 * log(u > 0 ? u : 1e-300)) * cos(2 * M_PI * v);
 }
 
-static void report_init(rs_report *rep)
-{
-    rep->metrics = rs_json_object();
-    rep->skipped = rs_json_array();
-    rep->timings = rs_json_object();
-    rep->skips = NULL;
-}
-
-static void report_free(rs_report *rep)
-{
-    rs_json_free(rep->metrics);
-    rs_json_free(rep->skipped);
-    rs_json_free(rep->timings);
-}
-
 static double metric(const rs_report *rep, const char *key)
 {
     char *text = rs_json_text(rep->metrics), pat[128];
@@ -67,10 +53,10 @@ static rs_mesh *run_stages(const char *dir, const char *text, rs_report *mesh_re
     rs_config *cfg = rs_config_load_string(text, "test.ini", dir, NULL, &err);
     if (!cfg) fail_msg("config: %s", err.msg);
     rs_report rep;
-    report_init(&rep);
+    rs_fx_report_init(&rep);
     if (rs_ingest_run(cfg, &rep, &err) != 0) fail_msg("ingest: %s: %s", err.file, err.msg);
-    report_free(&rep);
-    report_init(mesh_rep);
+    rs_fx_report_free(&rep);
+    rs_fx_report_init(mesh_rep);
     if (rs_mesh_run(cfg, mesh_rep, &err) != 0) fail_msg("mesh: %s: %s", err.file, err.msg);
     char path[4096];
     rs_mesh *m = rs_mesh_read(rs_work_path(cfg, "mesh.ply", path, sizeof path), ply, &err);
@@ -439,18 +425,18 @@ static void test_georeferenced_text(void **state)
     assert_true(metric(&rep, "points_within_2cm") > 0.97);
     rs_ply_free(ply);
     rs_mesh_free(m);
-    report_free(&rep);
+    rs_fx_report_free(&rep);
 
     /* Without scanner_position the mesh stage says what it needs. */
     rs_config *cf =
         rs_config_load_string("[pipeline]\nworkdir = out2\n[ingest]\nscan = pts.csv\ncolumns = x y z r g b\n"
                               "[mesh]\nfacet_size = 0.3\n",
                               "t.ini", dir, NULL, &err);
-    report_init(&rep);
+    rs_fx_report_init(&rep);
     assert_int_equal(rs_ingest_run(cf, &rep, &err), 0);
     assert_int_equal(rs_mesh_run(cf, &rep, &err), -1);
     assert_non_null(strstr(err.msg, "[ingest] scanner_position"));
-    report_free(&rep);
+    rs_fx_report_free(&rep);
     rs_config_free(cf);
     rs_test_rmtree(dir);
 }
@@ -541,7 +527,7 @@ static void test_georeferenced_ptx(void **state)
     check("georeferenced PTX, recentred", m, a, 3000, 1);
     rs_mesh_free(m);
     rs_ply_free(ply);
-    report_free(&rep);
+    rs_fx_report_free(&rep);
     /* cloud.ply: the same origin, the scanner's position moved with the points. */
     rs_cloud *c = rs_cloud_read_ply(rs_test_path(dir, "out/cloud.ply"), &err);
     if (!c) fail_msg("%s", err.msg);
@@ -560,7 +546,7 @@ static void test_georeferenced_ptx(void **state)
     m = run_stages(dir, text, &rep, NULL);
     double size_local = metric(&rep, "facet_size_m");
     rs_mesh_free(m);
-    report_free(&rep);
+    rs_fx_report_free(&rep);
     /* ... refused in the georeferenced frame, naming the position to give ... */
     double cam_world[3] = {utm[0] + camera[0], utm[1] + camera[1], utm[2] + camera[2]};
     snprintf(text, sizeof text,
@@ -569,17 +555,17 @@ static void test_georeferenced_ptx(void **state)
              cam_world[0], cam_world[1], cam_world[2]);
     rs_config *cfg = rs_config_load_string(text, "t.ini", dir, NULL, &err);
     assert_non_null(cfg);
-    report_init(&rep);
+    rs_fx_report_init(&rep);
     assert_int_equal(rs_ingest_run(cfg, &rep, &err), 0);
-    report_free(&rep);
-    report_init(&rep);
+    rs_fx_report_free(&rep);
+    rs_fx_report_init(&rep);
     assert_int_equal(rs_mesh_run(cfg, &rep, &err), -1);
     print_message("georeferenced capture: %s\n", err.msg);
     assert_non_null(strstr(err.msg, "recentred frame"));
     char want[128];
     snprintf(want, sizeof want, "%.10g %.10g %.10g", cam_world[0] - o[0], cam_world[1] - o[1], cam_world[2] - o[2]);
     assert_non_null(strstr(err.msg, want));
-    report_free(&rep);
+    rs_fx_report_free(&rep);
     rs_config_free(cfg);
     /* ... and accepted in the recentred frame, where it gives the local run's facet size. */
     snprintf(text, sizeof text,
@@ -592,7 +578,7 @@ static void test_georeferenced_ptx(void **state)
     assert_true(size_local > 0.01 && size_local < 1);
     assert_float_equal(size_rec, size_local, 1e-3 * size_local);
     rs_mesh_free(m);
-    report_free(&rep);
+    rs_fx_report_free(&rep);
     rs_cloud_free(local);
     rs_mesh_free(truth);
     rs_test_rmtree(dir);
@@ -625,7 +611,7 @@ static void test_reference_single(void **state)
         assert_float_equal(metric(&rep, "points_within_2cm"), a.within_2cm, 0.005);
         assert_true(metric(&rep, "nonmanifold_edges") == 0);
         rs_mesh_free(m);
-        report_free(&rep);
+        rs_fx_report_free(&rep);
 
         /* The same scan as a shuffled, unorganized PLY (binary, world frame, no grid): the
          * default reconstruction (Poisson, trimmed) within twice the bounds, on the budget,
@@ -652,7 +638,7 @@ static void test_reference_single(void **state)
                               m->nfaces, 1e3 * a.mean_m, 1e3 * a.p95_m, 100 * a.within_2cm);
             }
             rs_mesh_free(m);
-            report_free(&rep);
+            rs_fx_report_free(&rep);
         }
         rs_cloud_free(scan);
         rs_mesh_free(truth);
@@ -695,7 +681,7 @@ static void test_reference_two_scans(void **state)
         assert_int_equal(dup, 0);
         check(what, m, a, scenes[s].budget, 1);
         rs_mesh_free(m);
-        report_free(&rep);
+        rs_fx_report_free(&rep);
 
         snprintf(text, sizeof text,
                  "[pipeline]\nworkdir = out_off\n[ingest]\nscan = %s second.ptx\n[mesh]\n"
@@ -706,7 +692,7 @@ static void test_reference_two_scans(void **state)
         print_message("%s, overlap test off: %zu duplicated facets\n", what, dup);
         assert_true(dup > 0);
         rs_mesh_free(m);
-        report_free(&rep);
+        rs_fx_report_free(&rep);
         rs_cloud_free(second);
         rs_cloud_free(both);
         rs_cloud_free(scan);
@@ -716,16 +702,7 @@ static void test_reference_two_scans(void **state)
     if (!any) skip();
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_text_reader),
-        cmocka_unit_test(test_pcd_reader),
-        cmocka_unit_test(test_cleaning),
-        cmocka_unit_test(test_georeferenced_text),
-        cmocka_unit_test(test_georeferenced_ptx),
-        cmocka_unit_test(test_reference_single),
-        cmocka_unit_test(test_reference_two_scans),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_text_reader), cmocka_unit_test(test_pcd_reader),
+             cmocka_unit_test(test_cleaning), cmocka_unit_test(test_georeferenced_text),
+             cmocka_unit_test(test_georeferenced_ptx), cmocka_unit_test(test_reference_single),
+             cmocka_unit_test(test_reference_two_scans))

@@ -302,12 +302,5 @@ static void test_trivial(void **state)
     rs_mesh_free(m);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_l_block),
-        cmocka_unit_test(test_open_square),
-        cmocka_unit_test(test_trivial),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_l_block), cmocka_unit_test(test_open_square),
+             cmocka_unit_test(test_trivial))

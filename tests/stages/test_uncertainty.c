@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "light/gather.h"
+#include "tests/fixtures.h"
 #include "common/image.h"
 #include "tests/meshgen.h"
 #include "common/ply.h"
@@ -20,42 +21,34 @@ static double normal(uint32_t k)
     return sqrt(-2 * log(u)) * cos(2 * M_PI * v);
 }
 
+/* The panorama's radiance: 0.5 times (1 + noise_rel N(0, 1)) per pixel and channel. */
+typedef struct {
+    int w, h;
+    double noise_rel;
+} noisy_sky;
+
+static void noisy_radiance(rs_v3 d, size_t k, double rgb[3], void *ctx)
+{
+    (void)d;
+    const noisy_sky *n = ctx;
+    size_t row = k / (size_t)n->w;
+    for (int ch = 0; ch < 3; ch++) {
+        /* sky above the horizon (camera at 1.5 m: the upper half sees sky or the wall's top) */
+        rgb[ch] = 0.5 * (1 + n->noise_rel * normal((uint32_t)(3 * k + ch)));
+        if (row < (size_t)n->h / 8) rgb[ch] = 1.0; /* zenith sky: no model there */
+    }
+}
+
 /* Floor and wall (the wall's normal toward the camera at y = -4), and a panorama whose model
  * pixels are 0.5 times (1 + noise_rel N(0, 1)), independently per pixel and channel. */
 static void write_noisy_scene(const char *dir, int pano_w, double noise_rel, int cells)
 {
-    rs_meshgen g = rs_meshgen_new(40000, 40000);
-    rs_meshgen_rect(&g, rs_v3_make(-5, -5, 0), rs_v3_make(10, 0, 0), rs_v3_make(0, 10, 0), cells, cells);
-    size_t wall = g.nf;
-    rs_meshgen_rect(&g, rs_v3_make(-5, 5, 0), rs_v3_make(10, 0, 0), rs_v3_make(0, 0, 6), cells, cells);
-    rs_mesh *m = rs_meshgen_done(&g);
-    for (size_t f = wall; f < m->nfaces; f++) {
-        uint32_t t = m->tris[3 * f + 1];
-        m->tris[3 * f + 1] = m->tris[3 * f + 2];
-        m->tris[3 * f + 2] = t;
-    }
-    rs_ply *ply = rs_ply_new();
-    rs_mesh_to_ply(m, ply);
-    rs_err err;
-    assert_int_equal(rs_ply_write(ply, rs_test_path(dir, "mesh.ply"), 1, &err), 0);
-    rs_ply_free(ply);
-    rs_mesh_free(m);
-    int pano_h = pano_w / 2;
-    rs_image *img = rs_image_new(pano_w, pano_h, 3);
-    for (size_t k = 0; k < 3 * (size_t)pano_w * pano_h; k++) {
-        size_t row = k / 3 / (size_t)pano_w;
-        /* sky above the horizon (camera at 1.5 m: the upper half sees sky or the wall's top) */
-        img->data[k] = (float)(0.5 * (1 + noise_rel * normal((uint32_t)k)));
-        if (row < (size_t)pano_h / 8) img->data[k] = 1.0f; /* zenith sky: no model there */
-    }
-    static const char *const rgb[] = {"R", "G", "B"};
-    assert_int_equal(rs_image_write_exr(img, rs_test_path(dir, "pano.exr"), rgb, 0, NULL, &err), 0);
+    rs_fx_write_floor_wall(dir, cells, cells, cells);
+    noisy_sky n = {pano_w, pano_w / 2, noise_rel};
+    rs_image *img = rs_fx_pano(pano_w, pano_w / 2, noisy_radiance, &n);
+    rs_fx_write_pano(img, dir);
     rs_image_free(img);
-    char text[1024];
-    snprintf(text, sizeof text,
-             "[pipeline]\nworkdir = work\n[mesh]\ninput_mesh = mesh.ply\n[capture]\npanorama = pano.exr\n"
-             "position = 0 -4 1.5\n[irradiance]\nsamples = 64\nsky_samples = 64\nsun_samples = 16\n");
-    rs_test_write(rs_test_path(dir, "scene.ini"), text);
+    rs_fx_write_scene_ini(dir, "0 -4 1.5", 64, 16, NULL);
 }
 
 static double prop(const rs_ply_element *e, const char *name, size_t i)
@@ -132,27 +125,18 @@ static void test_radiance_sigma(void **state)
     check_radiance_sigma(256, 40, 0.2);
 }
 
-/* A sky of random luminance with a sun of a few pixels, in world axes. */
-static void random_sky(int w, rs_capture *cap, rs_skyenv *env)
+/* Floor and wall (cells x cells each) and a thin blade that shadows them, under a sky of random
+ * luminance with a sun of a few pixels, in world axes. */
+static rs_mesh *blade_scene(int cells, rs_scene **scene, rs_capture *cap, rs_skyenv *env)
 {
-    int h = w / 2;
-    memset(cap, 0, sizeof *cap);
-    cap->pano = rs_image_new(w, h, 3);
-    rs_m3_identity(cap->pose.rot);
-    for (size_t k = 0; k < (size_t)w * h; k++) {
-        float v = 0.05f + (rs_hash_u32((uint32_t)k) >> 8) / 16777216.0f;
-        for (int ch = 0; ch < 3; ch++) cap->pano->data[3 * k + ch] = v;
-    }
-    for (int c = 0; c < 6; c++)
-        for (int r = 0; r < 3; r++) {
-            float *px = rs_image_px(cap->pano, w / 2 + 20 + c, h / 4 + r);
-            px[0] = px[1] = px[2] = 1e3f;
-        }
-    float *ids = malloc((size_t)w * h * sizeof *ids);
-    for (size_t k = 0; k < (size_t)w * h; k++) ids[k] = -1;
-    rs_err err;
-    assert_int_equal(rs_skyenv_build(cap, ids, 50, 0.01, 1, env, &err), 0);
-    free(ids);
+    rs_meshgen mg = rs_meshgen_new(400, 400);
+    rs_meshgen_rect(&mg, rs_v3_make(-2, -2, 0), rs_v3_make(4, 0, 0), rs_v3_make(0, 4, 0), cells, cells);
+    rs_meshgen_rect(&mg, rs_v3_make(-2, 2, 0), rs_v3_make(4, 0, 0), rs_v3_make(0, 0, 3), cells, cells);
+    rs_meshgen_box(&mg, rs_v3_make(-0.05, -10, 0.5), rs_v3_make(0.05, 10, 6), 1, 0);
+    rs_mesh *m = rs_meshgen_done(&mg);
+    *scene = rs_fx_scene(m);
+    rs_fx_random_sky(256, 1e3f, 0, cap, env);
+    return m;
 }
 
 /* Over 128 seeds, per ray count N: the spread (standard deviation) of a floor facet's E_sky + G
@@ -163,17 +147,10 @@ static void random_sky(int w, rs_capture *cap, rs_skyenv *env)
 static void test_mc_sigma(void **state)
 {
     (void)state;
-    rs_meshgen mg = rs_meshgen_new(400, 400);
-    rs_meshgen_rect(&mg, rs_v3_make(-2, -2, 0), rs_v3_make(4, 0, 0), rs_v3_make(0, 4, 0), 2, 2);
-    rs_meshgen_rect(&mg, rs_v3_make(-2, 2, 0), rs_v3_make(4, 0, 0), rs_v3_make(0, 0, 3), 2, 2);
-    rs_meshgen_box(&mg, rs_v3_make(-0.05, -10, 0.5), rs_v3_make(0.05, 10, 6), 1, 0);
-    rs_mesh *m = rs_meshgen_done(&mg);
-    rs_err err;
-    rs_scene *scene = rs_scene_new(m, &err);
-    assert_non_null(scene);
+    rs_scene *scene;
     rs_capture cap;
     rs_skyenv env;
-    random_sky(256, &cap, &env);
+    rs_mesh *m = blade_scene(2, &scene, &cap, &env);
     size_t nf = m->nfaces;
     double *radiance = malloc(3 * nf * sizeof *radiance);
     for (size_t k = 0; k < 3 * nf; k++) radiance[k] = 0.3;
@@ -184,13 +161,7 @@ static void test_mc_sigma(void **state)
         double sum = 0, sum_sq = 0, rep = 0;
         const int seeds = 128;
         for (int seed = 0; seed < seeds; seed++) {
-            rs_gather_ctx g = {.scene = scene,
-                               .env = &env,
-                               .samples = counts[c],
-                               .sky_samples = counts[c],
-                               .sun_samples = counts[c] / 4,
-                               .seed = (uint32_t)seed,
-                               .skip_convex = 1};
+            rs_gather_ctx g = rs_fx_gather_ctx(scene, &env, counts[c], counts[c] / 4, (uint32_t)seed);
             rs_facet_gather r;
             assert_int_equal(rs_gather_facet(&g, 2, s, &r), 0);
             double e = r.esky_lum;
@@ -213,10 +184,7 @@ static void test_mc_sigma(void **state)
     assert_true(ratio > 1.5 && ratio < 2.5);
     rs_gather_scratch_free(s);
     free(radiance);
-    rs_skyenv_release(&env);
-    rs_capture_release(&cap);
-    rs_scene_free(scene);
-    rs_mesh_free(m);
+    rs_fx_release(&env, &cap, scene, m);
 }
 
 /* rs_gather_mc_calibration: every facet of the same scene gathered with 32 seeds; the
@@ -226,16 +194,10 @@ static void test_mc_sigma(void **state)
 static void test_mc_calibration(void **state)
 {
     (void)state;
-    rs_meshgen mg = rs_meshgen_new(400, 400);
-    rs_meshgen_rect(&mg, rs_v3_make(-2, -2, 0), rs_v3_make(4, 0, 0), rs_v3_make(0, 4, 0), 4, 4);
-    rs_meshgen_rect(&mg, rs_v3_make(-2, 2, 0), rs_v3_make(4, 0, 0), rs_v3_make(0, 0, 3), 4, 4);
-    rs_meshgen_box(&mg, rs_v3_make(-0.05, -10, 0.5), rs_v3_make(0.05, 10, 6), 1, 0);
-    rs_mesh *m = rs_meshgen_done(&mg);
-    rs_err err;
-    rs_scene *scene = rs_scene_new(m, &err);
+    rs_scene *scene;
     rs_capture cap;
     rs_skyenv env;
-    random_sky(256, &cap, &env);
+    rs_mesh *m = blade_scene(4, &scene, &cap, &env);
     size_t nf = m->nfaces;
     double *radiance = malloc(3 * nf * sizeof *radiance);
     for (size_t k = 0; k < 3 * nf; k++) radiance[k] = 0.3;
@@ -244,13 +206,7 @@ static void test_mc_calibration(void **state)
     rs_facet_gather *fg = calloc(nf, sizeof *fg);
     rs_gather_stats st;
     for (int seed = 0; seed < SEEDS; seed++) {
-        rs_gather_ctx g = {.scene = scene,
-                           .env = &env,
-                           .samples = 64,
-                           .sky_samples = 64,
-                           .sun_samples = 16,
-                           .seed = (uint32_t)(100 + seed),
-                           .skip_convex = 1};
+        rs_gather_ctx g = rs_fx_gather_ctx(scene, &env, 64, 16, (uint32_t)(100 + seed));
         assert_int_equal(rs_gather_run(&g, nf, NULL, fg, NULL, NULL, &st), 0);
         double fac;
         size_t used;
@@ -281,18 +237,8 @@ static void test_mc_calibration(void **state)
     assert_true(factor < 1);
     assert_true(zrms > 0.75 && zrms < 1.25);
     free(E), free(sig), free(fg), free(radiance);
-    rs_skyenv_release(&env);
-    rs_capture_release(&cap);
-    rs_scene_free(scene);
-    rs_mesh_free(m);
+    rs_fx_release(&env, &cap, scene, m);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_radiance_sigma),
-        cmocka_unit_test(test_mc_sigma),
-        cmocka_unit_test(test_mc_calibration),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_radiance_sigma), cmocka_unit_test(test_mc_sigma),
+             cmocka_unit_test(test_mc_calibration))

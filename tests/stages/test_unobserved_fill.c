@@ -86,8 +86,4 @@ static void test_fill_by_orientation(void **state)
     assert_true(fabs(wall_all - RHO_WALL) > 0.05 * RHO_WALL);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {cmocka_unit_test(test_fill_by_orientation)};
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_fill_by_orientation))

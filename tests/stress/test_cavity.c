@@ -167,10 +167,4 @@ static void test_nearly_closed_cavity(void **state)
     rs_mesh_free(m);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_nearly_closed_cavity),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_nearly_closed_cavity))

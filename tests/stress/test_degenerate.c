@@ -180,10 +180,4 @@ static void test_bad_facets_flagged_never_nan(void **state)
     rs_test_rmtree(tmp);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_bad_facets_flagged_never_nan),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_bad_facets_flagged_never_nan))

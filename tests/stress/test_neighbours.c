@@ -125,11 +125,4 @@ static void test_paper_blowup_flagged(void **state)
     rs_mesh_free(m);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_view_factor_angles_gaps),
-        cmocka_unit_test(test_paper_blowup_flagged),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_view_factor_angles_gaps), cmocka_unit_test(test_paper_blowup_flagged))

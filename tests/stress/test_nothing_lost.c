@@ -147,10 +147,4 @@ static void test_kill_rerun_determinism_full_disk(void **state)
     rs_test_rmtree(tmp);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_kill_rerun_determinism_full_disk),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_kill_rerun_determinism_full_disk))

@@ -5,6 +5,7 @@
 #include "tests/stress/stress.h"
 
 #include "common/pano.h"
+#include "tests/fixtures.h"
 
 /* E of an upward facet with nothing above it, for the panorama: the exact sum of L cos dOmega
  * over the map's upper hemisphere, in double. */
@@ -23,21 +24,13 @@ static double exact_E(const rs_image *pano)
 static double gather_E(const rs_image *src, float scale, double *expect)
 {
     int w = src->width, h = src->height;
-    rs_capture cap;
-    memset(&cap, 0, sizeof cap);
-    cap.pano = rs_image_new(w, h, 3);
-    rs_m3_identity(cap.pose.rot);
+    rs_capture cap = rs_fx_capture(w, h, NULL, NULL);
     for (size_t k = 0; k < 3 * (size_t)w * h; k++) cap.pano->data[k] = src->data[k] * scale;
     *expect = exact_E(cap.pano);
-    float *ids = malloc((size_t)w * h * sizeof *ids);
-    for (size_t k = 0; k < (size_t)w * h; k++) ids[k] = -1;
     rs_skyenv env;
-    rs_err err;
-    if (rs_skyenv_build(&cap, ids, 50, 0.01, 1, &env, &err) != 0) fail_msg("%s", err.msg);
-    rs_meshgen g = rs_meshgen_new(16, 8);
-    rs_meshgen_rect(&g, rs_v3_make(0, 0, 0), rs_v3_make(1, 0, 0), rs_v3_make(0, 1, 0), 1, 1);
-    rs_mesh *m = rs_meshgen_done(&g);
-    rs_scene *scene = rs_scene_new(m, &err);
+    rs_fx_sky_env(&cap, 0.01, 1, &env);
+    rs_mesh *m = rs_fx_unit_square();
+    rs_scene *scene = rs_fx_scene(m);
     rs_gather_ctx gc = {.scene = scene, .env = &env, .samples = 256, .sky_samples = 512, .sun_samples = 64, .seed = 1};
     rs_gather_scratch *s = rs_gather_scratch_new(512);
     rs_facet_gather out;
@@ -46,11 +39,7 @@ static double gather_E(const rs_image *src, float scale, double *expect)
     double E = out.esky[0];
     free(out.entries);
     rs_gather_scratch_free(s);
-    rs_scene_free(scene);
-    rs_mesh_free(m);
-    rs_skyenv_release(&env);
-    free(ids);
-    rs_capture_release(&cap);
+    rs_fx_release(&env, &cap, scene, m);
     return E;
 }
 
@@ -89,10 +78,4 @@ static void test_sun_over_shadows(void **state)
     rs_image_free(pano);
 }
 
-int main(void)
-{
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_sun_over_shadows),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
-}
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_sun_over_shadows))
