@@ -144,138 +144,161 @@ static int read_scan_comments(const rs_ply *ply, const char *name, rs_scan **out
     return n;
 }
 
-rs_cloud *rs_cloud_from_ply(const rs_ply *ply, const char *name, rs_err *err)
+/* The vertex properties a cloud is made of; NULL where the file has none. */
+typedef struct ply_vertices {
+    size_t n;
+    const double *x, *y, *z, *intensity;
+    const double *rgb[3];           /* red, green, blue: all three or none */
+    double rgb_scale;               /* to 0..255: float colours are taken as 0..1, integer ones as 0..255 */
+    const double *scan, *row, *col; /* the grid cell of each vertex (cloud.ply) */
+} ply_vertices;
+
+static int find_vertices(const rs_ply *ply, ply_vertices *v, const char *name, rs_err *err)
 {
     const rs_ply_element *el = rs_ply_find_element(ply, "vertex");
-    const double *x = el ? scalar(el, "x") : NULL, *y = el ? scalar(el, "y") : NULL, *z = el ? scalar(el, "z") : NULL;
-    if (!x || !y || !z) {
-        rs_err_set(err, RS_ERR_INPUT, name, 0, "no vertex element with scalar x, y and z; expected a point cloud");
-        return NULL;
-    }
-    size_t nv = el->count;
-    const double *in = scalar(el, "intensity");
-    const double *red = scalar(el, "red"), *green = scalar(el, "green"), *blue = scalar(el, "blue");
+    v->x = el ? scalar(el, "x") : NULL, v->y = el ? scalar(el, "y") : NULL, v->z = el ? scalar(el, "z") : NULL;
+    if (!v->x || !v->y || !v->z)
+        return rs_err_set(err, RS_ERR_INPUT, name, 0,
+                          "no vertex element with scalar x, y and z; expected a point cloud");
+    v->n = el->count;
+    v->intensity = scalar(el, "intensity");
+    v->rgb[0] = scalar(el, "red"), v->rgb[1] = scalar(el, "green"), v->rgb[2] = scalar(el, "blue");
     const rs_ply_prop *red_prop = rs_ply_find_prop(el, "red");
-    int have_rgb = red && green && blue;
-    /* Float colours are taken as 0..1, integer ones as 0..255. */
-    double rgb_scale = have_rgb && !(red_prop->type <= RS_PLY_UINT32) ? 255.0 : 1.0;
+    if (!v->rgb[0] || !v->rgb[1] || !v->rgb[2]) v->rgb[0] = v->rgb[1] = v->rgb[2] = NULL;
+    v->rgb_scale = v->rgb[0] && !(red_prop->type <= RS_PLY_UINT32) ? 255.0 : 1.0;
+    v->scan = scalar(el, "scan"), v->row = scalar(el, "row"), v->col = scalar(el, "col");
+    return 0;
+}
 
+/* A comment "KEY X Y Z" into out: 1 when found, 0 when absent, -1 when malformed. what says
+ * what the numbers are, for the message. */
+static int read_point_comment(const rs_ply *ply, const char *key, const char *what, double out[3], const char *name,
+                              rs_err *err)
+{
+    const char *text = rs_ply_find_comment(ply, key);
+    if (!text) return 0;
+    int used = 0;
+    if (sscanf(text, "%lf %lf %lf %n", out, out + 1, out + 2, &used) != 3 || text[used] != '\0' || !isfinite(out[0]) ||
+        !isfinite(out[1]) || !isfinite(out[2]))
+        return rs_err_set(err, RS_ERR_INPUT, name, 0, "comment \"%s %.200s\": expected three finite numbers (%s)", key,
+                          text, what);
+    return 1;
+}
+
+/* The comments into c: its scan grids (c->scans, and their count, checked against the
+ * vertices' properties), origin and viewpoint. */
+static int read_comments(const rs_ply *ply, const ply_vertices *v, rs_cloud *c, const char *name, rs_err *err)
+{
+    int nscans = read_scan_comments(ply, name, &c->scans, err);
+    if (nscans < 0) return -1;
+    if (read_point_comment(ply, ORIGIN_COMMENT, "the offset added to every coordinate", c->origin, name, err) < 0)
+        return -1;
+    int vp = read_point_comment(ply, VIEWPOINT_COMMENT, "the scanner centre", c->viewpoint, name, err);
+    if (vp < 0) return -1;
+    c->has_viewpoint = vp;
+    if (nscans > 0 && (!v->scan || !v->row || !v->col))
+        return rs_err_set(err, RS_ERR_INPUT, name, 0,
+                          "the file describes %d scan grid(s) but its vertices lack scan, row "
+                          "and col properties",
+                          nscans);
+    c->nscans = nscans;
+    return 0;
+}
+
+/* Grid points first, scan by scan, then the unorganized ones: sets each scan's first index
+ * and allocates the points, every grid cell a no-return point at its scanner until a vertex
+ * fills it. Grids are bounded by the point count so that a corrupt comment cannot ask for
+ * terabytes. */
+static int lay_out_points(rs_cloud *c, const ply_vertices *v, const char *name, rs_err *err)
+{
+    size_t grid = 0;
+    for (int s = 0; s < c->nscans; s++) {
+        c->scans[s].first = grid;
+        grid += (size_t)c->scans[s].cols * (size_t)c->scans[s].rows;
+        if (grid > 1000000 + 1000 * v->n)
+            return rs_err_set(err, RS_ERR_INPUT, name, 0,
+                              "scan grids of %zu cells for %zu points; expected at most "
+                              "1000 cells per point (corrupt " SCAN_COMMENT " comment?)",
+                              grid, v->n);
+    }
+    size_t loose = 0;
+    for (size_t k = 0; k < v->n; k++)
+        if (!c->nscans || v->scan[k] == -1) loose++;
+    if (rs_cloud_resize(c, grid + loose, v->intensity != NULL, v->rgb[0] != NULL, err) != 0) return -1;
+    c->npoints = grid + loose;
+    memset(c->valid, 0, c->npoints);
+    for (int s = 0; s < c->nscans; s++) {
+        const rs_scan *sc = &c->scans[s];
+        size_t n = (size_t)sc->cols * (size_t)sc->rows;
+        for (size_t i = sc->first; i < sc->first + n; i++) memcpy(c->xyz + 3 * i, sc->position, sizeof sc->position);
+    }
+    return 0;
+}
+
+/* The point index of vertex k: its grid cell, or the next unorganized slot (*next_loose). */
+static int vertex_index(const rs_cloud *c, const ply_vertices *v, size_t k, size_t *next_loose, size_t *index,
+                        const char *name, rs_err *err)
+{
+    if (!c->nscans || v->scan[k] == -1) {
+        *index = (*next_loose)++;
+        return 0;
+    }
+    double s = v->scan[k], r = v->row[k], cl = v->col[k];
+    if (!(s >= 0 && s < c->nscans && s == floor(s)) || !(r >= 0 && r < c->scans[(int)s].rows && r == floor(r)) ||
+        !(cl >= 0 && cl < c->scans[(int)s].cols && cl == floor(cl)))
+        return rs_err_set(err, RS_ERR_INPUT, name, 0,
+                          "vertex %zu: scan %g, row %g, col %g is outside the grids "
+                          "in the " SCAN_COMMENT " comments (or not -1 for a point outside them)",
+                          k, s, r, cl);
+    const rs_scan *sc = &c->scans[(int)s];
+    *index = sc->first + (size_t)cl * (size_t)sc->rows + (size_t)r;
+    if (c->valid[*index])
+        return rs_err_set(err, RS_ERR_INPUT, name, 0,
+                          "vertex %zu: scan %g, row %g, col %g holds a point already; "
+                          "expected one point per grid cell",
+                          k, s, r, cl);
+    return 0;
+}
+
+/* Every vertex into its point, checked (finite coordinates, a grid cell of its own). */
+static int place_vertices(rs_cloud *c, const ply_vertices *v, const char *name, rs_err *err)
+{
+    size_t next_loose = c->npoints - rs_cloud_unorganized(c); /* the first slot after the grids */
+    for (size_t k = 0; k < v->n; k++) {
+        if (!isfinite(v->x[k]) || !isfinite(v->y[k]) || !isfinite(v->z[k]))
+            return rs_err_set(err, RS_ERR_INPUT, name, 0, "vertex %zu: (%g, %g, %g); expected finite coordinates", k,
+                              v->x[k], v->y[k], v->z[k]);
+        size_t i = 0;
+        if (vertex_index(c, v, k, &next_loose, &i, name, err) != 0) return -1;
+        c->xyz[3 * i] = v->x[k];
+        c->xyz[3 * i + 1] = v->y[k];
+        c->xyz[3 * i + 2] = v->z[k];
+        c->valid[i] = 1;
+        if (v->intensity) c->intensity[i] = isfinite(v->intensity[k]) ? (float)v->intensity[k] : 0.0f;
+        if (v->rgb[0])
+            for (int j = 0; j < 3; j++) {
+                double x = v->rgb[j][k] * v->rgb_scale;
+                c->rgb[3 * i + j] = (uint8_t)(x > 0 ? (x < 255 ? lround(x) : 255) : 0);
+            }
+    }
+    return 0;
+}
+
+rs_cloud *rs_cloud_from_ply(const rs_ply *ply, const char *name, rs_err *err)
+{
+    ply_vertices v = {0};
+    if (find_vertices(ply, &v, name, err) != 0) return NULL;
     rs_cloud *c = calloc(1, sizeof *c);
     if (!c) {
         rs_err_set(err, RS_ERR_SYSTEM, name, 0, "out of memory");
         return NULL;
     }
-    int nscans = read_scan_comments(ply, name, &c->scans, err);
-    if (nscans < 0) goto fail;
-    const char *origin = rs_ply_find_comment(ply, ORIGIN_COMMENT);
-    if (origin) {
-        int used = 0;
-        if (sscanf(origin, "%lf %lf %lf %n", c->origin, c->origin + 1, c->origin + 2, &used) != 3 ||
-            origin[used] != '\0' || !isfinite(c->origin[0]) || !isfinite(c->origin[1]) || !isfinite(c->origin[2])) {
-            rs_err_set(err, RS_ERR_INPUT, name, 0,
-                       "comment \"" ORIGIN_COMMENT " %.200s\": expected three finite "
-                       "numbers (the offset added to every coordinate)",
-                       origin);
-            goto fail;
-        }
-    }
-    const char *vp = rs_ply_find_comment(ply, VIEWPOINT_COMMENT);
-    if (vp) {
-        int used = 0;
-        if (sscanf(vp, "%lf %lf %lf %n", c->viewpoint, c->viewpoint + 1, c->viewpoint + 2, &used) != 3 ||
-            vp[used] != '\0' || !isfinite(c->viewpoint[0]) || !isfinite(c->viewpoint[1]) ||
-            !isfinite(c->viewpoint[2])) {
-            rs_err_set(err, RS_ERR_INPUT, name, 0,
-                       "comment \"" VIEWPOINT_COMMENT " %.200s\": expected three finite "
-                       "numbers (the scanner centre)",
-                       vp);
-            goto fail;
-        }
-        c->has_viewpoint = 1;
-    }
-    const double *scan = scalar(el, "scan"), *row = scalar(el, "row"), *col = scalar(el, "col");
-    if (nscans > 0 && (!scan || !row || !col)) {
-        rs_err_set(err, RS_ERR_INPUT, name, 0,
-                   "the file describes %d scan grid(s) but its vertices lack scan, row "
-                   "and col properties",
-                   nscans);
-        goto fail;
-    }
-    c->nscans = nscans;
-
-    /* Grid points first, scan by scan, then the unorganized ones. Grids are bounded by the
-     * point count so that a corrupt comment cannot ask for terabytes. */
-    size_t grid = 0;
-    for (int s = 0; s < nscans; s++) {
-        c->scans[s].first = grid;
-        grid += (size_t)c->scans[s].cols * (size_t)c->scans[s].rows;
-        if (grid > 1000000 + 1000 * nv) {
-            rs_err_set(err, RS_ERR_INPUT, name, 0,
-                       "scan grids of %zu cells for %zu points; expected at most "
-                       "1000 cells per point (corrupt " SCAN_COMMENT " comment?)",
-                       grid, nv);
-            goto fail;
-        }
-    }
-    size_t loose = 0;
-    for (size_t k = 0; k < nv; k++)
-        if (!nscans || scan[k] == -1) loose++;
-    if (rs_cloud_resize(c, grid + loose, in != NULL, have_rgb, err) != 0) goto fail;
-    c->npoints = grid + loose;
-    memset(c->valid, 0, c->npoints);
-    for (int s = 0; s < nscans; s++) {
-        const rs_scan *sc = &c->scans[s];
-        size_t n = (size_t)sc->cols * (size_t)sc->rows;
-        for (size_t i = sc->first; i < sc->first + n; i++) memcpy(c->xyz + 3 * i, sc->position, sizeof sc->position);
-    }
-
-    size_t next_loose = grid;
-    for (size_t k = 0; k < nv; k++) {
-        if (!isfinite(x[k]) || !isfinite(y[k]) || !isfinite(z[k])) {
-            rs_err_set(err, RS_ERR_INPUT, name, 0, "vertex %zu: (%g, %g, %g); expected finite coordinates", k, x[k],
-                       y[k], z[k]);
-            goto fail;
-        }
-        size_t i;
-        if (!nscans || scan[k] == -1) {
-            i = next_loose++;
-        } else {
-            double s = scan[k], r = row[k], cl = col[k];
-            if (!(s >= 0 && s < nscans && s == floor(s)) || !(r >= 0 && r < c->scans[(int)s].rows && r == floor(r)) ||
-                !(cl >= 0 && cl < c->scans[(int)s].cols && cl == floor(cl))) {
-                rs_err_set(err, RS_ERR_INPUT, name, 0,
-                           "vertex %zu: scan %g, row %g, col %g is outside the grids "
-                           "in the " SCAN_COMMENT " comments (or not -1 for a point outside them)",
-                           k, s, r, cl);
-                goto fail;
-            }
-            const rs_scan *sc = &c->scans[(int)s];
-            i = sc->first + (size_t)cl * (size_t)sc->rows + (size_t)r;
-            if (c->valid[i]) {
-                rs_err_set(err, RS_ERR_INPUT, name, 0,
-                           "vertex %zu: scan %g, row %g, col %g holds a point already; "
-                           "expected one point per grid cell",
-                           k, s, r, cl);
-                goto fail;
-            }
-        }
-        c->xyz[3 * i] = x[k];
-        c->xyz[3 * i + 1] = y[k];
-        c->xyz[3 * i + 2] = z[k];
-        c->valid[i] = 1;
-        if (in) c->intensity[i] = isfinite(in[k]) ? (float)in[k] : 0.0f;
-        if (have_rgb) {
-            const double *ch[3] = {red, green, blue};
-            for (int j = 0; j < 3; j++) {
-                double v = ch[j][k] * rgb_scale;
-                c->rgb[3 * i + j] = (uint8_t)(v > 0 ? (v < 255 ? lround(v) : 255) : 0);
-            }
-        }
+    if (read_comments(ply, &v, c, name, err) != 0 || lay_out_points(c, &v, name, err) != 0 ||
+        place_vertices(c, &v, name, err) != 0) {
+        rs_cloud_free(c);
+        return NULL;
     }
     return c;
-fail:
-    rs_cloud_free(c);
-    return NULL;
 }
 
 rs_cloud *rs_cloud_read_ply(const char *path, rs_err *err)

@@ -168,6 +168,10 @@ static void test_corrupt(void **state)
                    "ply\nformat ascii 1.0\ncomment rhoscan_scan 0 1 1 0 0 0\nelement vertex 1\nproperty double x\n"
                    "property double y\nproperty double z\nend_header\n1 1 1\n",
                    "lack scan, row and col");
+    expect_bad_ply(dir, GRID_HEADER("rhoscan_origin 1 2", 1) "1 1 1 -1 -1 -1\n",
+                   "comment \"rhoscan_origin 1 2\": expected three finite numbers (the offset");
+    expect_bad_ply(dir, GRID_HEADER("rhoscan_viewpoint 1 2 inf", 1) "1 1 1 -1 -1 -1\n",
+                   "expected three finite numbers (the scanner centre)");
     expect_bad_ply(dir, "ply\nformat ascii 1.0\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n",
                    "no vertex element");
     rs_test_rmtree(dir);
