@@ -1,6 +1,6 @@
 /* cloud_text: XYZ/CSV text point clouds (exports of CloudCompare, scanners' office software)
- * read with a column map from the config. Exports rs_cloud_read_text (cloud.h). */
-#include "common/cloud.h"
+ * read with a column map from the config (see cloud_text.h). */
+#include "common/cloud_text.h"
 
 #include <ctype.h>
 #include <math.h>

@@ -1,7 +1,6 @@
-/* image_exr: the OpenEXR side of common/image.h, through the OpenEXR core C API: reading
+/* image_exr: OpenEXR files through the OpenEXR core C API (see image_exr.h): reading
  * (scanline or tiled, any compression the library decodes) and writing (ZIP, float or half). */
-#include "common/exr_dwa.h"
-#include "common/image_internal.h"
+#include "common/image_exr.h"
 
 #include <stdint.h>
 #include <stdio.h>
@@ -10,6 +9,7 @@
 
 #include <openexr.h>
 
+#include "common/exr_dwa.h"
 #include "common/fileio.h"
 
 /* What the OpenEXR callbacks share: the input bytes when reading, a growing buffer when

@@ -1,6 +1,6 @@
-/* ptx: the Leica PTX reader (docs/DESIGN.md, section Scan files): one or more organized scans back to back,
- * each registered by its 4x4 matrix. Exports rs_ptx_read and rs_ptx_read_mem (cloud.h). */
-#include "common/cloud.h"
+/* ptx: the Leica PTX reader (see ptx.h; docs/DESIGN.md, section Scan files): one or more organized scans back
+ * to back, each registered by its 4x4 matrix. */
+#include "common/ptx.h"
 
 #include <limits.h>
 #include <math.h>

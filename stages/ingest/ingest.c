@@ -1,35 +1,18 @@
-/* ingest: the ingest stage. Reads the [ingest] scan files (PTX, PLY, PCD, XYZ/CSV) into one
- * cloud, recentres georeferenced coordinates, cleans unorganized points (outlier removal,
- * voxel downsampling, PCL) and writes cloud.ply. Exports rs_ingest_run. */
+/* ingest: the ingest stage. Reads the [ingest] scan files (PTX, PLY, PCD, XYZ/CSV, whichever
+ * common/cloud_format.h finds each to be) into one cloud, recentres georeferenced coordinates,
+ * cleans unorganized points (outlier removal, voxel downsampling, PCL) and writes cloud.ply.
+ * Exports rs_ingest_run. */
 #include "stages/stages.h"
 
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 
 #include "common/cloud.h"
+#include "common/cloud_format.h"
+#include "common/cloud_ply.h"
 #include "common/fileio.h"
 #include "common/log.h"
 #include "common/pcl_bridge.h"
-
-/* By extension for the text and PCD formats (a text cloud cannot be told from a PTX by its
- * first lines), else by content: "ply" magic or PTX. */
-static rs_cloud *read_any(const rs_config *cfg, const char *path, const char **kind, rs_err *err)
-{
-    const char *dot = strrchr(path, '.');
-    if (dot && strcasecmp(dot, ".pcd") == 0) {
-        *kind = "PCD";
-        return rs_pcl_read_pcd(path, err);
-    }
-    if (dot &&
-        (strcasecmp(dot, ".xyz") == 0 || strcasecmp(dot, ".txt") == 0 || strcasecmp(dot, ".csv") == 0 ||
-         strcasecmp(dot, ".pts") == 0)) {
-        *kind = "text";
-        return rs_cloud_read_text(path, rs_config_string(cfg, "ingest", "columns"), err);
-    }
-    *kind = dot && strcasecmp(dot, ".ply") == 0 ? "PLY" : "PTX or PLY";
-    return rs_cloud_read(path, err);
-}
 
 /* Indices of the valid points outside every scan grid, as floats for PCL. */
 static float *loose_points(const rs_cloud *c, size_t *n, size_t **index)
@@ -174,7 +157,8 @@ int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     for (int i = 0; i < nfiles; i++) {
         rs_config_path_at(cfg, "ingest", "scan", i, path, sizeof path);
         const char *kind;
-        rs_cloud *c = read_any(cfg, path, &kind, err);
+        rs_cloud_read_opts opts = {.columns = rs_config_string(cfg, "ingest", "columns")};
+        rs_cloud *c = rs_cloud_read_with(path, &opts, &kind, err);
         if (!c) goto out;
         size_t valid = 0;
         for (size_t k = 0; k < c->npoints; k++) valid += c->valid[k] != 0;

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "common/cloud.h"
+#include "common/cloud_ply.h"
 #include "meshing/denoise.h"
 #include "common/fileio.h"
 #include "meshing/grid.h"

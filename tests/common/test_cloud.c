@@ -1,5 +1,6 @@
 /* test_cloud: cloud.ply round trips (grids, no-return cells, colours), reading by content,
- * concatenation, PLY clouds from other software, and corrupt grid descriptions. */
+ * concatenation, PLY clouds from other software, corrupt grid descriptions, and the formats'
+ * table (common/cloud_format.c): magic bytes, extensions, and the formats it refuses. */
 #include "tests/testutil.h"
 
 #include <math.h>
@@ -8,6 +9,9 @@
 #include <string.h>
 
 #include "common/cloud.h"
+#include "common/cloud_format.h"
+#include "common/cloud_ply.h"
+#include "common/ptx.h"
 
 /* Two scans (3 x 2 with colour and one no-return cell, 1 x 2) as PTX text. */
 static const char *ptx_text = "3\n2\n1 2 3\n1 0 0\n0 1 0\n0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n1 2 3 1\n"
@@ -164,10 +168,135 @@ static void test_corrupt(void **state)
                    "ply\nformat ascii 1.0\ncomment rhoscan_scan 0 1 1 0 0 0\nelement vertex 1\nproperty double x\n"
                    "property double y\nproperty double z\nend_header\n1 1 1\n",
                    "lack scan, row and col");
+    expect_bad_ply(dir, GRID_HEADER("rhoscan_origin 1 2", 1) "1 1 1 -1 -1 -1\n",
+                   "comment \"rhoscan_origin 1 2\": expected three finite numbers (the offset");
+    expect_bad_ply(dir, GRID_HEADER("rhoscan_viewpoint 1 2 inf", 1) "1 1 1 -1 -1 -1\n",
+                   "expected three finite numbers (the scanner centre)");
     expect_bad_ply(dir, "ply\nformat ascii 1.0\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n",
                    "no vertex element");
     rs_test_rmtree(dir);
 }
 
+static void write_bytes(const char *path, const void *data, size_t n)
+{
+    FILE *f = fopen(path, "wb");
+    assert_non_null(f);
+    assert_int_equal(fwrite(data, 1, n, f), n);
+    assert_int_equal(fclose(f), 0);
+}
+
+/* A LAS 1.2 public header block (227 bytes), zeros but for the signature and the point data
+ * format id at byte 104. */
+static void write_las(const char *path, unsigned char point_format)
+{
+    unsigned char h[227] = "LASF";
+    h[24] = 1; /* version 1.2 */
+    h[25] = 2;
+    h[104] = point_format;
+    write_bytes(path, h, sizeof h);
+}
+
+/* rs_cloud_read refuses the file with RS_ERR_INPUT, naming it and saying phrase; *format
+ * (rs_cloud_read_with) names the format refused. */
+static void expect_refused(const char *path, const char *format, const char *phrase)
+{
+    rs_err err = {0};
+    const char *got = NULL;
+    assert_null(rs_cloud_read_with(path, NULL, &got, &err));
+    assert_int_equal(err.kind, RS_ERR_INPUT);
+    assert_string_equal(got, format);
+    char buf[2048];
+    rs_err_format(&err, buf, sizeof buf);
+    if (!strstr(buf, path) || !strstr(buf, phrase))
+        fail_msg("error '%s' should name '%s' and say '%s'", buf, path, phrase);
+}
+
+/* E57, LAS and LAZ are told by their magic bytes and refused with a message that says so,
+ * instead of the PTX parse error they used to get. */
+static void test_refused_formats(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("cloud");
+    const char *e57 = rs_test_path(dir, "scan.e57");
+    write_bytes(e57, "ASTM-E57\0\0\1\0\0\0\0\0", 16);
+    expect_refused(e57, "E57", "E57 is not supported yet");
+
+    const char *las = rs_test_path(dir, "scan.las");
+    write_las(las, 1);
+    expect_refused(las, "LAS", "LAS is not supported yet");
+    const char *laz7 = rs_test_path(dir, "bit7.las"), *laz6 = rs_test_path(dir, "bit6.las");
+    write_las(laz7, 0x80 | 3); /* LASzip's compressed flag */
+    write_las(laz6, 0x40 | 1);
+    expect_refused(laz7, "LAZ", "LAZ (compressed LAS) is not supported");
+    expect_refused(laz6, "LAZ", "LAZ (compressed LAS) is not supported");
+    const char *laz = rs_test_path(dir, "named.LAZ");
+    write_las(laz, 1);
+    expect_refused(laz, "LAZ", "LAZ (compressed LAS) is not supported");
+    /* Magic bytes before the name: a LAS called .ply, a short LAS header. */
+    const char *las_named_ply = rs_test_path(dir, "really_las.ply");
+    write_las(las_named_ply, 1);
+    expect_refused(las_named_ply, "LAS", "LAS is not supported yet");
+    const char *short_las = rs_test_path(dir, "short.las");
+    write_bytes(short_las, "LASF", 4);
+    expect_refused(short_las, "LAS", "LAS is not supported yet");
+
+    /* Without the magic a .las is no LAS: read as PTX, whose error says what the name claimed. */
+    const char *fake = rs_test_path(dir, "fake.las");
+    rs_test_write(fake, "not a scan\n");
+    rs_err err = {0};
+    const char *got = NULL;
+    assert_null(rs_cloud_read_with(fake, NULL, &got, &err));
+    assert_string_equal(got, "PTX");
+    assert_non_null(strstr(err.msg, "the name says LAS but the file does not start like one"));
+    /* A missing file is reported as such, whatever its name. */
+    assert_null(rs_cloud_read(rs_test_path(dir, "missing.ply"), &err));
+    assert_int_equal(err.kind, RS_ERR_INPUT);
+    assert_non_null(strstr(err.msg, "cannot open"));
+    assert_null(strstr(err.msg, "the name says"));
+    rs_test_rmtree(dir);
+}
+
+/* The formats without magic bytes go by extension (text with the column map, PCD), and
+ * whatever else is PTX. */
+static void test_formats_by_extension(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("cloud");
+    rs_err err = {0};
+    const char *got = NULL;
+    const char *xyz = rs_test_path(dir, "points.CSV");
+    rs_test_write(xyz, "x,y,z,i\n1,2,3,0.5\n4,5,6,0.25\n");
+    rs_cloud_read_opts opts = {.columns = "x y z intensity"};
+    rs_cloud *c = rs_cloud_read_with(xyz, &opts, &got, &err);
+    if (!c) fail_msg("%s", err.msg);
+    assert_string_equal(got, "text");
+    assert_int_equal(c->npoints, 2);
+    assert_int_equal(c->nscans, 0);
+    assert_float_equal(c->intensity[1], 0.25f, 0);
+    rs_cloud_free(c);
+
+    const char *pcd = rs_test_path(dir, "points.pcd");
+    rs_test_write(pcd,
+                  "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\n"
+                  "TYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\n"
+                  "DATA ascii\n1 2 3\n4 5 6\n");
+    c = rs_cloud_read_with(pcd, NULL, &got, &err);
+    if (!c) fail_msg("%s", err.msg);
+    assert_string_equal(got, "PCD");
+    assert_int_equal(c->npoints, 2);
+    assert_true(c->xyz[3] == 4.0);
+    rs_cloud_free(c);
+
+    const char *ptx = rs_test_path(dir, "scan.unknown");
+    rs_test_write(ptx, ptx_text);
+    c = rs_cloud_read_with(ptx, NULL, &got, &err);
+    if (!c) fail_msg("%s", err.msg);
+    assert_string_equal(got, "PTX");
+    assert_int_equal(c->nscans, 2);
+    rs_cloud_free(c);
+    rs_test_rmtree(dir);
+}
+
 RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_round_trip), cmocka_unit_test(test_append_and_foreign),
-             cmocka_unit_test(test_corrupt))
+             cmocka_unit_test(test_corrupt), cmocka_unit_test(test_refused_formats),
+             cmocka_unit_test(test_formats_by_extension))

@@ -1,4 +1,4 @@
-/* test_image: EXR, Radiance .hdr and PNG reading and writing (common/image.c): round trips,
+/* test_image: EXR, Radiance .hdr and PNG reading and writing (common/image*.c): round trips,
  * channel matching, windows, tiles, and bad input that must fail cleanly. */
 #include "tests/testutil.h"
 
@@ -12,7 +12,7 @@
 #include <dirent.h>
 #include <omp.h>
 #include <openexr.h>
-#include <stb_image.h> /* both implemented in common/image.c */
+#include <stb_image.h> /* both implemented in common/image_stb.c */
 #include <stb_image_write.h>
 
 #include "common/fileio.h"
@@ -536,7 +536,7 @@ static const unsigned char grey8_jpg[] =
     "\xda\x00\x0c\x03\x01\x00\x02\x11\x03\x11\x00\x3f\x00\x28\x03\xff\xd9";
 
 /* JPEG: lossy, so flat grey 128 comes back within a code value. Then corruptions that
- * Debian's stb_image 2.27 mishandles and image.c refuses up front. */
+ * Debian's stb_image 2.27 mishandles and image_stb.c refuses up front. */
 static void test_jpeg_and_stb_guards(void **state)
 {
     unsigned char grey[16 * 16 * 3];
@@ -606,6 +606,45 @@ static void test_png_preview_round_trip(void **state)
     rs_image *two = rs_image_new(2, 2, 2);
     assert_int_equal(rs_image_write_png(two, p, 1.0f, &err), -1);
     rs_image_free(two);
+    assert_no_temporaries(tmp);
+}
+
+/* rs_image_write chooses the writer by extension (the formats' table): .exr with default
+ * names, .png with a default scale of 1; a format read but not written is refused. A file
+ * whose bytes match no format names the format its extension claims. */
+static void test_write_by_extension(void **state)
+{
+    rs_image *img = rs_image_new(4, 3, 3);
+    for (int i = 0; i < 4 * 3 * 3; i++) img->data[i] = 0.125f * (float)(i % 7);
+    rs_err err = {0};
+    const char *exr = rs_test_path(tmp, "by_ext.exr");
+    assert_int_equal(rs_image_write(img, exr, NULL, &err), 0);
+    rs_image *back = rs_image_read(exr, &err);
+    if (!back) fail_msg("%s", err.msg);
+    assert_int_equal(back->channels, 3); /* R, G, B by default */
+    assert_memory_equal(back->data, img->data, sizeof(float) * 4 * 3 * 3);
+    rs_image_free(back);
+
+    const char *png = rs_test_path(tmp, "by_ext.PNG");
+    rs_image_write_opts half_scale = {.scale = 0.5f};
+    assert_int_equal(rs_image_write(img, png, &half_scale, &err), 0);
+    back = rs_image_read(png, &err);
+    if (!back) fail_msg("%s", err.msg);
+    assert_float_equal(back->data[6], 0.5f * img->data[6], 2e-3);
+    rs_image_free(back);
+
+    const char *hdr = rs_test_path(tmp, "by_ext.hdr");
+    assert_int_equal(rs_image_write(img, hdr, NULL, &err), -1);
+    assert_int_equal(err.kind, RS_ERR_INPUT);
+    assert_err_mentions(&err, hdr, "cannot write Radiance .hdr");
+    assert_int_equal(rs_image_write(img, rs_test_path(tmp, "by_ext.tif"), NULL, &err), -1);
+    assert_err_mentions(&err, "by_ext.tif", "expected a name ending in .exr or .png");
+    rs_image_free(img);
+
+    const char *fake = rs_test_path(tmp, "fake.jpg");
+    write_bytes(fake, "GIF89a not a JPEG", 17);
+    assert_null(rs_image_read(fake, &err));
+    assert_err_mentions(&err, fake, "the name says JPEG but the content does not");
     assert_no_temporaries(tmp);
 }
 
@@ -832,6 +871,6 @@ RS_TEST_MAIN(setup, teardown, cmocka_unit_test(test_srgb), cmocka_unit_test(test
              cmocka_unit_test(test_exr_write_failure), cmocka_unit_test(test_hdr_from_memory),
              cmocka_unit_test(test_hdr_nul_header_zero_run), cmocka_unit_test(test_png_chunk_past_end),
              cmocka_unit_test(test_exr_subsampled_channel), cmocka_unit_test(test_png_linearised),
-             cmocka_unit_test(test_jpeg_and_stb_guards), cmocka_unit_test(test_png_preview_round_trip),
+             cmocka_unit_test(test_jpeg_and_stb_guards), cmocka_unit_test(test_png_preview_round_trip), cmocka_unit_test(test_write_by_extension),
              cmocka_unit_test(test_bad_inputs), cmocka_unit_test(test_shared_pano_exr),
              cmocka_unit_test(test_shared_sky_hdr), cmocka_unit_test(test_blender_dwa))

@@ -8,7 +8,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "common/cloud.h"
+#include "common/ptx.h"
 
 /* The PDAL folder, or NULL (the test then skips) when the shared data is absent. */
 static const char *ptx_dir(void)

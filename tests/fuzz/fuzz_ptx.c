@@ -3,7 +3,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/cloud.h"
+#include "common/ptx.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {

@@ -12,6 +12,9 @@
 #include <sys/stat.h>
 
 #include "common/cloud.h"
+#include "common/cloud_ply.h"
+#include "common/cloud_text.h"
+#include "common/ptx.h"
 #include "common/image.h"
 #include "common/mesh.h"
 #include "meshing/meshdist.h"

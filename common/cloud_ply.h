@@ -1,0 +1,21 @@
+/* cloud_ply: point clouds as PLY files. cloud.ply, the ingest stage's output: valid points
+ * only, vertex properties x y z (double), intensity, red green blue (when present), and for
+ * organized scans scan, row, col (int); each scan's grid and scanner position in a comment
+ * "rhoscan_scan INDEX COLS ROWS PX PY PZ", a non-zero origin in "rhoscan_origin OX OY OZ"
+ * (world = x + OX, ...; positions are in the same local frame), and the unorganized points'
+ * scanner in "rhoscan_viewpoint X Y Z". Reading a PLY written by other software gives an
+ * unorganized cloud. */
+#ifndef RS_CLOUD_PLY_H
+#define RS_CLOUD_PLY_H
+
+#include "common/cloud.h"
+#include "common/err.h"
+#include "common/ply.h"
+
+int rs_cloud_write_ply(const rs_cloud *c, const char *path, rs_err *err);
+rs_cloud *rs_cloud_read_ply(const char *path, rs_err *err);
+/* The same from a PLY in memory (its "vertex" element); name is used in messages.
+ * Grid cells not in the file come back as no-return points (valid 0, at the scanner). */
+rs_cloud *rs_cloud_from_ply(const rs_ply *ply, const char *name, rs_err *err);
+
+#endif
