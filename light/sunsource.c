@@ -202,7 +202,7 @@ int rs_sunsource_auto(const rs_config *cfg, const rs_skyenv *env, const rs_skyfi
 }
 
 int rs_sunsource_visibility(const rs_sunsource *sun, const rs_scene *scene, int rays, uint32_t seed, size_t nf,
-                            const rs_facet_gather *fg, float *vis)
+                            const rs_facet_gather *fg, float *vis, rs_err *err)
 {
     for (size_t f = 0; f < nf; f++) vis[f] = -1;
     if (!sun->active) return 0;
@@ -251,7 +251,7 @@ int rs_sunsource_visibility(const rs_sunsource *sun, const rs_scene *scene, int 
         free(ray);
         free(occl);
     }
-    return failed ? -1 : 0;
+    return failed ? rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory tracing the shadow rays toward the sun") : 0;
 }
 
 /* E_sky + G of every facet, 3 each (NULL: out of memory). */
@@ -267,15 +267,16 @@ static double *irradiance_without_sun(const rs_facet_gather *fg, size_t nf, cons
 }
 
 int rs_sunsource_search(rs_sunsource *sun, const rs_scene *scene, const rs_skyenv *env, const rs_facet_gather *fg,
-                        const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height, rs_v3 sky_dir)
+                        const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height, rs_v3 sky_dir,
+                        rs_err *err)
 {
     const rs_mesh *mesh = rs_scene_mesh(scene);
     double *E = irradiance_without_sun(fg, mesh->nfaces, radiance, observed);
-    if (!E) return -1;
+    if (!E) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory searching the shadows for the sun");
     double margin = rs_sunshadow_margin(mesh, observed, cam, pano_height);
     rs_sunshadow_pairs pairs;
-    int rc = rs_sunshadow_pairs_build(mesh, observed, margin, 3 * margin, 8, &pairs);
-    if (rc == 0) rc = rs_sunsearch_run(scene, env, &pairs, E, radiance, observed, &sun->found);
+    int rc = rs_sunshadow_pairs_build(mesh, observed, margin, 3 * margin, 8, &pairs, err);
+    if (rc == 0) rc = rs_sunsearch_run(scene, env, &pairs, E, radiance, observed, &sun->found, err);
     rs_sunshadow_pairs_free(&pairs);
     free(E);
     if (rc < 0) return -1;
@@ -290,15 +291,15 @@ int rs_sunsource_search(rs_sunsource *sun, const rs_scene *scene, const rs_skyen
 }
 
 int rs_sunsource_from_shadows(rs_sunsource *sun, const rs_mesh *mesh, const float *vis, const rs_facet_gather *fg,
-                              const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height)
+                              const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height, rs_err *err)
 {
     size_t nf = mesh->nfaces;
     double *E = irradiance_without_sun(fg, nf, radiance, observed);
-    if (!E) return -1;
     double *E_sigma = malloc((nf ? nf : 1) * sizeof *E_sigma);
-    if (!E_sigma) {
+    if (!E || !E_sigma) {
         free(E);
-        return -1;
+        free(E_sigma);
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory estimating the sun from the shadows");
     }
     for (size_t f = 0; f < nf; f++) E_sigma[f] = fg[f].fill_sigma_lum;
     sun->margin = rs_sunshadow_margin(mesh, observed, cam, pano_height);
@@ -311,7 +312,7 @@ int rs_sunsource_from_shadows(rs_sunsource *sun, const rs_mesh *mesh, const floa
                              .E_sigma = E_sigma,
                              .margin = sun->margin,
                              .radius = 3 * sun->margin};
-    sun->shadow_rc = rs_sunshadow_estimate(&in, &sun->shadow);
+    sun->shadow_rc = rs_sunshadow_estimate(&in, &sun->shadow, err);
     free(E);
     free(E_sigma);
     if (sun->shadow_rc < 0) return -1;

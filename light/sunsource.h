@@ -71,9 +71,10 @@ int rs_sunsource_auto(const rs_config *cfg, const rs_skyenv *env, const rs_skyfi
 
 /* V per facet into vis[nf]: the share of `rays` shadow rays (from Sobol points on the facet
  * toward Sobol points on the sun's disc) that escape, for every gathered facet (fg[f].rays > 0
- * or fg[f].sky_sh) facing the sun; -1 for the others. rays >= 1. -1: out of memory. */
+ * or fg[f].sky_sh) facing the sun; -1 for the others. rays >= 1. Returns 0, -1 out of memory
+ * (err set). */
 int rs_sunsource_visibility(const rs_sunsource *sun, const rs_scene *scene, int rays, uint32_t seed, size_t nf,
-                            const rs_facet_gather *fg, float *vis);
+                            const rs_facet_gather *fg, float *vis, rs_err *err);
 
 /* With sun->search, after the gather: the direction from the shadows (sunsearch.h) among the
  * directions the map filled. It is taken only within RS_SUNSOURCE_AGREE_DEG of sky_dir, the
@@ -81,18 +82,19 @@ int rs_sunsource_visibility(const rs_sunsource *sun, const rs_scene *scene, int 
  * search): two independent cues must agree, so that shadows cast by a dim sun the cameras did
  * see cannot put a second one behind the building. When taken, activates sun with from_shadows
  * and searched (its DNI must then come out above 5 standard errors, else it adds nothing).
- * Returns 0, -1 out of memory. */
+ * Returns 0, -1 out of memory (err set). */
 #define RS_SUNSOURCE_AGREE_DEG 30.0
 int rs_sunsource_search(rs_sunsource *sun, const rs_scene *scene, const rs_skyenv *env, const rs_facet_gather *fg,
-                        const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height, rs_v3 sky_dir);
+                        const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height, rs_v3 sky_dir,
+                        rs_err *err);
 
 /* With from_shadows: estimates dni and rgb (rs_sunshadow_estimate; E = E_sky + G from fg and
  * the observed radiance, the margin from the capture at cam with panoramas pano_height high).
  * When there is too little evidence (shadow_rc says why) a sun whose disc was removed from the
  * panorama gets back what the panorama held of it (fell_back), any other adds nothing (dni 0).
- * Returns 0, -1 out of memory. */
+ * Returns 0, -1 out of memory (err set). */
 int rs_sunsource_from_shadows(rs_sunsource *sun, const rs_mesh *mesh, const float *vis, const rs_facet_gather *fg,
-                              const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height);
+                              const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height, rs_err *err);
 
 /* Adds E_sun = dni rgb max(0, n.s) V to E_sky (each channel, and dni max(0, n.s) V to its
  * luminance) of every facet with vis >= 0. With from_shadows the sun counts as filled light

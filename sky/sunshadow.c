@@ -308,7 +308,7 @@ static int dni_statistics(const rs_sunshadow_input *in, const rs_v3 *cen, const 
     return 0;
 }
 
-int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out)
+int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out, rs_err *err)
 {
     memset(out, 0, sizeof *out);
     if (!(in->radius > 0) || !(in->margin >= 0)) return 1; /* nothing observed to size them */
@@ -335,11 +335,12 @@ out:
     free(st);
     free(lit);
     free(dl);
+    if (rc < 0) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory estimating the sun from the shadows");
     return rc;
 }
 
 int rs_sunshadow_pairs_build(const rs_mesh *mesh, const uint8_t *observed, double margin, double radius,
-                             int max_per_facet, rs_sunshadow_pairs *out)
+                             int max_per_facet, rs_sunshadow_pairs *out, rs_err *err)
 {
     memset(out, 0, sizeof *out);
     if (!(radius > 0)) return 0; /* nothing observed: no pairs */
@@ -386,8 +387,9 @@ done:
     free(cen);
     free(nrm);
     free(cnt);
-    if (rc) rs_sunshadow_pairs_free(out);
-    return rc;
+    if (rc == 0) return 0;
+    rs_sunshadow_pairs_free(out);
+    return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory pairing the facets for the sun search");
 }
 
 void rs_sunshadow_pairs_free(rs_sunshadow_pairs *p)

@@ -163,14 +163,14 @@ static int add_explicit_sun(const rs_config *cfg, rs_report *rep, rs_sunsource *
     size_t nf = mesh->nfaces;
     float *vis = malloc((nf ? nf : 1) * sizeof *vis);
     double t0 = rs_now();
-    if (!vis ||
-        rs_sunsource_visibility(sun, scene, (int)rs_config_int(cfg, "irradiance", "sun_samples"),
-                                (uint32_t)rs_config_int(cfg, "irradiance", "seed"), nf, fg, vis) != 0 ||
+    if (!vis) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory adding the explicit sun");
+    if (rs_sunsource_visibility(sun, scene, (int)rs_config_int(cfg, "irradiance", "sun_samples"),
+                                (uint32_t)rs_config_int(cfg, "irradiance", "seed"), nf, fg, vis, err) != 0 ||
         (sun->from_shadows &&
-         rs_sunsource_from_shadows(sun, mesh, vis, fg, radiance, observed, cap->pose.position, cap->pano->height) !=
-             0)) {
+         rs_sunsource_from_shadows(sun, mesh, vis, fg, radiance, observed, cap->pose.position, cap->pano->height,
+                                   err) != 0)) {
         free(vis);
-        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory adding the explicit sun");
+        return -1;
     }
     if (sun->from_shadows) {
         const rs_sunshadow *e = &sun->shadow;
@@ -223,8 +223,8 @@ static int search_hidden_sun(rs_report *rep, rs_sunsource *sun, const rs_scene *
     }
     double t0 = rs_now();
     if (rs_sunsource_search(sun, scene, env, fg, radiance, observed, cap->pose.position, cap->pano->height,
-                            fill->sun_dir) != 0)
-        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory searching the shadows for the sun");
+                            fill->sun_dir, err) != 0)
+        return -1;
     rs_report_time(rep, "sun_search", rs_now() - t0);
     if (sun->searched)
         rs_log_info("irradiance: no camera saw a sun and nothing placed one; the shadows put it at azimuth %.2f, "
@@ -354,8 +354,7 @@ static int ground_from_scan(const rs_config *cfg, rs_report *rep, const rs_gathe
             albedo[ch] = fmin(1, gr.albedo[ch]);
             rgb[ch] = albedo[ch] * fill->horizontal_irradiance[ch] / M_PI;
         }
-        if (rs_skyenv_set_ground(env, rgb, so->explicit_sun) < 0)
-            return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky distribution");
+        if (rs_skyenv_set_ground(env, rgb, so->explicit_sun, err) < 0) return -1;
         from = "scan";
         rs_json_set_int(rep->metrics, "sky_ground_albedo_facets", (long long)gr.facets);
         rs_json_set_int(rep->metrics, "sky_ground_albedo_left_out", (long long)gr.sees_unobserved);
@@ -367,8 +366,8 @@ static int ground_from_scan(const rs_config *cfg, rs_report *rep, const rs_gathe
                     fill->ground_model_pixels, albedo[0], albedo[1], albedo[2], gr.spread[0], gr.spread[1],
                     gr.spread[2], gr.facets, gr.candidates, gr.level_z, gr.sees_unobserved);
     } else if (why) {
-        long n = rs_skyenv_ground_from_bands(env, so->explicit_sun);
-        if (n < 0) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky distribution");
+        long n = rs_skyenv_ground_from_bands(env, so->explicit_sun, err);
+        if (n < 0) return -1;
         if (n > 0) from = "measured ground";
         rs_report_skip(rep, "ground albedo from the scan", "%s: the unseen ground %s", why,
                        n > 0 ? "copies the nearest band of measured ground"
@@ -549,10 +548,8 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         /* The sun is explicit now: the unseen ground copies the measured ground, as the first map's
          * did (ground_from_scan said why), unless the config asked for its albedo. */
         if (strcmp(rs_config_string(cfg, "sky", "ground_albedo_from"), "scan") == 0 &&
-            rs_skyenv_ground_from_bands(&env, so.explicit_sun) < 0) {
-            rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky distribution");
+            rs_skyenv_ground_from_bands(&env, so.explicit_sun, err) < 0)
             goto out;
-        }
         first_pass_rays = gp.gs.rays;
         for (size_t f = 0; f < nf; f++) free(fg[f].entries);
         memset(fg, 0, nf * sizeof *fg);
