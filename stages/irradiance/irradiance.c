@@ -293,18 +293,19 @@ static int gather_pass_run(const rs_config *cfg, rs_report *rep, rs_gather_ctx *
     }
     t0 = rs_now();
     rs_progress *prog = rs_progress_start("irradiance: gather", nf);
-    int failed = (skip_unseen && !needed) || rs_gather_run(g, nf, needed, fg, NULL, prog, &p->gs) != 0;
+    int failed = skip_unseen && !needed ? rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory during the gather")
+                                        : rs_gather_run(g, nf, needed, fg, NULL, prog, &p->gs, err);
     free(needed);
     rs_progress_end(prog);
     p->seconds = rs_now() - t0;
     snprintf(key, sizeof key, "gather%s", suffix);
     rs_report_time(rep, key, p->seconds);
-    if (failed) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory during the gather");
+    if (failed) return -1;
     /* Before the explicit sun is added: the second gather has no sun term, and its difference
      * from the first must be noise alone (with the sun in one of them the factor was 12 to 24). */
     t0 = rs_now();
-    if (rs_gather_mc_calibration(g, nf, fg, g->radiance, g->observed, 512, &p->mc_factor, &p->mc_facets) != 0)
-        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory measuring the gather's noise");
+    if (rs_gather_mc_calibration(g, nf, fg, g->radiance, g->observed, 512, &p->mc_factor, &p->mc_facets, err) != 0)
+        return -1;
     snprintf(key, sizeof key, "mc_calibration%s", suffix);
     rs_report_time(rep, key, rs_now() - t0);
     rs_json_set_num(rep->metrics, "mc_sigma_factor", p->mc_factor);
@@ -337,8 +338,7 @@ static int ground_from_scan(const rs_config *cfg, rs_report *rep, const rs_gathe
         why = "a sun no camera saw may be found in the shadows after the gather, and the ground's own E would miss it";
     } else {
         double t0 = rs_now();
-        if (rs_skyground_albedo(g, mesh, g->radiance, g->observed, &gr) != 0)
-            return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory estimating the ground's albedo");
+        if (rs_skyground_albedo(g, mesh, g->radiance, g->observed, &gr, err) != 0) return -1;
         rs_report_time(rep, "ground_albedo", rs_now() - t0);
         if (!gr.facets) {
             snprintf(few, sizeof few,

@@ -251,10 +251,10 @@ static void test_mc_calibration(void **state)
                            .sun_samples = 16,
                            .seed = (uint32_t)(100 + seed),
                            .skip_convex = 1};
-        assert_int_equal(rs_gather_run(&g, nf, NULL, fg, NULL, NULL, &st), 0);
+        assert_int_equal(rs_gather_run(&g, nf, NULL, fg, NULL, NULL, &st, &err), 0);
         double fac;
         size_t used;
-        assert_int_equal(rs_gather_mc_calibration(&g, nf, fg, radiance, NULL, 1000, &fac, &used), 0);
+        assert_int_equal(rs_gather_mc_calibration(&g, nf, fg, radiance, NULL, 1000, &fac, &used, &err), 0);
         assert_int_equal(used, nf);
         factor += fac / SEEDS;
         for (size_t f = 0; f < nf; f++) {
