@@ -154,6 +154,105 @@ static int sky_fill_options(const rs_config *cfg, rs_skyfill_opts *o, rs_err *er
     return 0;
 }
 
+/* [sky] and [irradiance] keys into the sun source's options. The colour is checked only when the
+ * sun is explicit from the start (sun_irradiance, or sun_from_shadows = on), as it is used only
+ * then. */
+static int sun_options(const rs_config *cfg, rs_sunsource_opts *o, rs_err *err)
+{
+    memset(o, 0, sizeof *o);
+    const char *shadows = rs_config_string(cfg, "sky", "sun_from_shadows");
+    o->from_shadows = strcmp(shadows, "on") == 0 ? RS_SUN_SHADOWS_ON
+        : strcmp(shadows, "auto") == 0           ? RS_SUN_SHADOWS_AUTO
+                                                 : RS_SUN_SHADOWS_OFF;
+    o->dni_given = rs_config_has(cfg, "sky", "sun_irradiance");
+    if (o->dni_given) o->dni = rs_config_real(cfg, "sky", "sun_irradiance");
+    o->halo_factor = rs_config_real(cfg, "irradiance", "sun_threshold");
+    o->cone_rad = rs_config_real(cfg, "irradiance", "sun_max_cone_deg") * M_PI / 180;
+    o->clip_level_given = rs_config_has(cfg, "sky", "sun_clip_level");
+    if (o->clip_level_given) o->clip_level = rs_config_real(cfg, "sky", "sun_clip_level");
+    o->given_dir_from = rs_config_has(cfg, "sky", "sun_azimuth_deg") ? "config" : "solar position";
+    if (!o->dni_given && o->from_shadows != RS_SUN_SHADOWS_ON) return 0;
+    double col[3];
+    rs_config_reals(cfg, "sky", "sun_color", col);
+    float colf[3] = {(float)col[0], (float)col[1], (float)col[2]};
+    double col_lum = rs_skyenv_luminance(colf);
+    if (!(col[0] >= 0 && col[1] >= 0 && col[2] >= 0 && col_lum > 0))
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                          "[sky] sun_color = %g %g %g: expected three values >= 0, not all 0", col[0], col[1], col[2]);
+    for (int ch = 0; ch < 3; ch++) o->rgb[ch] = col[ch] / col_lum;
+    return 0;
+}
+
+/* The explicit sun as rs_sunsource_setup made it; rc its result (1: nothing places it). */
+static int setup_sun_report(const rs_config *cfg, const rs_capture *cap, const rs_sunsource *sun, int rc, rs_err *err)
+{
+    if (rc < 0 || !sun->active) return rc;
+    if (rc == 1)
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                          "[sky] %s is set but no sky pixel of %s reaches the clip level %g: "
+                          "expected [sky] sun_azimuth_deg and sun_elevation_deg, or datetime, to place the sun",
+                          sun->from_shadows ? "sun_from_shadows = on" : "sun_irradiance", cap->path, sun->clip_level);
+    double el = asin(fmax(-1, fmin(1, sun->dir_world.z))) * 180 / M_PI;
+    if (sun->from_shadows)
+        rs_log_info("irradiance: explicit sun at elevation %.2f deg (%s), its DNI from the shadows; %zu panorama "
+                    "pixels (%.3g sr) of its disc and halo removed, holding %.3g of it",
+                    el, sun->dir_from, sun->removed_px, sun->removed_sr, sun->removed_power);
+    else
+        rs_log_info("irradiance: explicit sun of %g (DNI; colour %.3g %.3g %.3g) at elevation %.2f deg (%s); %zu "
+                    "panorama pixels (%.3g sr) of its disc and halo removed, holding %.3g of it",
+                    sun->dni, sun->rgb[0], sun->rgb[1], sun->rgb[2], el, sun->dir_from, sun->removed_px,
+                    sun->removed_sr, sun->removed_power);
+    if (sun->removed_px == 0 && !sun->from_shadows)
+        rs_log_warn("irradiance: no bright sky pixel within %.2f deg of the given sun: is the sun hidden, or its "
+                    "direction wrong?",
+                    sun->cone_rad * 180 / M_PI);
+    else if (!sun->from_shadows && sun->removed_power > sun->dni)
+        rs_log_warn("irradiance: [sky] sun_irradiance = %g is less than the %.4g the panorama already holds "
+                    "around the sun: is it in the panorama's units (radiance x sr)?",
+                    sun->dni, sun->removed_power);
+    return 0;
+}
+
+/* The explicit sun's figures under metrics "explicit_sun". */
+static void report_explicit_sun(const rs_sunsource *sun, rs_json *metrics)
+{
+    if (!sun->active) return;
+    rs_json *o = rs_json_set_obj(metrics, "explicit_sun");
+    rs_json_set_num(o, "direct_normal_irradiance", sun->dni);
+    rs_json_set_str(o, "irradiance_from", sun->fell_back ? "panorama" : sun->from_shadows ? "shadows" : "config");
+    if (sun->from_shadows) {
+        rs_json *e = rs_json_set_obj(o, "from_shadows");
+        rs_json_set_bool(e, "estimated", sun->shadow_rc == 0);
+        rs_json_set_bool(e, "fell_back_to_panorama", sun->fell_back);
+        if (sun->searched) {
+            rs_json_set_num(e, "search_score", sun->found.score);
+            rs_json_set_int(e, "search_pairs", (long long)sun->found.pairs);
+            rs_json_set_int(e, "search_candidates", sun->found.candidates);
+            rs_json_set_num(e, "search_off_sky_estimate_deg", sun->found_off_deg);
+        }
+        rs_json_set_num(e, "sigma", sun->shadow.sigma_lum);
+        rs_json_set_num(e, "sigma_statistical", sun->shadow.sigma_stat_lum);
+        rs_json_set_num(e, "sigma_from_sky_fill", sun->shadow.sigma_sys_lum);
+        rs_json_set_num(e, "margin_m", sun->margin);
+        rs_json_set_num(e, "radius_m", 3 * sun->margin);
+        rs_json_set_int(e, "lit_facets", (long long)sun->shadow.lit);
+        rs_json_set_int(e, "shadowed_facets", (long long)sun->shadow.shadowed);
+        rs_json_set_int(e, "lit_facets_paired", (long long)sun->shadow.lit_used);
+        rs_json_set_int(e, "blocks", (long long)sun->shadow.blocks);
+    }
+    rs_json *d = rs_json_set_arr(o, "direction");
+    rs_json_push_num(d, sun->dir_world.x);
+    rs_json_push_num(d, sun->dir_world.y);
+    rs_json_push_num(d, sun->dir_world.z);
+    rs_json_set_str(o, "direction_from", sun->dir_from);
+    rs_json *c = rs_json_set_arr(o, "color_at_unit_luminance");
+    for (int ch = 0; ch < 3; ch++) rs_json_push_num(c, sun->rgb[ch]);
+    rs_json_set_num(o, "clip_level", sun->clip_level);
+    rs_json_set_int(o, "removed_pixels", (long long)sun->removed_px);
+    rs_json_set_num(o, "removed_solid_angle_sr", sun->removed_sr);
+    rs_json_set_num(o, "removed_power", sun->removed_power);
+}
+
 /* The explicit sun's term, its DNI first estimated from the shadows when no one gave it. */
 static int add_explicit_sun(const rs_config *cfg, rs_report *rep, rs_sunsource *sun, const rs_scene *scene,
                             const rs_capture *cap, rs_facet_gather *fg, const double *radiance, const uint8_t *observed,
@@ -435,8 +534,11 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     so.sun_threshold = rs_config_real(cfg, "irradiance", "sun_threshold");
     so.max_sr = 2 * M_PI * (1 - cos(cone));
     so.explicit_sun = sun_samples > 0 || rs_config_int(cfg, "irradiance", "sky_samples") > 0;
-    if (sky_fill_options(cfg, &so.fill, err) != 0) goto out;
-    if (rs_sunsource_setup(cfg, &cap, ids->data, &so.fill, &sun, err) != 0) goto out;
+    rs_sunsource_opts sun_opts;
+    if (sky_fill_options(cfg, &so.fill, err) != 0 || sun_options(cfg, &sun_opts, err) != 0) goto out;
+    if (setup_sun_report(cfg, &cap, &sun, rs_sunsource_setup(&sun_opts, &cap, ids->data, &so.fill, &sun, err), err) !=
+        0)
+        goto out;
     if (rs_config_has(cfg, "sky", "panorama")) {
         if (rs_capture_load(cfg, "sky", &sky, err) != 0) goto out;
         rs_sunsource_remove(&sun, &sky, NULL, 0);
@@ -475,7 +577,10 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     so.other_masks = mask_ptrs;
     so.nothers = nothers;
     if (rs_skyenv_build_opts(&cap, ids->data, &so, &env, &info, err) != 0) goto out;
-    rs_sunsource_auto(cfg, &env, &so.fill, &sun);
+    if (rs_sunsource_auto(&sun_opts, &env, &so.fill, &sun))
+        rs_log_info("irradiance: no camera saw the sun at elevation %.2f deg (%s): its DNI comes from the model's "
+                    "shadows ([sky] sun_from_shadows = auto)",
+                    asin(fmin(1, sun.dir_world.z)) * 180 / M_PI, sun.dir_from);
     for (int i = 0; i < nothers; i++)
         rs_log_info("irradiance: capture %s: exposure factor %.4g %.4g %.4g from %.3g sr of shared sky", others[i].path,
                     info.other_scale[i][0], info.other_scale[i][1], info.other_scale[i][2], info.other_overlap_sr[i]);
@@ -624,7 +729,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_json_set_num(rep->metrics, "sky_cv_rel_model", info.fill.cv_rel_model);
     rs_json_set_int(rep->metrics, "sky_cv_blocks", info.fill.cv_folds);
     rs_json_set_str(rep->metrics, "sun_source", sun_source_name(info.fill.sun_source));
-    rs_sunsource_report(&sun, rep->metrics);
+    report_explicit_sun(&sun, rep->metrics);
     rs_json *sd = rs_json_set_arr(rep->metrics, "sun_direction");
     rs_json_push_num(sd, info.fill.sun_dir.x);
     rs_json_push_num(sd, info.fill.sun_dir.y);
