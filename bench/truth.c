@@ -164,10 +164,7 @@ rs_bench_truth *rs_bench_truth_new(const rs_bench_scene *sc, const rs_image *sky
                        .seed = seed,
                        .skip_convex = 1}; /* rays only */
     rs_gather_stats st;
-    if (rs_gather_run(&g, nf, seen, fg, NULL, NULL, &st) != 0) {
-        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory gathering the truth kernel");
-        goto fail;
-    }
+    if (rs_gather_run(&g, nf, seen, fg, NULL, NULL, &st, err) != 0) goto fail;
     size_t ne = 0;
     for (size_t f = 0; f < nf; f++) ne += fg[f].nentries;
     if (!(K.col = malloc((ne ? ne : 1) * sizeof *K.col)) || !(K.k = malloc((ne ? ne : 1) * sizeof *K.k))) {

@@ -81,7 +81,8 @@ void rs_gather_scratch_free(rs_gather_scratch *s);
  * millions of pixels. */
 size_t rs_gather_pick(rs_gather_scratch *s, const rs_skyenv *env, int sun, double x);
 
-/* Gathers facet f into *out (zeroed first). Degenerate facets get nothing. -1: out of memory. */
+/* Gathers facet f into *out (zeroed first). Degenerate facets get nothing. -1: out of memory (a
+ * bare -1: it runs on many threads at once; rs_gather_run and rs_gather_list name the failure). */
 int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs_facet_gather *out);
 
 /* Standard error of the luminance of E_sky + G of a gathered facet from its rays' own spread
@@ -101,9 +102,9 @@ void rs_gather_inter_observed(const rs_facet_gather *fg, const double *radiance,
  * gathered again at g's counts with another seed, and *factor = RMS over them of
  * (E - E') / (sqrt(2) rs_gather_mc_sigma), E the luminance of E_sky + G as rs_gather_mc_sigma
  * counts it: the ratio of the actual noise to the formula's (1 when no facet qualifies). *used: the facets it came from (may be NULL). The
- * result does not depend on the thread count. Returns 0, -1 out of memory. */
+ * result does not depend on the thread count. Returns 0, -1 out of memory (err set). */
 int rs_gather_mc_calibration(const rs_gather_ctx *g, size_t nf, const rs_facet_gather *fg, const double *radiance,
-                             const uint8_t *observed, size_t max_facets, double *factor, size_t *used);
+                             const uint8_t *observed, size_t max_facets, double *factor, size_t *used, rs_err *err);
 
 typedef struct rs_gather_stats {
     size_t gathered;     /* facets gathered */
@@ -123,7 +124,7 @@ typedef struct rs_gather_stats {
  * waves, the relays, trace that share of the rays (fg[f].relay): noisier, not biased. The
  * facets left out (no camera sees them and they light nothing that matters) keep a zeroed
  * fg[f]. gathered (may be NULL): nf flags. prog may be NULL. Returns 0, or -1 when out of
- * memory. The result does not depend on the thread count. */
+ * memory (err set). The result does not depend on the thread count. */
 struct rs_progress;
 struct rs_skysh;
 /* Fills out for a facet with normal n that sees only sky (the model below its plane) from the
@@ -132,9 +133,9 @@ struct rs_skysh;
  * error bound, not noise), no ray (rays = 0). Returns 1 when it did, else 0. */
 int rs_skysh_facet(const struct rs_skysh *sh, rs_v3 n, rs_facet_gather *out);
 /* Gathers facets list[0 .. n-1] into out[0 .. n-1] in parallel (out[k].entries: caller frees).
- * Returns 0, or -1 when out of memory. */
-int rs_gather_list(const rs_gather_ctx *g, const uint32_t *list, size_t n, rs_facet_gather *out);
+ * Returns 0, or -1 when out of memory (err set). */
+int rs_gather_list(const rs_gather_ctx *g, const uint32_t *list, size_t n, rs_facet_gather *out, rs_err *err);
 int rs_gather_run(const rs_gather_ctx *g, size_t nf, const uint8_t *needed, rs_facet_gather *fg, uint8_t *gathered,
-                  struct rs_progress *prog, rs_gather_stats *stats);
+                  struct rs_progress *prog, rs_gather_stats *stats, rs_err *err);
 
 #endif

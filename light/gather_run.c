@@ -93,10 +93,16 @@ static int gather_list(const rs_gather_ctx *g, const uint32_t *list, size_t n, r
     return failed ? -1 : 0;
 }
 
-int rs_gather_list(const rs_gather_ctx *g, const uint32_t *list, size_t n, rs_facet_gather *out)
+/* Every failure of the gather's entry points (their steps return a bare -1). */
+static int gather_out_of_memory(rs_err *err)
+{
+    return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory during the gather");
+}
+
+int rs_gather_list(const rs_gather_ctx *g, const uint32_t *list, size_t n, rs_facet_gather *out, rs_err *err)
 {
     memset(out, 0, n * sizeof *out);
-    return gather_list(g, list, n, out, 1, NULL);
+    return gather_list(g, list, n, out, 1, NULL) != 0 ? gather_out_of_memory(err) : 0;
 }
 
 /* count x share rounded down to a power of two (Sobol stratifies best there), and at least 1
@@ -111,7 +117,7 @@ static int relay_count(int count, double share)
 }
 
 int rs_gather_run(const rs_gather_ctx *g, size_t nf, const uint8_t *needed, rs_facet_gather *fg, uint8_t *gathered,
-                  struct rs_progress *prog, rs_gather_stats *stats)
+                  struct rs_progress *prog, rs_gather_stats *stats, rs_err *err)
 {
     memset(stats, 0, sizeof *stats);
     memset(fg, 0, nf * sizeof *fg);
@@ -159,7 +165,7 @@ out:
     free(order);
     free(list);
     free(state);
-    return rc;
+    return rc != 0 ? gather_out_of_memory(err) : 0;
 }
 
 /* Luminance of E_sky + G with G's K part from observed facets' radiance (as rs_gather_mc_sigma). */
@@ -176,7 +182,7 @@ static double facet_lum(const rs_facet_gather *fg, const double *radiance, const
 }
 
 int rs_gather_mc_calibration(const rs_gather_ctx *g, size_t nf, const rs_facet_gather *fg, const double *radiance,
-                             const uint8_t *observed, size_t max_facets, double *factor, size_t *used)
+                             const uint8_t *observed, size_t max_facets, double *factor, size_t *used, rs_err *err)
 {
     *factor = 1;
     if (used) *used = 0;
@@ -190,7 +196,7 @@ int rs_gather_mc_calibration(const rs_gather_ctx *g, size_t nf, const rs_facet_g
     if (!list || !again) {
         free(list);
         free(again);
-        return -1;
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory measuring the gather's noise");
     }
     for (size_t f = 0, k = 0; f < nf; f++)
         if (fg[f].rays > 0 && !fg[f].relay && k++ % stride == 0) list[m++] = (uint32_t)f;
@@ -212,7 +218,7 @@ int rs_gather_mc_calibration(const rs_gather_ctx *g, size_t nf, const rs_facet_g
     }
     free(list);
     free(again);
-    if (rc != 0) return -1;
+    if (rc != 0) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory measuring the gather's noise");
     if (cnt) *factor = sqrt(sum / cnt);
     if (used) *used = cnt;
     return 0;

@@ -14,7 +14,7 @@ static double quantile(float *v, size_t n, double q)
 }
 
 int rs_skyground_albedo(const rs_gather_ctx *g, const rs_mesh *mesh, const double *radiance, const uint8_t *observed,
-                        rs_skyground *out)
+                        rs_skyground *out, rs_err *err)
 {
     memset(out, 0, sizeof *out);
     size_t nf = mesh->nfaces, nup = 0;
@@ -23,7 +23,7 @@ int rs_skyground_albedo(const rs_gather_ctx *g, const rs_mesh *mesh, const doubl
     if (!up || !z) {
         free(up);
         free(z);
-        return -1;
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory estimating the ground's albedo");
     }
     for (size_t f = 0; f < nf; f++) {
         rs_v3 c, n;
@@ -50,7 +50,11 @@ int rs_skyground_albedo(const rs_gather_ctx *g, const rs_mesh *mesh, const doubl
     for (size_t k = 0; k < nlev; k += stride) up[m++] = up[k];
     rs_facet_gather *fg = calloc(m, sizeof *fg);
     float *rho = malloc(3 * m * sizeof *rho);
-    if (!fg || !rho || rs_gather_list(g, up, m, fg) != 0) {
+    if (!fg || !rho) {
+        rc = rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory estimating the ground's albedo");
+        goto free_gather;
+    }
+    if (rs_gather_list(g, up, m, fg, err) != 0) {
         rc = -1;
         goto free_gather;
     }

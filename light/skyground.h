@@ -33,8 +33,8 @@ typedef struct rs_skyground {
 
 /* Estimates the ground's albedo with the gather context g (its sky map as it is; radiance and
  * observed: the observe stage's per-facet values, 3 and 1 per facet). Returns 0 (out->facets 0
- * when fewer than RS_SKYGROUND_MIN_FACETS qualify), -1 out of memory. */
+ * when fewer than RS_SKYGROUND_MIN_FACETS qualify), -1 out of memory (err set). */
 int rs_skyground_albedo(const rs_gather_ctx *g, const rs_mesh *mesh, const double *radiance, const uint8_t *observed,
-                        rs_skyground *out);
+                        rs_skyground *out, rs_err *err);
 
 #endif

@@ -5,7 +5,6 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include "common/log.h"
 #include "common/sampling.h"
 #include "common/select.h"
 #include "sky/skyenv.h"
@@ -16,7 +15,8 @@ static int is_sky(const rs_capture *c, const float *facet_id, size_t k)
 }
 
 /* World direction of the solid-angle-weighted centroid of the largest blob (8-connected,
- * wrapping in azimuth, by solid angle) of sky pixels at or above level. 0 when there is none. */
+ * wrapping in azimuth, by solid angle) of sky pixels at or above level. Returns 1, 0 when there
+ * is none, -1 out of memory. */
 static int largest_blob_dir(const rs_capture *c, const float *facet_id, double level, rs_v3 *dir)
 {
     int w = c->pano->width, h = c->pano->height;
@@ -27,7 +27,7 @@ static int largest_blob_dir(const rs_capture *c, const float *facet_id, double l
     if (!seen || !stack) {
         free(seen);
         free(stack);
-        return 0;
+        return -1;
     }
     for (size_t s = 0; s < n; s++) {
         if (seen[s] || !is_sky(c, facet_id, s) || rs_skyenv_luminance(c->pano->data + 3 * s) < level) continue;
@@ -63,30 +63,22 @@ static int largest_blob_dir(const rs_capture *c, const float *facet_id, double l
     return best > 0;
 }
 
-int rs_sunsource_setup(const rs_config *cfg, rs_capture *cap, const float *facet_id, rs_skyfill_opts *fill,
+int rs_sunsource_setup(const rs_sunsource_opts *o, rs_capture *cap, const float *facet_id, rs_skyfill_opts *fill,
                        rs_sunsource *sun, rs_err *err)
 {
     memset(sun, 0, sizeof *sun);
-    int shadows_on = strcmp(rs_config_string(cfg, "sky", "sun_from_shadows"), "on") == 0;
-    if (!rs_config_has(cfg, "sky", "sun_irradiance") && !shadows_on) return 0;
+    if (!o->dni_given && o->from_shadows != RS_SUN_SHADOWS_ON) return 0;
     sun->active = 1;
-    sun->from_shadows = !rs_config_has(cfg, "sky", "sun_irradiance"); /* the given DNI wins */
-    sun->dni = sun->from_shadows ? 0 : rs_config_real(cfg, "sky", "sun_irradiance");
-    double col[3];
-    rs_config_reals(cfg, "sky", "sun_color", col);
-    float colf[3] = {(float)col[0], (float)col[1], (float)col[2]};
-    double col_lum = rs_skyenv_luminance(colf);
-    if (!(col[0] >= 0 && col[1] >= 0 && col[2] >= 0 && col_lum > 0))
-        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
-                          "[sky] sun_color = %g %g %g: expected three values >= 0, not all 0", col[0], col[1], col[2]);
-    for (int ch = 0; ch < 3; ch++) sun->rgb[ch] = col[ch] / col_lum;
-    sun->halo_factor = rs_config_real(cfg, "irradiance", "sun_threshold");
-    sun->cone_rad = rs_config_real(cfg, "irradiance", "sun_max_cone_deg") * M_PI / 180;
+    sun->from_shadows = !o->dni_given; /* the given DNI wins */
+    sun->dni = sun->from_shadows ? 0 : o->dni;
+    for (int ch = 0; ch < 3; ch++) sun->rgb[ch] = o->rgb[ch];
+    sun->halo_factor = o->halo_factor;
+    sun->cone_rad = o->cone_rad;
     size_t npx = (size_t)cap->pano->width * cap->pano->height;
     double brightest = 0;
     if (fill->sun_given) {
         sun->dir_world = rs_v3_norm(fill->sun_dir);
-        sun->dir_from = rs_config_has(cfg, "sky", "sun_azimuth_deg") ? "config" : "solar position";
+        sun->dir_from = o->given_dir_from;
     }
     /* The default clip level: clipped pixels all sit near the brightest value (the shortest
      * exposure's saturation), blending across seams pulls some of them down a little. Near a
@@ -98,38 +90,17 @@ int rs_sunsource_setup(const rs_config *cfg, rs_capture *cap, const float *facet
         if (fill->sun_given && rs_v3_dot(d, sun->dir_world) < cos(sun->cone_rad)) continue;
         brightest = fmax(brightest, rs_skyenv_luminance(cap->pano->data + 3 * k));
     }
-    sun->clip_level =
-        rs_config_has(cfg, "sky", "sun_clip_level") ? rs_config_real(cfg, "sky", "sun_clip_level") : 0.9 * brightest;
+    sun->clip_level = o->clip_level_given ? o->clip_level : 0.9 * brightest;
     if (!fill->sun_given) {
-        if (!(sun->clip_level > 0) || !largest_blob_dir(cap, facet_id, sun->clip_level, &sun->dir_world))
-            return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
-                              "[sky] %s is set but no sky pixel of %s reaches the clip level %g: "
-                              "expected [sky] sun_azimuth_deg and sun_elevation_deg, or datetime, to place the sun",
-                              sun->from_shadows ? "sun_from_shadows = on" : "sun_irradiance", cap->path,
-                              sun->clip_level);
+        int found = sun->clip_level > 0 ? largest_blob_dir(cap, facet_id, sun->clip_level, &sun->dir_world) : 0;
+        if (found < 0)
+            return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory looking for the sun's disc in %s", cap->path);
+        if (!found) return 1;
         sun->dir_from = "clipped disc";
         fill->sun_given = 1;
         fill->sun_dir = sun->dir_world;
     }
     rs_sunsource_remove(sun, cap, facet_id, 1);
-    double el = asin(fmax(-1, fmin(1, sun->dir_world.z))) * 180 / M_PI;
-    if (sun->from_shadows)
-        rs_log_info("irradiance: explicit sun at elevation %.2f deg (%s), its DNI from the shadows; %zu panorama "
-                    "pixels (%.3g sr) of its disc and halo removed, holding %.3g of it",
-                    el, sun->dir_from, sun->removed_px, sun->removed_sr, sun->removed_power);
-    else
-        rs_log_info("irradiance: explicit sun of %g (DNI; colour %.3g %.3g %.3g) at elevation %.2f deg (%s); %zu "
-                    "panorama pixels (%.3g sr) of its disc and halo removed, holding %.3g of it",
-                    sun->dni, sun->rgb[0], sun->rgb[1], sun->rgb[2], el, sun->dir_from, sun->removed_px,
-                    sun->removed_sr, sun->removed_power);
-    if (sun->removed_px == 0 && !sun->from_shadows)
-        rs_log_warn("irradiance: no bright sky pixel within %.2f deg of the given sun: is the sun hidden, or its "
-                    "direction wrong?",
-                    sun->cone_rad * 180 / M_PI);
-    else if (!sun->from_shadows && sun->removed_power > sun->dni)
-        rs_log_warn("irradiance: [sky] sun_irradiance = %g is less than the %.4g the panorama already holds "
-                    "around the sun: is it in the panorama's units (radiance x sr)?",
-                    sun->dni, sun->removed_power);
     return 0;
 }
 
@@ -168,9 +139,9 @@ size_t rs_sunsource_remove(rs_sunsource *sun, rs_capture *c, const float *facet_
     return removed;
 }
 
-int rs_sunsource_auto(const rs_config *cfg, const rs_skyenv *env, const rs_skyfill_opts *fill, rs_sunsource *sun)
+int rs_sunsource_auto(const rs_sunsource_opts *o, const rs_skyenv *env, const rs_skyfill_opts *fill, rs_sunsource *sun)
 {
-    if (sun->active || strcmp(rs_config_string(cfg, "sky", "sun_from_shadows"), "auto") != 0) return 0;
+    if (sun->active || o->from_shadows != RS_SUN_SHADOWS_AUTO) return 0;
     if (!fill->sun_given) {
         sun->search = env->bright_pixels == 0; /* no sun in the sky: perhaps behind the building */
         return 0;
@@ -182,8 +153,8 @@ int rs_sunsource_auto(const rs_config *cfg, const rs_skyenv *env, const rs_skyfi
     if (!env->filled[(size_t)r * w + c]) return 0; /* a camera saw the sky there: the map has the sun */
     /* Bright measured pixels next to it: seen, at least in part. Not env->sun, which is empty
      * when nothing samples the sun explicitly. */
-    double cone = cos(rs_config_real(cfg, "irradiance", "sun_max_cone_deg") * M_PI / 180);
-    double bright = rs_config_real(cfg, "irradiance", "sun_threshold") * env->sky_median;
+    double cone = cos(o->cone_rad);
+    double bright = o->halo_factor * env->sky_median;
     for (int y = 0; y < h; y++)
         for (int x = 0; x < w; x++) {
             size_t k = (size_t)y * w + x;
@@ -193,16 +164,13 @@ int rs_sunsource_auto(const rs_config *cfg, const rs_skyenv *env, const rs_skyfi
         }
     sun->active = sun->from_shadows = 1;
     sun->dir_world = s;
-    sun->dir_from = rs_config_has(cfg, "sky", "sun_azimuth_deg") ? "config" : "solar position";
+    sun->dir_from = o->given_dir_from;
     for (int ch = 0; ch < 3; ch++) sun->rgb[ch] = 1;
-    rs_log_info("irradiance: no camera saw the sun at elevation %.2f deg (%s): its DNI comes from the model's "
-                "shadows ([sky] sun_from_shadows = auto)",
-                asin(fmin(1, s.z)) * 180 / M_PI, sun->dir_from);
     return 1;
 }
 
 int rs_sunsource_visibility(const rs_sunsource *sun, const rs_scene *scene, int rays, uint32_t seed, size_t nf,
-                            const rs_facet_gather *fg, float *vis)
+                            const rs_facet_gather *fg, float *vis, rs_err *err)
 {
     for (size_t f = 0; f < nf; f++) vis[f] = -1;
     if (!sun->active) return 0;
@@ -251,7 +219,7 @@ int rs_sunsource_visibility(const rs_sunsource *sun, const rs_scene *scene, int 
         free(ray);
         free(occl);
     }
-    return failed ? -1 : 0;
+    return failed ? rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory tracing the shadow rays toward the sun") : 0;
 }
 
 /* E_sky + G of every facet, 3 each (NULL: out of memory). */
@@ -267,15 +235,16 @@ static double *irradiance_without_sun(const rs_facet_gather *fg, size_t nf, cons
 }
 
 int rs_sunsource_search(rs_sunsource *sun, const rs_scene *scene, const rs_skyenv *env, const rs_facet_gather *fg,
-                        const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height, rs_v3 sky_dir)
+                        const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height, rs_v3 sky_dir,
+                        rs_err *err)
 {
     const rs_mesh *mesh = rs_scene_mesh(scene);
     double *E = irradiance_without_sun(fg, mesh->nfaces, radiance, observed);
-    if (!E) return -1;
+    if (!E) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory searching the shadows for the sun");
     double margin = rs_sunshadow_margin(mesh, observed, cam, pano_height);
     rs_sunshadow_pairs pairs;
-    int rc = rs_sunshadow_pairs_build(mesh, observed, margin, 3 * margin, 8, &pairs);
-    if (rc == 0) rc = rs_sunsearch_run(scene, env, &pairs, E, radiance, observed, &sun->found);
+    int rc = rs_sunshadow_pairs_build(mesh, observed, margin, 3 * margin, 8, &pairs, err);
+    if (rc == 0) rc = rs_sunsearch_run(scene, env, &pairs, E, radiance, observed, &sun->found, err);
     rs_sunshadow_pairs_free(&pairs);
     free(E);
     if (rc < 0) return -1;
@@ -290,15 +259,15 @@ int rs_sunsource_search(rs_sunsource *sun, const rs_scene *scene, const rs_skyen
 }
 
 int rs_sunsource_from_shadows(rs_sunsource *sun, const rs_mesh *mesh, const float *vis, const rs_facet_gather *fg,
-                              const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height)
+                              const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height, rs_err *err)
 {
     size_t nf = mesh->nfaces;
     double *E = irradiance_without_sun(fg, nf, radiance, observed);
-    if (!E) return -1;
     double *E_sigma = malloc((nf ? nf : 1) * sizeof *E_sigma);
-    if (!E_sigma) {
+    if (!E || !E_sigma) {
         free(E);
-        return -1;
+        free(E_sigma);
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory estimating the sun from the shadows");
     }
     for (size_t f = 0; f < nf; f++) E_sigma[f] = fg[f].fill_sigma_lum;
     sun->margin = rs_sunshadow_margin(mesh, observed, cam, pano_height);
@@ -311,7 +280,7 @@ int rs_sunsource_from_shadows(rs_sunsource *sun, const rs_mesh *mesh, const floa
                              .E_sigma = E_sigma,
                              .margin = sun->margin,
                              .radius = 3 * sun->margin};
-    sun->shadow_rc = rs_sunshadow_estimate(&in, &sun->shadow);
+    sun->shadow_rc = rs_sunshadow_estimate(&in, &sun->shadow, err);
     free(E);
     free(E_sigma);
     if (sun->shadow_rc < 0) return -1;
@@ -345,43 +314,4 @@ void rs_sunsource_apply(const rs_sunsource *sun, const rs_scene *scene, size_t n
             fg[f].fill_sigma_lum = hypot(fg[f].fill_sigma_lum, sun->shadow.sigma_lum * u);
         }
     }
-}
-
-void rs_sunsource_report(const rs_sunsource *sun, rs_json *metrics)
-{
-    if (!sun->active) return;
-    rs_json *o = rs_json_set_obj(metrics, "explicit_sun");
-    rs_json_set_num(o, "direct_normal_irradiance", sun->dni);
-    rs_json_set_str(o, "irradiance_from", sun->fell_back ? "panorama" : sun->from_shadows ? "shadows" : "config");
-    if (sun->from_shadows) {
-        rs_json *e = rs_json_set_obj(o, "from_shadows");
-        rs_json_set_bool(e, "estimated", sun->shadow_rc == 0);
-        rs_json_set_bool(e, "fell_back_to_panorama", sun->fell_back);
-        if (sun->searched) {
-            rs_json_set_num(e, "search_score", sun->found.score);
-            rs_json_set_int(e, "search_pairs", (long long)sun->found.pairs);
-            rs_json_set_int(e, "search_candidates", sun->found.candidates);
-            rs_json_set_num(e, "search_off_sky_estimate_deg", sun->found_off_deg);
-        }
-        rs_json_set_num(e, "sigma", sun->shadow.sigma_lum);
-        rs_json_set_num(e, "sigma_statistical", sun->shadow.sigma_stat_lum);
-        rs_json_set_num(e, "sigma_from_sky_fill", sun->shadow.sigma_sys_lum);
-        rs_json_set_num(e, "margin_m", sun->margin);
-        rs_json_set_num(e, "radius_m", 3 * sun->margin);
-        rs_json_set_int(e, "lit_facets", (long long)sun->shadow.lit);
-        rs_json_set_int(e, "shadowed_facets", (long long)sun->shadow.shadowed);
-        rs_json_set_int(e, "lit_facets_paired", (long long)sun->shadow.lit_used);
-        rs_json_set_int(e, "blocks", (long long)sun->shadow.blocks);
-    }
-    rs_json *d = rs_json_set_arr(o, "direction");
-    rs_json_push_num(d, sun->dir_world.x);
-    rs_json_push_num(d, sun->dir_world.y);
-    rs_json_push_num(d, sun->dir_world.z);
-    rs_json_set_str(o, "direction_from", sun->dir_from);
-    rs_json *c = rs_json_set_arr(o, "color_at_unit_luminance");
-    for (int ch = 0; ch < 3; ch++) rs_json_push_num(c, sun->rgb[ch]);
-    rs_json_set_num(o, "clip_level", sun->clip_level);
-    rs_json_set_int(o, "removed_pixels", (long long)sun->removed_px);
-    rs_json_set_num(o, "removed_solid_angle_sr", sun->removed_sr);
-    rs_json_set_num(o, "removed_power", sun->removed_power);
 }

@@ -7,7 +7,7 @@
 #include <stdlib.h>
 #include "common/pano.h"
 
-int rs_skydist_to_source(int w, int h, const uint8_t *src, const uint8_t *target, float *out)
+int rs_skydist_to_source(int w, int h, const uint8_t *src, const uint8_t *target, float *out, rs_err *err)
 {
     int cw = w < RS_SKYDIST_CELLS_W ? w : RS_SKYDIST_CELLS_W;
     int chh = h < RS_SKYDIST_CELLS_W / 2 ? h : RS_SKYDIST_CELLS_W / 2;
@@ -23,7 +23,8 @@ int rs_skydist_to_source(int w, int h, const uint8_t *src, const uint8_t *target
         free(dir);
         free(edge);
         free(ccol);
-        return -1;
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0,
+                          "out of memory measuring the sky's distance from the measured sky");
     }
     for (int x = 0; x < w; x++) ccol[x] = (uint32_t)((long)x * cw / w); /* each column's cell */
     for (int r = 0; r < h; r++) {

@@ -5,14 +5,16 @@
 #define RS_SKYDIST_H
 
 #include <stdint.h>
+#include "common/err.h"
 
 /* For every pixel k of a w x h map (rs_pano layout) with target[k], the angle in radians from its
  * direction to the nearest pixel with src[k] into out[k]; out[k] = 0 for the other pixels. The
  * angle is measured between cells of a grid of at most RS_SKYDIST_CELLS_W x RS_SKYDIST_CELLS_W / 2
  * (a pixel takes its cell's value; a cell holding any source pixel is at distance 0), so it is
  * good to about one cell (2.8 degrees). With no source pixel at all every target gets pi.
- * Angles do not depend on the map's pose. Returns 0, -1 out of memory. */
+ * Angles do not depend on the map's pose. Returns 0, or -1 out of memory (err set; err may be
+ * NULL: a caller in a parallel region names the failure itself). */
 #define RS_SKYDIST_CELLS_W 128
-int rs_skydist_to_source(int w, int h, const uint8_t *src, const uint8_t *target, float *out);
+int rs_skydist_to_source(int w, int h, const uint8_t *src, const uint8_t *target, float *out, rs_err *err);
 
 #endif

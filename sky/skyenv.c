@@ -374,16 +374,15 @@ int rs_skyenv_build_opts(const rs_capture *cap, const float *facet_id, const rs_
             env->filled[k] = 1;
             env->filled_pixels++;
         }
-    if (rs_skyfill_run(w, h, &env->pose, env->radiance, src, env->filled, env->sun, &o->fill, &info->fill) != 0) {
-        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory filling the sky map");
+    if (rs_skyfill_run(w, h, &env->pose, env->radiance, src, env->filled, env->sun, &o->fill, &info->fill, err) != 0)
         goto out;
-    }
     env->fill_sigma = info->fill.fill_sigma > 0 ? info->fill.fill_sigma : 0;
-    if (!(env->fill_sigma_px = malloc(npx * sizeof *env->fill_sigma_px)) ||
-        rs_skyfill_sigma_map(w, h, src, env->filled, &info->fill, o->fill.method, env->fill_sigma_px) != 0) {
+    if (!(env->fill_sigma_px = malloc(npx * sizeof *env->fill_sigma_px))) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky fill's uncertainty");
         goto out;
     }
+    if (rs_skyfill_sigma_map(w, h, src, env->filled, &info->fill, o->fill.method, env->fill_sigma_px, err) != 0)
+        goto out;
     if (!o->explicit_sun) memset(env->sun, 0, npx); /* everything by cosine rays */
     if (o->explicit_sun && build_distributions(env) != 0) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky distribution");
@@ -413,7 +412,13 @@ static int rebuild_distributions(rs_skyenv *env)
     return build_distributions(env);
 }
 
-long rs_skyenv_set_ground(rs_skyenv *env, const double rgb[3], int explicit_sun)
+/* Every failure of rs_skyenv_set_ground and rs_skyenv_ground_from_bands. */
+static long distribution_out_of_memory(rs_err *err)
+{
+    return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the sky distribution");
+}
+
+long rs_skyenv_set_ground(rs_skyenv *env, const double rgb[3], int explicit_sun, rs_err *err)
 {
     size_t npx = (size_t)env->width * env->height;
     long n = 0;
@@ -423,20 +428,20 @@ long rs_skyenv_set_ground(rs_skyenv *env, const double rgb[3], int explicit_sun)
             n++;
         }
     if (!n || !explicit_sun) return n;
-    return rebuild_distributions(env) == 0 ? n : -1;
+    return rebuild_distributions(env) == 0 ? n : distribution_out_of_memory(err);
 }
 
-long rs_skyenv_ground_from_bands(rs_skyenv *env, int explicit_sun)
+long rs_skyenv_ground_from_bands(rs_skyenv *env, int explicit_sun, rs_err *err)
 {
     size_t npx = (size_t)env->width * env->height;
     uint8_t *src = malloc(npx ? npx : 1);
-    if (!src) return -1;
+    if (!src) return distribution_out_of_memory(err);
     for (size_t k = 0; k < npx; k++) src[k] = !env->filled[k] && !env->sun[k];
     long n = rs_skyfill_ground_from_bands(env->width, env->height, &env->pose, env->radiance, src, env->filled,
-                                          RS_SKYFILL_GROUND_MODEL, M_PI);
+                                          RS_SKYFILL_GROUND_MODEL, M_PI, err);
     free(src);
     if (n <= 0 || !explicit_sun) return n;
-    return rebuild_distributions(env) == 0 ? n : -1;
+    return rebuild_distributions(env) == 0 ? n : distribution_out_of_memory(err);
 }
 
 void rs_skyenv_release(rs_skyenv *env)

@@ -91,12 +91,13 @@ void rs_skyenv_release(rs_skyenv *env);
 
 /* Sets the map's pixels that the ground model filled (RS_SKYFILL_GROUND_MODEL) to rgb, then
  * rebuilds the sampling distributions when the map has them (explicit_sun, as built). Returns
- * the pixels changed, -1 out of memory (the caller then releases the map). */
-long rs_skyenv_set_ground(rs_skyenv *env, const double rgb[3], int explicit_sun);
+ * the pixels changed, -1 out of memory (err set; the caller then releases the map). */
+long rs_skyenv_set_ground(rs_skyenv *env, const double rgb[3], int explicit_sun, rs_err *err);
 /* Sets them instead to the mean measured ground of the nearest elevation band that has any, at
  * any distance (when the ground model's albedo cannot be had), marked filled (1), and rebuilds
- * the distributions as above. Returns the pixels set (0: no measured ground), -1 out of memory. */
-long rs_skyenv_ground_from_bands(rs_skyenv *env, int explicit_sun);
+ * the distributions as above. Returns the pixels set (0: no measured ground), -1 out of memory
+ * (err set). */
+long rs_skyenv_ground_from_bands(rs_skyenv *env, int explicit_sun, rs_err *err);
 
 /* Pixel index of world direction d. */
 static inline size_t rs_skyenv_pixel(const rs_skyenv *env, rs_v3 d_world)

@@ -140,7 +140,7 @@ static int ground_band(rs_v3 d, int nb)
 }
 
 long rs_skyfill_ground_from_bands(int w, int h, const rs_pose *pose, float *rad, const uint8_t *src, uint8_t *fill,
-                                  uint8_t which, double max_rad)
+                                  uint8_t which, double max_rad, rs_err *err)
 {
     int nb = h / 2 > 0 ? h / 2 : 1;
     size_t npx = (size_t)w * h;
@@ -150,7 +150,7 @@ long rs_skyfill_ground_from_bands(int w, int h, const rs_pose *pose, float *rad,
         free(acc);
         free(nearest);
         free(band);
-        return -1;
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory copying the measured ground below the horizon");
     }
     /* Each pixel's band (-1 above the horizon) on every thread; the sums below stay serial, in
      * pixel order, so they do not depend on the thread count. */
@@ -238,8 +238,8 @@ static int ground_fill(int w, int h, const rs_pose *pose, float *rad, const uint
     for (size_t k = 0; k < npx; k++)
         if (fill[k] == RS_SKYFILL_GROUND_MODEL)
             for (int ch = 0; ch < 3; ch++) rad[3 * k + ch] = (float)rep->ground_rgb[ch];
-    long copied =
-        rs_skyfill_ground_from_bands(w, h, pose, rad, src, fill, RS_SKYFILL_GROUND_MODEL, RS_SKYFILL_GROUND_NEAR_RAD);
+    long copied = rs_skyfill_ground_from_bands(w, h, pose, rad, src, fill, RS_SKYFILL_GROUND_MODEL,
+                                               RS_SKYFILL_GROUND_NEAR_RAD, NULL); /* rs_skyfill_run names it */
     if (copied < 0) return -1;
     rep->ground_model_pixels = below - (size_t)copied;
     rep->ground_from_albedo = below > 0 && copied == 0;
@@ -326,7 +326,7 @@ static int cross_validate_block(int w, int h, const rs_pose *pose, const float *
         src_f[k] = (uint8_t)(src[k] && !fill_f[k]);
     }
     /* tmp's first w * h floats hold the distances until the row fill needs it. */
-    if (rs_skydist_to_source(w, h, src_f, fill_f, tmp) != 0) goto out;
+    if (rs_skydist_to_source(w, h, src_f, fill_f, tmp, NULL) != 0) goto out; /* parallel: rs_skyfill_run names it */
     *dist_f = block_distance(w, h, rad, fold, f, tmp);
     double sr;
     memcpy(tmp, rad, 3 * npx * sizeof *tmp);
@@ -425,7 +425,7 @@ double rs_skyfill_rate_used(const rs_skyfill_report *rep, rs_skyfill_method meth
 }
 
 int rs_skyfill_sigma_map(int w, int h, const uint8_t *src, const uint8_t *fill, const rs_skyfill_report *rep,
-                         rs_skyfill_method method, float *sigma)
+                         rs_skyfill_method method, float *sigma, rs_err *err)
 {
     size_t npx = (size_t)w * h;
     double rate = rs_skyfill_rate_used(rep, method);
@@ -433,7 +433,7 @@ int rs_skyfill_sigma_map(int w, int h, const uint8_t *src, const uint8_t *fill, 
         for (size_t k = 0; k < npx; k++) sigma[k] = fill[k] ? 1.0f : 0.0f;
         return 0;
     }
-    if (rs_skydist_to_source(w, h, src, fill, sigma) != 0) return -1;
+    if (rs_skydist_to_source(w, h, src, fill, sigma, err) != 0) return -1;
 #pragma omp parallel for schedule(static)
     for (int r = 0; r < h; r++)
         for (size_t k = (size_t)r * w; k < (size_t)(r + 1) * w; k++)
@@ -441,8 +441,14 @@ int rs_skyfill_sigma_map(int w, int h, const uint8_t *src, const uint8_t *fill, 
     return 0;
 }
 
+/* Every failure of rs_skyfill_run (its steps return a bare -1). */
+static int fill_out_of_memory(rs_err *err)
+{
+    return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory filling the sky map");
+}
+
 int rs_skyfill_run(int w, int h, const rs_pose *pose, float *rad, const uint8_t *src, uint8_t *fill, const uint8_t *sun,
-                   const rs_skyfill_opts *o, rs_skyfill_report *rep)
+                   const rs_skyfill_opts *o, rs_skyfill_report *rep, rs_err *err)
 {
     memset(rep, 0, sizeof *rep);
     rep->cv_rel_row = rep->cv_rel_model = -1;
@@ -464,7 +470,7 @@ int rs_skyfill_run(int w, int h, const rs_pose *pose, float *rad, const uint8_t 
         rep->sun_source = RS_SUN_PIXELS;
     }
     rs_skysample *samples = malloc(max_cells(w, h) * sizeof *samples);
-    if (!samples) return -1;
+    if (!samples) return fill_out_of_memory(err);
     if (rs_v3_len(sun_dir) == 0) {
         size_t n = build_samples(w, h, pose, rad, src, NULL, NULL, 0, samples);
         sun_dir = rs_skymodel_find_sun(samples, n);
@@ -502,7 +508,7 @@ int rs_skyfill_run(int w, int h, const rs_pose *pose, float *rad, const uint8_t 
         }
         if (rc_cv != 0) {
             free(samples);
-            return -1;
+            return fill_out_of_memory(err);
         }
     }
     int rc = 0;
@@ -524,5 +530,5 @@ int rs_skyfill_run(int w, int h, const rs_pose *pose, float *rad, const uint8_t 
     /* No held-out block had enough sky: the fill's error is unknown, call it 100 %. */
     if (!(rep->fill_sigma > 0)) rep->fill_sigma = 1;
     free(samples);
-    return rc;
+    return rc != 0 ? fill_out_of_memory(err) : 0;
 }

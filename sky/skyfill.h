@@ -5,6 +5,7 @@
 #define RS_SKYFILL_H
 
 #include <stdint.h>
+#include "common/err.h"
 #include "common/pano.h"
 #include "sky/skymodel.h"
 
@@ -63,9 +64,9 @@ double rs_skyfill_rate_used(const rs_skyfill_report *rep, rs_skyfill_method meth
  * the square root of its angle to the nearest source pixel (at least one skydist cell), at most
  * 1; 1 for every filled pixel when no rate was measured; 0 where not filled. A fill interpolates
  * next to the measured sky and extrapolates far from it: sqrt(d) is the kriging standard error of
- * a field with a linear variogram. Returns 0, -1 out of memory. */
+ * a field with a linear variogram. Returns 0, -1 out of memory (err set). */
 int rs_skyfill_sigma_map(int w, int h, const uint8_t *src, const uint8_t *fill, const rs_skyfill_report *rep,
-                         rs_skyfill_method method, float *sigma);
+                         rs_skyfill_method method, float *sigma, rs_err *err);
 
 /* A filled pixel below the horizon copies measured ground at most this far (in depression
  * angle) from its own band; farther, it takes the ground model. */
@@ -75,9 +76,10 @@ int rs_skyfill_sigma_map(int w, int h, const uint8_t *src, const uint8_t *fill, 
 
 /* Each pixel below the horizon with fill[k] == which takes the mean of the source (src) pixels
  * below the horizon in the nearest world elevation band that has some, within max_rad of its
- * own (M_PI / 2 or more: any), and is marked 1. Returns the pixels set, -1 out of memory. */
+ * own (M_PI / 2 or more: any), and is marked 1. Returns the pixels set, -1 out of memory (err
+ * set; err may be NULL). */
 long rs_skyfill_ground_from_bands(int w, int h, const rs_pose *pose, float *radiance, const uint8_t *src, uint8_t *fill,
-                                  uint8_t which, double max_rad);
+                                  uint8_t which, double max_rad, rs_err *err);
 
 /* radiance: 3 * w * h floats of a map in frame pose (rs_pano conventions), read and filled in
  * place. src (w * h): 1 for measured sky usable as a source (not the sun set). fill: 1 for the
@@ -89,8 +91,8 @@ long rs_skyfill_ground_from_bands(int w, int h, const rs_pose *pose, float *radi
  * pixels in the same world elevation band (or the nearest band that has some, within
  * RS_SKYFILL_GROUND_NEAR_RAD), else ground_albedo * E_horizontal / pi per channel from the
  * completed sky, those pixels marked RS_SKYFILL_GROUND_MODEL in fill. Returns 0, -1 out of
- * memory. */
+ * memory (err set). */
 int rs_skyfill_run(int w, int h, const rs_pose *pose, float *radiance, const uint8_t *src, uint8_t *fill,
-                   const uint8_t *sun, const rs_skyfill_opts *o, rs_skyfill_report *rep);
+                   const uint8_t *sun, const rs_skyfill_opts *o, rs_skyfill_report *rep, rs_err *err);
 
 #endif

@@ -130,7 +130,7 @@ static int best_apart(const rs_v3 *dirs, const double *sc, int n, const rs_v3 *t
 }
 
 int rs_sunsearch_run(const rs_scene *scene, const rs_skyenv *env, const rs_sunshadow_pairs *pairs, const double *E,
-                     const double *L, const uint8_t *observed, rs_sunsearch *out)
+                     const double *L, const uint8_t *observed, rs_sunsearch *out, rs_err *err)
 {
     memset(out, 0, sizeof *out);
     const rs_mesh *m = rs_scene_mesh(scene);
@@ -142,7 +142,7 @@ int rs_sunsearch_run(const rs_scene *scene, const rs_skyenv *env, const rs_sunsh
         sub.b = malloc(RS_SUNSEARCH_MAX_PAIRS * sizeof *sub.b);
         if (!sub.a || !sub.b) {
             rs_sunshadow_pairs_free(&sub);
-            return -1;
+            return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory searching the shadows for the sun");
         }
         for (size_t p = 0; p < pairs->n && sub.n < RS_SUNSEARCH_MAX_PAIRS; p += stride) {
             sub.a[sub.n] = pairs->a[p];
@@ -237,5 +237,6 @@ done:
     free(med);
     free(edge);
     free(np);
+    if (rc < 0) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory searching the shadows for the sun");
     return rc;
 }

@@ -41,8 +41,9 @@ typedef struct rs_sunsearch {
 } rs_sunsearch;
 
 /* E and L: 3 per facet (E_sky + G without a sun, and the observed radiance). Returns 0 with
- * the best direction, 1 when no direction had RS_SUNSEARCH_MIN_PAIRS pairs, -1 out of memory. */
+ * the best direction, 1 when no direction had RS_SUNSEARCH_MIN_PAIRS pairs, -1 out of memory
+ * (err set). */
 int rs_sunsearch_run(const rs_scene *scene, const rs_skyenv *env, const rs_sunshadow_pairs *pairs, const double *E,
-                     const double *L, const uint8_t *observed, rs_sunsearch *out);
+                     const double *L, const uint8_t *observed, rs_sunsearch *out, rs_err *err);
 
 #endif

@@ -173,37 +173,34 @@ static double mad(float *v, size_t n, double med)
     return n ? rs_select_kth(v, n, n / 2) : 0;
 }
 
-int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out)
+/* Each facet's centroid, normal and state toward the sun: LIT or DARK when it faces the sun and
+ * sees at least RS_SUNSHADOW_FULL of its disc or at most 1 - that, MIXED otherwise. */
+static void classify_facets(const rs_sunshadow_input *in, rs_v3 *cen, rs_v3 *nrm, uint8_t *st)
 {
-    memset(out, 0, sizeof *out);
-    if (!(in->radius > 0) || !(in->margin >= 0)) return 1; /* nothing observed to size them */
-    const rs_mesh *m = in->mesh;
-    size_t nf = m->nfaces;
-    rs_v3 *cen = malloc((nf ? nf : 1) * sizeof *cen), *nrm = malloc((nf ? nf : 1) * sizeof *nrm);
-    uint8_t *st = malloc(nf ? nf : 1);
-    uint32_t *lit = malloc((nf ? nf : 1) * sizeof *lit);
-    float *dl = malloc((4 * nf + 1) * sizeof *dl); /* per used lit facet: D per channel, E's share */
-    cell_index g = {0};
-    int rc = -1;
-    if (!cen || !nrm || !st || !lit || !dl) goto out;
-    for (size_t f = 0; f < nf; f++) {
+    for (size_t f = 0; f < in->mesh->nfaces; f++) {
         double a;
-        rs_mesh_face(m, f, &cen[f], &nrm[f], &a);
+        rs_mesh_face(in->mesh, f, &cen[f], &nrm[f], &a);
         double cosn = rs_v3_dot(nrm[f], in->sun_dir), v = in->vis[f];
         st[f] = MIXED;
         if (!(a > 0) || !(cosn > 0.05) || !(v >= 0)) continue;
         st[f] = v >= RS_SUNSHADOW_FULL ? LIT : v <= 1 - RS_SUNSHADOW_FULL ? DARK : MIXED;
     }
-    if (index_build(&g, cen, nf, in->radius) != 0) goto out;
-    /* Candidates: observed, positive radiance and irradiance in every channel, beyond the margin. */
-    size_t nlit = 0;
+}
+
+/* Candidates: observed, positive radiance and irradiance in every channel, beyond the margin;
+ * every other facet becomes MIXED. Counts the shadowed candidates (out->shadowed) and lists the
+ * lit ones not grazed by the sun in lit[0 .. *nlit). -1: out of memory. */
+static int select_candidates(const rs_sunshadow_input *in, const cell_index *g, const rs_v3 *cen, const rs_v3 *nrm,
+                             uint8_t *st, uint32_t *lit, size_t *nlit, rs_sunshadow *out)
+{
+    size_t nf = in->mesh->nfaces, n = 0;
     uint8_t *cand = malloc(nf ? nf : 1);
-    if (!cand) goto out;
+    if (!cand) return -1;
 #pragma omp parallel for schedule(dynamic, 256)
     for (size_t f = 0; f < nf; f++) {
         const double *L = in->L + 3 * f, *E = in->E + 3 * f;
         cand[f] = st[f] != MIXED && in->observed[f] && L[0] > 0 && L[1] > 0 && L[2] > 0 && E[0] > 0 && E[1] > 0 &&
-            E[2] > 0 && !near_other(&g, cen, st, f, in->margin);
+            E[2] > 0 && !near_other(g, cen, st, f, in->margin);
     }
     for (size_t f = 0; f < nf; f++) {
         if (!cand[f]) {
@@ -213,10 +210,19 @@ int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out)
         if (st[f] == DARK)
             out->shadowed++;
         else if (rs_v3_dot(nrm[f], in->sun_dir) > 0.1) /* grazing: D / cos_i amplifies noise */
-            lit[nlit++] = (uint32_t)f;
+            lit[n++] = (uint32_t)f;
     }
     free(cand);
-    out->lit = nlit;
+    *nlit = n;
+    return 0;
+}
+
+/* D of every listed lit facet that has a shadowed partner (lit_facet_dni), in parallel; then
+ * those facets compacted to the front: lit[0 .. *nused) and their D and E's share in
+ * dl[4 k .. 4 k + 3]. -1: out of memory. */
+static int lit_facets_dni(const rs_sunshadow_input *in, const cell_index *g, const rs_v3 *cen, const rs_v3 *nrm,
+                          const uint8_t *st, uint32_t *lit, size_t nlit, float *dl, size_t *nused)
+{
     uint8_t *used = calloc(nlit ? nlit : 1, 1);
     int failed = !used;
 #pragma omp parallel
@@ -230,7 +236,7 @@ int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out)
         for (size_t k = 0; k < nlit; k++) {
             double d[4];
             if (!scratch || !used) continue;
-            if (lit_facet_dni(in, &g, cen, nrm, st, lit[k], scratch, d) == 0) continue;
+            if (lit_facet_dni(in, g, cen, nrm, st, lit[k], scratch, d) == 0) continue;
             used[k] = 1;
             for (int ch = 0; ch < 4; ch++) dl[4 * k + ch] = (float)d[ch];
         }
@@ -238,9 +244,8 @@ int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out)
     }
     if (failed) {
         free(used);
-        goto out;
+        return -1;
     }
-    /* Compact the used lit facets: D per channel in dl, their facets in lit. */
     size_t nu = 0;
     for (size_t k = 0; k < nlit; k++)
         if (used[k]) {
@@ -248,10 +253,16 @@ int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out)
             lit[nu++] = lit[k];
         }
     free(used);
-    out->lit_used = nu;
-    rc = 1;
-    if (nu < RS_SUNSHADOW_MIN_LIT) goto out;
-    rc = -1;
+    *nused = nu;
+    return 0;
+}
+
+/* The estimate from the nu used lit facets (lit, dl as lit_facets_dni leaves them): the median
+ * D per channel, its standard error between blocks, and what E's uncertainty makes of it.
+ * -1: out of memory. */
+static int dni_statistics(const rs_sunshadow_input *in, const rs_v3 *cen, const uint32_t *lit, const float *dl,
+                          size_t nu, rs_sunshadow *out)
+{
     float *col = malloc(nu * sizeof *col), *blk = malloc(nu * sizeof *blk), *tmp = malloc(nu * sizeof *tmp);
     key_facet *bk = malloc(nu * sizeof *bk);
     if (!col || !blk || !tmp || !bk) {
@@ -259,7 +270,7 @@ int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out)
         free(blk);
         free(tmp);
         free(bk);
-        goto out;
+        return -1;
     }
     for (int ch = 0; ch < 3; ch++) {
         for (size_t k = 0; k < nu; k++) col[k] = dl[4 * k + ch];
@@ -294,7 +305,28 @@ int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out)
     free(blk);
     free(tmp);
     free(bk);
-    rc = 0;
+    return 0;
+}
+
+int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out, rs_err *err)
+{
+    memset(out, 0, sizeof *out);
+    if (!(in->radius > 0) || !(in->margin >= 0)) return 1; /* nothing observed to size them */
+    size_t nf = in->mesh->nfaces, nlit = 0, nused = 0;
+    rs_v3 *cen = malloc((nf ? nf : 1) * sizeof *cen), *nrm = malloc((nf ? nf : 1) * sizeof *nrm);
+    uint8_t *st = malloc(nf ? nf : 1);
+    uint32_t *lit = malloc((nf ? nf : 1) * sizeof *lit);
+    float *dl = malloc((4 * nf + 1) * sizeof *dl); /* per used lit facet: D per channel, E's share */
+    cell_index g = {0};
+    int rc = -1;
+    if (!cen || !nrm || !st || !lit || !dl) goto out;
+    classify_facets(in, cen, nrm, st);
+    if (index_build(&g, cen, nf, in->radius) != 0 || select_candidates(in, &g, cen, nrm, st, lit, &nlit, out) != 0)
+        goto out;
+    out->lit = nlit;
+    if (lit_facets_dni(in, &g, cen, nrm, st, lit, nlit, dl, &nused) != 0) goto out;
+    out->lit_used = nused;
+    rc = nused < RS_SUNSHADOW_MIN_LIT ? 1 : dni_statistics(in, cen, lit, dl, nused, out);
 out:
     free(g.key);
     free(g.facet);
@@ -303,11 +335,12 @@ out:
     free(st);
     free(lit);
     free(dl);
+    if (rc < 0) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory estimating the sun from the shadows");
     return rc;
 }
 
 int rs_sunshadow_pairs_build(const rs_mesh *mesh, const uint8_t *observed, double margin, double radius,
-                             int max_per_facet, rs_sunshadow_pairs *out)
+                             int max_per_facet, rs_sunshadow_pairs *out, rs_err *err)
 {
     memset(out, 0, sizeof *out);
     if (!(radius > 0)) return 0; /* nothing observed: no pairs */
@@ -354,8 +387,9 @@ done:
     free(cen);
     free(nrm);
     free(cnt);
-    if (rc) rs_sunshadow_pairs_free(out);
-    return rc;
+    if (rc == 0) return 0;
+    rs_sunshadow_pairs_free(out);
+    return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory pairing the facets for the sun search");
 }
 
 void rs_sunshadow_pairs_free(rs_sunshadow_pairs *p)

@@ -12,6 +12,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include "common/err.h"
 #include "common/mesh.h"
 #include "common/vec.h"
 
@@ -48,8 +49,8 @@ typedef struct rs_sunshadow {
 double rs_sunshadow_margin(const rs_mesh *mesh, const uint8_t *observed, rs_v3 cam, int pano_height);
 
 /* Returns 0 with the estimate, 1 when fewer than RS_SUNSHADOW_MIN_LIT lit facets found a
- * partner (out still holds the counts), -1 out of memory. */
-int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out);
+ * partner (out still holds the counts), -1 out of memory (err set). */
+int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out, rs_err *err);
 
 /* For the search of a sun whose direction nobody gave (sunsearch.h): pairs of observed facets
  * on one plane (as above) at a distance in [margin, radius], at most max_per_facet per facet
@@ -59,9 +60,9 @@ typedef struct rs_sunshadow_pairs {
     size_t n;
 } rs_sunshadow_pairs;
 
-/* Returns 0, -1 out of memory. rs_sunshadow_pairs_free releases. */
+/* Returns 0, -1 out of memory (err set). rs_sunshadow_pairs_free releases. */
 int rs_sunshadow_pairs_build(const rs_mesh *mesh, const uint8_t *observed, double margin, double radius,
-                             int max_per_facet, rs_sunshadow_pairs *out);
+                             int max_per_facet, rs_sunshadow_pairs *out, rs_err *err);
 void rs_sunshadow_pairs_free(rs_sunshadow_pairs *p);
 
 #endif

@@ -83,15 +83,16 @@ static void test_run_threads_and_closure(void **state)
     rs_gather_ctx g = rs_fx_gather_ctx(scene, &env, 64, 16, 7);
     rs_facet_gather *one = calloc(nf, sizeof *one), *two = calloc(nf, sizeof *two), *part = calloc(nf, sizeof *part);
     rs_gather_stats st;
+    rs_err err;
 #ifdef _OPENMP
     omp_set_num_threads(1);
 #endif
-    assert_int_equal(rs_gather_run(&g, nf, NULL, one, NULL, NULL, &st), 0);
+    assert_int_equal(rs_gather_run(&g, nf, NULL, one, NULL, NULL, &st, &err), 0);
     assert_int_equal(st.gathered, nf);
 #ifdef _OPENMP
     omp_set_num_threads(2);
 #endif
-    assert_int_equal(rs_gather_run(&g, nf, NULL, two, NULL, NULL, &st), 0);
+    assert_int_equal(rs_gather_run(&g, nf, NULL, two, NULL, NULL, &st, &err), 0);
     rs_gather_scratch *s = rs_gather_scratch_new(64);
     for (size_t f = 0; f < nf; f++) {
         rs_facet_gather ref;
@@ -106,7 +107,7 @@ static void test_run_threads_and_closure(void **state)
      * and every gathered row equals the full gather's and points only at gathered facets. */
     uint8_t *needed = calloc(nf, 1), *gathered = calloc(nf, 1);
     needed[0] = 1;
-    assert_int_equal(rs_gather_run(&g, nf, needed, part, gathered, NULL, &st), 0);
+    assert_int_equal(rs_gather_run(&g, nf, needed, part, gathered, NULL, &st, &err), 0);
     print_message("closure: %zu of %zu facets in %d waves\n", st.gathered, nf, st.waves);
     assert_true(st.waves >= 2);
     assert_true(gathered[0]);
@@ -132,7 +133,7 @@ static void test_run_threads_and_closure(void **state)
     rg.relay_share = 0.25;
     rs_facet_gather *relay = calloc(nf, sizeof *relay);
     uint8_t *rgathered = calloc(nf, 1);
-    assert_int_equal(rs_gather_run(&rg, nf, needed, relay, rgathered, NULL, &st), 0);
+    assert_int_equal(rs_gather_run(&rg, nf, needed, relay, rgathered, NULL, &st, &err), 0);
     same_rows(&relay[0], &one[0]);
     assert_int_equal(relay[0].samples, 64);
     assert_false(relay[0].relay);
@@ -157,7 +158,7 @@ static void test_run_threads_and_closure(void **state)
     assert_true(fabs(sum_relay / sum_full - 1) < 0.1);
     double factor;
     size_t used;
-    assert_int_equal(rs_gather_mc_calibration(&rg, nf, relay, NULL, NULL, 512, &factor, &used), 0);
+    assert_int_equal(rs_gather_mc_calibration(&rg, nf, relay, NULL, NULL, 512, &factor, &used, &err), 0);
     assert_int_equal(used, 1);
     for (size_t f = 0; f < nf; f++) free(relay[f].entries);
     free(relay), free(rgathered);

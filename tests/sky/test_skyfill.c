@@ -188,13 +188,14 @@ static void test_ground_near_bands_and_model(void **state)
     assert_int_equal(bad, 0);
     assert_true(info.fill.ground_model_pixels >= model && !info.fill.ground_from_albedo);
     double before = env.total_power, rgb[3] = {0.5, 0.6, 0.7};
-    assert_int_equal(rs_skyenv_set_ground(&env, rgb, 1), (long)info.fill.ground_model_pixels);
+    rs_err err;
+    assert_int_equal(rs_skyenv_set_ground(&env, rgb, 1, &err), (long)info.fill.ground_model_pixels);
     size_t k0 = (size_t)(H - 1) * W; /* straight down: the ground model */
     for (int ch = 0; ch < 3; ch++) assert_true(env.radiance[3 * k0 + ch] == (float)rgb[ch]);
     assert_true(env.total_power > before && env.cdf[(size_t)W * H] == env.total_power);
     /* Without an albedo for the model: the measured band (0.4) at any distance, as before it. */
     double set_power = env.total_power;
-    assert_int_equal(rs_skyenv_ground_from_bands(&env, 1), (long)info.fill.ground_model_pixels);
+    assert_int_equal(rs_skyenv_ground_from_bands(&env, 1, &err), (long)info.fill.ground_model_pixels);
     for (int ch = 0; ch < 3; ch++) assert_true(fabs(env.radiance[3 * k0 + ch] - 0.4) < 1e-5);
     assert_int_equal(env.filled[k0], 1);
     assert_true(env.total_power < set_power && env.cdf[(size_t)W * H] == env.total_power);
@@ -219,7 +220,7 @@ static void test_fill_sigma_grows_with_distance(void **state)
         src[k] = ids[k] < 0;
         tgt[k] = !src[k];
     }
-    assert_int_equal(rs_skydist_to_source(W, H, src, tgt, dist), 0);
+    assert_int_equal(rs_skydist_to_source(W, H, src, tgt, dist, NULL), 0);
     rs_skyenv env;
     rs_skyenv_info info;
     rs_skyenv_opts o = opts(RS_SKYFILL_MODEL);

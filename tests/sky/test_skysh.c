@@ -293,8 +293,8 @@ static void test_gather_uses_it(void **state)
     /* rs_gather_run: the same facets, fewer rays */
     rs_facet_gather *fa = calloc(nf, sizeof *fa), *fb = calloc(nf, sizeof *fb);
     rs_gather_stats sa, sb;
-    assert_int_equal(rs_gather_run(&rays, nf, NULL, fa, NULL, NULL, &sa), 0);
-    assert_int_equal(rs_gather_run(&with, nf, NULL, fb, NULL, NULL, &sb), 0);
+    assert_int_equal(rs_gather_run(&rays, nf, NULL, fa, NULL, NULL, &sa, &err), 0);
+    assert_int_equal(rs_gather_run(&with, nf, NULL, fb, NULL, NULL, &sb, &err), 0);
     assert_int_equal(sa.sees_nothing, sb.sees_nothing);
     size_t nsh = 0;
     for (size_t f = 0; f < nf; f++) {

@@ -71,7 +71,7 @@ static void test_estimator(void **state)
     rs_sunshadow_input in = {
         .mesh = m, .vis = vis, .sun_dir = s, .E = E, .L = L, .observed = observed, .margin = 0.3, .radius = 0.9};
     rs_sunshadow out;
-    assert_int_equal(rs_sunshadow_estimate(&in, &out), 0);
+    assert_int_equal(rs_sunshadow_estimate(&in, &out, NULL), 0);
     print_message("DNI %.4f %.4f %.4f (true %.1f %.1f %.1f), sigma %.4f; %zu lit (%zu paired), %zu shadowed, %zu "
                   "blocks\n",
                   out.dni[0], out.dni[1], out.dni[2], D[0], D[1], D[2], out.sigma_lum, out.lit, out.lit_used,
@@ -86,7 +86,7 @@ static void test_estimator(void **state)
     double *esig = malloc(nf * sizeof *esig);
     for (size_t f = 0; f < nf; f++) esig[f] = c;
     in.E_sigma = esig;
-    assert_int_equal(rs_sunshadow_estimate(&in, &out), 0);
+    assert_int_equal(rs_sunshadow_estimate(&in, &out, NULL), 0);
     print_message("sigma from E's: %.4f (bounds %.4f %.4f)\n", out.sigma_sys_lum, c * sqrt(2) / sin(el),
                   c * hypot(3, 1) / sin(el));
     assert_true(out.sigma_sys_lum >= c * sqrt(2) / sin(el) && out.sigma_sys_lum <= c * hypot(3, 1) / sin(el));
@@ -95,7 +95,7 @@ static void test_estimator(void **state)
     free(esig);
     /* The margin matters: with none the bleeding facets pull the estimate down. */
     in.margin = 0;
-    assert_int_equal(rs_sunshadow_estimate(&in, &out), 0);
+    assert_int_equal(rs_sunshadow_estimate(&in, &out, NULL), 0);
     print_message("without the margin: DNI %.4f %.4f %.4f\n", out.dni[0], out.dni[1], out.dni[2]);
     /* Bad values (NaN and infinite E, zero and negative radiance, NaN visibility, a NaN
      * uncertainty) leave their facets out; the rest still gives the estimate. */
@@ -108,7 +108,7 @@ static void test_estimator(void **state)
     double *nan_sigma = malloc(nf * sizeof *nan_sigma);
     for (size_t f = 0; f < nf; f++) nan_sigma[f] = (f % 11) ? 0.01 : NAN;
     in.E_sigma = nan_sigma;
-    assert_int_equal(rs_sunshadow_estimate(&in, &out), 0);
+    assert_int_equal(rs_sunshadow_estimate(&in, &out, NULL), 0);
     print_message("with bad values: DNI %.4f %.4f %.4f, sigma %.4f\n", out.dni[0], out.dni[1], out.dni[2],
                   out.sigma_lum);
     for (int ch = 0; ch < 3; ch++) assert_true(fabs(out.dni[ch] - D[ch]) < 0.03 * D[ch]);
@@ -120,14 +120,14 @@ static void test_estimator(void **state)
     in.margin = rs_sunshadow_margin(m, observed, rs_v3_make(0, 0, 1.6), 512);
     in.radius = 3 * in.margin;
     assert_true(in.margin == 0);
-    assert_int_equal(rs_sunshadow_estimate(&in, &out), 1);
+    assert_int_equal(rs_sunshadow_estimate(&in, &out, NULL), 1);
     memset(observed, 1, nf);
     in.margin = 0.3;
     in.radius = 0.9;
     /* No shadow at all: no estimate. */
     for (size_t f = 0; f < nf; f++) vis[f] = 1;
     in.margin = 0.3;
-    assert_int_equal(rs_sunshadow_estimate(&in, &out), 1);
+    assert_int_equal(rs_sunshadow_estimate(&in, &out, NULL), 1);
     assert_int_equal(out.lit_used, 0);
     free(vis);
     free(E);
@@ -163,7 +163,7 @@ static void test_fallback(void **state)
                         .dir_world = rs_v3_make(0.6, 0, 0.8),
                         .removed_power = 6.0,
                         .removed_rgb = {9.0, 5.5, 2.0}};
-    assert_int_equal(rs_sunsource_from_shadows(&sun, m, vis, fg, L, observed, rs_v3_make(0, 0, 1.6), 512), 0);
+    assert_int_equal(rs_sunsource_from_shadows(&sun, m, vis, fg, L, observed, rs_v3_make(0, 0, 1.6), 512, NULL), 0);
     print_message("no shadow: rc %d, DNI %.3f, colour %.3f %.3f %.3f\n", sun.shadow_rc, sun.dni, sun.rgb[0], sun.rgb[1],
                   sun.rgb[2]);
     assert_int_equal(sun.shadow_rc, 1);
@@ -180,7 +180,7 @@ static void test_fallback(void **state)
     rs_scene_free(scene);
     sun.removed_power = 0; /* a hidden sun: nothing to fall back on */
     sun.fell_back = 0;
-    assert_int_equal(rs_sunsource_from_shadows(&sun, m, vis, fg, L, observed, rs_v3_make(0, 0, 1.6), 512), 0);
+    assert_int_equal(rs_sunsource_from_shadows(&sun, m, vis, fg, L, observed, rs_v3_make(0, 0, 1.6), 512, &err), 0);
     assert_true(!sun.fell_back && sun.dni == 0);
     free(vis);
     free(L);

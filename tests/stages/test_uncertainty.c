@@ -205,12 +205,13 @@ static void test_mc_calibration(void **state)
     double *E = calloc(nf * SEEDS, sizeof *E), *sig = calloc(nf * SEEDS, sizeof *sig), factor = 0;
     rs_facet_gather *fg = calloc(nf, sizeof *fg);
     rs_gather_stats st;
+    rs_err err;
     for (int seed = 0; seed < SEEDS; seed++) {
         rs_gather_ctx g = rs_fx_gather_ctx(scene, &env, 64, 16, (uint32_t)(100 + seed));
-        assert_int_equal(rs_gather_run(&g, nf, NULL, fg, NULL, NULL, &st), 0);
+        assert_int_equal(rs_gather_run(&g, nf, NULL, fg, NULL, NULL, &st, &err), 0);
         double fac;
         size_t used;
-        assert_int_equal(rs_gather_mc_calibration(&g, nf, fg, radiance, NULL, 1000, &fac, &used), 0);
+        assert_int_equal(rs_gather_mc_calibration(&g, nf, fg, radiance, NULL, 1000, &fac, &used, &err), 0);
         assert_int_equal(used, nf);
         factor += fac / SEEDS;
         for (size_t f = 0; f < nf; f++) {
