@@ -58,24 +58,32 @@ static void add_tri(rs_mesh *cap, size_t *nf, rs_v3 P, uint32_t a, uint32_t b, u
     out[2] = flip ? b : c;
 }
 
-rs_mesh *rs_nadir_cap_coarse(const rs_cloud *c, int s, double max_rms_m, int stride, double spacing_m,
-                             rs_nadir_stats *st, rs_err *err)
+/* The cap's rim and layout, found step by step by rs_nadir_cap_coarse. */
+typedef struct {
+    rs_v3 P;         /* the scanner */
+    int cols;        /* lattice columns (rs_grid_lattice) */
+    rs_v3 *rim;      /* per column: its lowest valid point among the lattice's rows, where has[] */
+    double *rim_el;  /* that point's elevation seen from P */
+    int *has;        /* the column reaches below MAX_RIM_ELEVATION */
+    size_t nrim;     /* columns that do */
+    double *steps;   /* the lattice's elevation steps at the rim */
+    size_t nsteps;   /* how many were measured */
+    double plane[3]; /* the ground: z = plane[0] x + plane[1] y + plane[2] */
+    int K;           /* rings, the rim's included */
+    int m;           /* rim columns per inner column */
+    int nin;         /* inner columns */
+    int *src;        /* per inner column: the first rim column of its group, -1 when none */
+    size_t nv;       /* the cap's vertices, the centre last */
+} cap_layout;
+
+/* The rim on the grid's lattice (rs_grid_lattice), so that it welds to the grid mesh: each
+ * column's lowest valid point when it looks down far enough, and the lattice's elevation step
+ * there. cl, rl: the lattice's columns and (nrl) rows. */
+static void find_rim(const rs_cloud *c, const rs_scan *sc, const int *cl, const int *rl, int nrl, cap_layout *L)
 {
-    memset(st, 0, sizeof *st);
-    const rs_scan *sc = &c->scans[s];
-    rs_v3 P = rs_v3_make(sc->position[0], sc->position[1], sc->position[2]);
     int rows = sc->rows;
-    if (stride < 1) stride = 1;
-    int *cl = malloc(((size_t)sc->cols + 2) * sizeof *cl), *rl = malloc(((size_t)rows + 2) * sizeof *rl);
-    int cols = cl ? rs_grid_lattice(sc->cols, stride, cl) : 0, nrl = rl ? rs_grid_lattice(rows, stride, rl) : 0;
-    rs_v3 *rim = malloc(((size_t)cols + 1) * sizeof *rim);
-    double *rim_el = calloc((size_t)cols + 1, sizeof *rim_el), *steps = malloc(((size_t)cols + 1) * sizeof *steps);
-    int *has = calloc((size_t)cols + 1, sizeof *has);
-    rs_mesh *cap = NULL;
-    if (!cl || !rl || !rim || !rim_el || !steps || !has) goto oom;
-    size_t nrim = 0, nsteps = 0;
-    /* The rim on the grid's lattice (rs_grid_lattice), so that it welds to the grid mesh. */
-    for (int col = 0; col < cols; col++) {
+    rs_v3 P = L->P;
+    for (int col = 0; col < L->cols; col++) {
         int best = -1;
         double best_el = 0;
         for (int ri = 0; ri < nrl; ri++) {
@@ -89,29 +97,33 @@ rs_mesh *rs_nadir_cap_coarse(const rs_cloud *c, int s, double max_rms_m, int str
         }
         if (best < 0 || best_el > MAX_RIM_ELEVATION) continue;
         size_t i = sc->first + (size_t)cl[col] * rows + rl[best];
-        rim[col] = rs_v3_make(c->xyz[3 * i], c->xyz[3 * i + 1], c->xyz[3 * i + 2]);
-        rim_el[col] = best_el;
-        has[col] = 1;
-        nrim++;
+        L->rim[col] = rs_v3_make(c->xyz[3 * i], c->xyz[3 * i + 1], c->xyz[3 * i + 2]);
+        L->rim_el[col] = best_el;
+        L->has[col] = 1;
+        L->nrim++;
         /* the lattice's elevation step, from this column's two lowest neighbouring rows */
         int nb = best + 1 < nrl ? best + 1 : best - 1;
         size_t j = sc->first + (size_t)cl[col] * rows + (nb >= 0 ? rl[nb] : 0);
         if (nb >= 0 && c->valid[j]) {
             double el2 = elevation(rs_v3_sub(rs_v3_make(c->xyz[3 * j], c->xyz[3 * j + 1], c->xyz[3 * j + 2]), P));
-            if (fabs(el2 - best_el) > 0) steps[nsteps++] = fabs(el2 - best_el);
+            if (fabs(el2 - best_el) > 0) L->steps[L->nsteps++] = fabs(el2 - best_el);
         }
     }
-    st->ring_points = nrim;
-    if (nrim < MIN_RIM_SHARE * cols || nsteps == 0) {
-        snprintf(st->why_not, sizeof st->why_not, "only %zu of %d columns reach below -20 degrees", nrim, cols);
-        goto done;
-    }
+}
+
+/* The plane through the rim, into L->plane: 0 when the ground below is flat within max_rms_m,
+ * level within MAX_TILT_COS and below the scanner; 1 when not (st->why_not says so); -1 when
+ * out of memory. */
+static int rim_plane(cap_layout *L, double max_rms_m, rs_nadir_stats *st)
+{
+    size_t nrim = L->nrim;
+    double *plane = L->plane;
+    rs_v3 P = L->P;
     rs_v3 *pts = malloc(nrim * sizeof *pts);
-    if (!pts) goto oom;
+    if (!pts) return -1;
     size_t k = 0;
-    for (int col = 0; col < cols; col++)
-        if (has[col]) pts[k++] = rim[col];
-    double plane[3] = {0, 0, 0};
+    for (int col = 0; col < L->cols; col++)
+        if (L->has[col]) pts[k++] = L->rim[col];
     int bad = fit_plane(pts, nrim, plane);
     double ss = 0;
     for (size_t i = 0; !bad && i < nrim; i++) {
@@ -126,9 +138,20 @@ rs_mesh *rs_nadir_cap_coarse(const rs_cloud *c, int s, double max_rms_m, int str
                  "the ground below is not a plane under the scanner "
                  "(rim RMS %.3g m, limit %.3g m)",
                  st->rms_m, max_rms_m);
-        goto done;
+        return 1;
     }
-    /* Rings from the rim down to the nadir, spaced like the grid's rows. */
+    return 0;
+}
+
+/* Rings from the rim down to the nadir, spaced like the grid's rows (L->K); with spacing_m > 0,
+ * fewer (rings about spacing_m apart) and, inside the rim, every m-th column (the rim keeps
+ * all of them): a flat cap needs no more vertices than the facets it becomes. Sorts L->steps. */
+static void ring_layout(cap_layout *L, double spacing_m)
+{
+    double *steps = L->steps;
+    size_t nsteps = L->nsteps, nrim = L->nrim;
+    int cols = L->cols;
+    rs_v3 P = L->P;
     for (size_t i = 1; i < nsteps; i++) /* median step, by insertion sort (few hundred) */
         for (size_t j = i; j > 0 && steps[j - 1] > steps[j]; j--) {
             double t = steps[j];
@@ -138,18 +161,16 @@ rs_mesh *rs_nadir_cap_coarse(const rs_cloud *c, int s, double max_rms_m, int str
     double step = steps[nsteps / 2];
     double mean_el = 0;
     for (int col = 0; col < cols; col++)
-        if (has[col]) mean_el += rim_el[col] / nrim;
+        if (L->has[col]) mean_el += L->rim_el[col] / nrim;
     int K = (int)ceil((mean_el + M_PI / 2) / step);
     if (K < 1) K = 1;
     if (K > 4096) K = 4096;
-    /* A flat cap needs no more vertices than the facets it becomes: with spacing_m, rings about
-     * spacing_m apart and, inside the rim, every m-th column (the rim keeps all of them). */
     int m = 1;
     if (spacing_m > 0) {
         double radius = 0;
         for (int col = 0; col < cols; col++)
-            if (has[col]) {
-                double dx = rim[col].x - P.x, dy = rim[col].y - P.y;
+            if (L->has[col]) {
+                double dx = L->rim[col].x - P.x, dy = L->rim[col].y - P.y;
                 radius += sqrt(dx * dx + dy * dy) / nrim;
             }
         int Ks = (int)ceil(radius / spacing_m);
@@ -159,19 +180,35 @@ rs_mesh *rs_nadir_cap_coarse(const rs_cloud *c, int s, double max_rms_m, int str
         if (m > cols / 8) m = cols / 8;
         if (m < 1 || K == 1) m = 1;
     }
-    int nin = (cols + m - 1) / m;
-    size_t nv = m == 1 ? (size_t)cols * K + 1 : (size_t)cols + (size_t)(K - 1) * nin + 1;
-    size_t nf_max = m == 1 ? (size_t)cols * (2 * (size_t)K) : (size_t)cols + (size_t)nin * (2 * (size_t)K + 1);
-    cap = rs_mesh_new(nv, nf_max);
-    if (!cap) goto oom;
-    /* Each inner column takes its azimuth and rim elevation from the first rim point of its group. */
-    int *src = malloc((size_t)nin * sizeof *src);
-    if (!src) goto oom;
+    L->K = K;
+    L->m = m;
+    L->nin = (cols + m - 1) / m;
+    L->nv = m == 1 ? (size_t)cols * K + 1 : (size_t)cols + (size_t)(K - 1) * L->nin + 1;
+}
+
+/* Each inner column takes its azimuth and rim elevation from the first rim point of its group. */
+static int group_sources(cap_layout *L)
+{
+    int m = L->m, nin = L->nin, cols = L->cols;
+    int *src = L->src = malloc((size_t)nin * sizeof *src);
+    if (!src) return -1;
     for (int g = 0; g < nin; g++) {
         src[g] = -1;
         for (int col = g * m; col < cols && col < (g + 1) * m && src[g] < 0; col++)
-            if (has[col]) src[g] = col;
+            if (L->has[col]) src[g] = col;
     }
+    return 0;
+}
+
+/* The cap's vertices: the rim as the cloud has it, the rings on the plane below, the centre
+ * below the scanner. */
+static void place_vertices(const cap_layout *L, rs_mesh *cap)
+{
+    int m = L->m, K = L->K, cols = L->cols, nin = L->nin;
+    const int *src = L->src, *has = L->has;
+    const rs_v3 *rim = L->rim;
+    const double *rim_el = L->rim_el, *plane = L->plane;
+    rs_v3 P = L->P;
     for (int col = 0; col < cols; col++) {
         int g = col / m, sg = src[g] >= 0 ? src[g] : col;
         rs_v3 d0 = has[sg] ? rs_v3_sub(rim[sg], P) : rs_v3_make(1, 0, 0);
@@ -195,14 +232,22 @@ rs_mesh *rs_nadir_cap_coarse(const rs_cloud *c, int s, double max_rms_m, int str
             }
         }
     }
-    float *centre = cap->verts + 3 * (nv - 1);
+    float *centre = cap->verts + 3 * (L->nv - 1);
     centre[0] = (float)P.x, centre[1] = (float)P.y;
     centre[2] = (float)(plane[0] * P.x + plane[1] * P.y + plane[2]);
-    /* Quads between rings k and k + 1 of neighbouring columns (wrapping around), a fan at the
-     * centre; each triangle wound so that its normal faces the scanner. With m > 1 the rim's
-     * columns of a group fan to the group's inner vertex, then a triangle closes to the next. */
+}
+
+/* Quads between rings k and k + 1 of neighbouring columns (wrapping around), a fan at the
+ * centre; each triangle wound so that its normal faces the scanner. With m > 1 the rim's
+ * columns of a group fan to the group's inner vertex, then a triangle closes to the next.
+ * Returns the number of triangles. */
+static size_t cap_faces(const cap_layout *L, rs_mesh *cap)
+{
+    int m = L->m, K = L->K, cols = L->cols, nin = L->nin;
+    const int *src = L->src, *has = L->has;
+    rs_v3 P = L->P;
     size_t nf = 0;
-    uint32_t ctr = (uint32_t)(nv - 1);
+    uint32_t ctr = (uint32_t)(L->nv - 1);
     for (int col = 0; col < cols; col++) {
         int c2 = (col + 1) % cols;
         if (m > 1) {
@@ -228,9 +273,43 @@ rs_mesh *rs_nadir_cap_coarse(const rs_cloud *c, int s, double max_rms_m, int str
             }
         }
     }
-    free(src);
-    cap->nfaces = nf;
-    st->triangles = nf;
+    return nf;
+}
+
+rs_mesh *rs_nadir_cap_coarse(const rs_cloud *c, int s, double max_rms_m, int stride, double spacing_m,
+                             rs_nadir_stats *st, rs_err *err)
+{
+    memset(st, 0, sizeof *st);
+    const rs_scan *sc = &c->scans[s];
+    cap_layout L = {0};
+    L.P = rs_v3_make(sc->position[0], sc->position[1], sc->position[2]);
+    if (stride < 1) stride = 1;
+    int *cl = malloc(((size_t)sc->cols + 2) * sizeof *cl), *rl = malloc(((size_t)sc->rows + 2) * sizeof *rl);
+    int nrl = rl ? rs_grid_lattice(sc->rows, stride, rl) : 0;
+    L.cols = cl ? rs_grid_lattice(sc->cols, stride, cl) : 0;
+    L.rim = malloc(((size_t)L.cols + 1) * sizeof *L.rim);
+    L.rim_el = calloc((size_t)L.cols + 1, sizeof *L.rim_el);
+    L.steps = malloc(((size_t)L.cols + 1) * sizeof *L.steps);
+    L.has = calloc((size_t)L.cols + 1, sizeof *L.has);
+    rs_mesh *cap = NULL;
+    if (!cl || !rl || !L.rim || !L.rim_el || !L.steps || !L.has) goto oom;
+    find_rim(c, sc, cl, rl, nrl, &L);
+    st->ring_points = L.nrim;
+    if (L.nrim < MIN_RIM_SHARE * L.cols || L.nsteps == 0) {
+        snprintf(st->why_not, sizeof st->why_not, "only %zu of %d columns reach below -20 degrees", L.nrim, L.cols);
+        goto done;
+    }
+    int flat = rim_plane(&L, max_rms_m, st);
+    if (flat < 0) goto oom;
+    if (flat > 0) goto done;
+    ring_layout(&L, spacing_m);
+    size_t nf_max =
+        L.m == 1 ? (size_t)L.cols * (2 * (size_t)L.K) : (size_t)L.cols + (size_t)L.nin * (2 * (size_t)L.K + 1);
+    cap = rs_mesh_new(L.nv, nf_max);
+    if (!cap || group_sources(&L) != 0) goto oom;
+    place_vertices(&L, cap);
+    cap->nfaces = cap_faces(&L, cap);
+    st->triangles = cap->nfaces;
     goto done;
 oom:
     rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the nadir cap");
@@ -239,10 +318,11 @@ oom:
 done:
     free(cl);
     free(rl);
-    free(rim);
-    free(rim_el);
-    free(steps);
-    free(has);
+    free(L.rim);
+    free(L.rim_el);
+    free(L.steps);
+    free(L.has);
+    free(L.src);
     return cap;
 }
 

@@ -360,10 +360,11 @@ static int too_long(const simp *s, const double *x, const nbset *N, uint32_t a, 
     return 0;
 }
 
-/* Collapses edge e = (a, b) into a if the checks allow. Returns 1 done, 0 refused, -1 no memory. */
-static int try_collapse(simp *s, uint32_t e)
+/* The topology of collapsing edge e = (a, b), with a's and b's neighbours gathered into
+ * s->nb[0] and s->nb[1]: returns 1 allowed (*merged: the merged vertex's neighbour count),
+ * 0 refused, -1 no memory. */
+static int topology_allows(simp *s, uint32_t e, uint32_t a, uint32_t b, size_t *merged)
 {
-    uint32_t a = s->edges[e].a, b = s->edges[e].b;
     nbset *A = &s->nb[0], *B = &s->nb[1];
     if (gather(s, a, A) != 0 || gather(s, b, B) != 0) return -1;
     if (!in_set(A, b)) { /* cannot happen while edges and faces agree; never retry it */
@@ -380,19 +381,26 @@ static int try_collapse(simp *s, uint32_t e)
     for (size_t k = 0; k < B->n; k++) bnd_b |= B->cnt[k] == 1;
     size_t common = 0;
     for (size_t k = 0; k < B->n; k++) common += B->v[k] != a && in_set(A, B->v[k]);
-    size_t merged = (A->n - 1) + (B->n - 1) - common;
+    *merged = (A->n - 1) + (B->n - 1) - common;
     size_t faces_left = (size_t)s->vf[a].n + s->vf[b].n - 2 * (size_t)shared;
     /* Link condition (the common neighbours are exactly the tips of the shared faces), no
      * pinching of two boundaries through an interior edge, no tetrahedron or lone triangle. */
-    if (common != shared || (shared == 2 && bnd_a && bnd_b) || merged < 3 || faces_left == 0) {
+    if (common != shared || (shared == 2 && bnd_a && bnd_b) || *merged < 3 || faces_left == 0) {
         s->st->rejected_topology++;
         s->retry[a] = s->retry[b] = 1;
         return 0;
     }
-    /* Geometry: no normal turns too far, and the worst triangle around the edge does not
-     * get worse unless it stays above min_quality (slivers from grazing scan cells may
-     * improve through collapses that do not make things worse). */
-    double x[3], q_new = 1, q_old = 1;
+    return 1;
+}
+
+/* The geometry of collapsing (a, b) into x (its placement, set here): no normal turns too far,
+ * and the worst triangle around the edge does not get worse unless it stays above min_quality
+ * (slivers from grazing scan cells may improve through collapses that do not make things
+ * worse), and no edge grows past the size limit. Returns 1 allowed, 0 refused. */
+static int geometry_allows(simp *s, uint32_t a, uint32_t b, double *x)
+{
+    const nbset *A = &s->nb[0], *B = &s->nb[1];
+    double q_new = 1, q_old = 1;
     evaluate(s, a, b, x);
     if (check_faces(s, a, b, x, &q_new, &q_old) || check_faces(s, b, a, x, &q_new, &q_old)) {
         s->st->rejected_flip++;
@@ -409,8 +417,13 @@ static int try_collapse(simp *s, uint32_t e)
         s->retry[a] = s->retry[b] = 1;
         return 0;
     }
+    return 1;
+}
 
-    /* Mean edge length bookkeeping: the edges around a and b become the edges around x. */
+/* Mean edge length bookkeeping: the edges around a and b become the edges around x. */
+static void account_edges(simp *s, uint32_t a, uint32_t b, const double *x, size_t merged)
+{
+    const nbset *A = &s->nb[0], *B = &s->nb[1];
     const double *pa = s->pos + 3 * (size_t)a, *pb = s->pos + 3 * (size_t)b;
     double before = 0, after = 0;
     for (size_t k = 0; k < A->n; k++) {
@@ -426,8 +439,11 @@ static int try_collapse(simp *s, uint32_t e)
     }
     s->edge_sum += after - before;
     s->edge_count = s->edge_count - (A->n + B->n - 1) + merged;
+}
 
-    /* Faces on the edge die, b's other faces move to a. */
+/* Faces on the edge (a, b) die, b's other faces move to a. 0, or -1 no memory. */
+static int move_faces(simp *s, uint32_t a, uint32_t b)
+{
     id_list *fa = &s->vf[a], *fb = &s->vf[b];
     uint32_t kept = 0;
     for (uint32_t k = 0; k < fa->n; k++) {
@@ -448,7 +464,14 @@ static int try_collapse(simp *s, uint32_t e)
             if (t[j] == b) t[j] = a;
         if (list_append(fa, f) != 0) return -1;
     }
-    /* Edges: a-b dies, b-w dies where a-w exists (w a tip of a shared face), the others move to a. */
+    return 0;
+}
+
+/* Edges: e = a-b dies, b-w dies where a-w exists (w a tip of a shared face), the others move
+ * to a. 0, or -1 no memory. */
+static int move_edges(simp *s, uint32_t e, uint32_t a, uint32_t b)
+{
+    const nbset *A = &s->nb[0];
     s->edges[e].pos = DEAD;
     id_list *ea = &s->ve[a], *eb = &s->ve[b];
     for (uint32_t k = 0; k < eb->n; k++) {
@@ -464,19 +487,30 @@ static int try_collapse(simp *s, uint32_t e)
             if (list_append(ea, id) != 0) return -1;
         }
     }
+    return 0;
+}
+
+/* b is gone: its lists are freed, and a takes the place x and b's quadric and area. */
+static void merge_vertex(simp *s, uint32_t a, uint32_t b, const double *x)
+{
+    id_list *fb = &s->vf[b], *eb = &s->ve[b];
     free(fb->id);
     free(eb->id);
     memset(fb, 0, sizeof *fb);
     memset(eb, 0, sizeof *eb);
-    memcpy(s->pos + 3 * (size_t)a, x, sizeof x);
+    memcpy(s->pos + 3 * (size_t)a, x, 3 * sizeof *x);
     for (int i = 0; i < 10; i++) s->Q[10 * (size_t)a + i] += s->Q[10 * (size_t)b + i];
     s->w[a] += s->w[b];
     s->retry[a] = 0;
     s->st->collapses++;
+}
 
-    /* New costs around a; edges refused earlier next to a get another chance, as their
-     * neighbourhood just changed. */
-    kept = 0;
+/* New costs around a; edges refused earlier next to a get another chance, as their
+ * neighbourhood just changed. Drops a's dead edges from its list. */
+static void refresh_around(simp *s, uint32_t a)
+{
+    id_list *ea = &s->ve[a];
+    uint32_t kept = 0;
     for (uint32_t k = 0; k < ea->n; k++) {
         uint32_t id = ea->id[k];
         if (s->edges[id].pos == DEAD) continue;
@@ -491,6 +525,21 @@ static int try_collapse(simp *s, uint32_t e)
         }
     }
     ea->n = kept;
+}
+
+/* Collapses edge e = (a, b) into a if the checks allow. Returns 1 done, 0 refused, -1 no memory. */
+static int try_collapse(simp *s, uint32_t e)
+{
+    uint32_t a = s->edges[e].a, b = s->edges[e].b;
+    size_t merged;
+    double x[3];
+    int ok = topology_allows(s, e, a, b, &merged);
+    if (ok <= 0) return ok;
+    if (!geometry_allows(s, a, b, x)) return 0;
+    account_edges(s, a, b, x, merged);
+    if (move_faces(s, a, b) != 0 || move_edges(s, e, a, b) != 0) return -1;
+    merge_vertex(s, a, b, x);
+    refresh_around(s, a);
     return 1;
 }
 

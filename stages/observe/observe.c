@@ -257,79 +257,104 @@ static int write_facet_ids(const rs_config *cfg, const rs_capture *cap, const pi
     return rc;
 }
 
-int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
+/* The [observe] keys, read once. */
+typedef struct {
+    double cos_max_view; /* cosine of max_view_deg: pixels seen more obliquely are not used */
+    double guard_px;     /* the guard rays' offset from the pixel's centre, in pixels */
+    long min_pixels;     /* pure pixels a facet needs to be observed by pixels */
+    int facet_points;    /* points sampled on a facet with fewer */
+    double min_visible;  /* share of those points the camera must see */
+} observe_opts;
+
+static void observe_opts_read(const rs_config *cfg, observe_opts *o)
 {
-    char path[4096];
-    int rc = -1;
-    rs_capture cap = {0};
-    rs_scene *scene = NULL;
-    pixel_hit *px = NULL;
-    double *rgb = NULL, *wsum = NULL, *npix = NULL, *var_rel = NULL;
-    float *noise2 = NULL;
-    uint8_t *observed = NULL;
-    rs_ply *out = NULL;
-    rs_mesh *mesh = rs_mesh_read(rs_work_path(cfg, "mesh.ply", path, sizeof path), NULL, err);
-    if (!mesh) return -1;
-    if (rs_capture_load(cfg, "capture", &cap, err) != 0) goto out;
-    if (cap.nonfinite || cap.negative)
-        rs_log_warn("%s: %zu non-finite and %zu negative pixels are excluded", cap.path, cap.nonfinite, cap.negative);
-    double t0 = rs_now();
-    if (!(scene = rs_scene_new(mesh, err))) goto out;
-    rs_report_time(rep, "bvh", rs_now() - t0);
+    o->cos_max_view = cos(rs_config_real(cfg, "observe", "max_view_deg") * M_PI / 180);
+    o->guard_px = rs_config_real(cfg, "observe", "guard_px");
+    o->min_pixels = rs_config_int(cfg, "observe", "min_pixels");
+    o->facet_points = (int)rs_config_int(cfg, "observe", "facet_points");
+    o->min_visible = rs_config_real(cfg, "observe", "min_visible");
+}
 
-    int w = cap.pano->width, h = cap.pano->height;
-    size_t nf = mesh->nfaces, npx = (size_t)w * h;
-    double cos_max_view = cos(rs_config_real(cfg, "observe", "max_view_deg") * M_PI / 180);
-    long min_pixels = rs_config_int(cfg, "observe", "min_pixels");
-    int facet_points = (int)rs_config_int(cfg, "observe", "facet_points");
-    double min_visible = rs_config_real(cfg, "observe", "min_visible");
-    px = malloc(npx * sizeof *px);
-    rgb = calloc(3 * nf, sizeof *rgb);
-    wsum = calloc(nf, sizeof *wsum);
-    npix = calloc(nf, sizeof *npix);
-    observed = calloc(nf, 1);
-    var_rel = calloc(nf, sizeof *var_rel);
-    noise2 = malloc(npx * sizeof *noise2);
-    if (!px || !rgb || !wsum || !npix || !observed || !var_rel || !noise2) {
-        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu pixels and %zu facets", npx, nf);
-        goto out;
-    }
-    t0 = rs_now();
-    trace_pixels(scene, &cap, cos_max_view, rs_config_real(cfg, "observe", "guard_px"), px);
-    rs_report_time(rep, "trace_pixels", rs_now() - t0);
-    t0 = rs_now();
-    double noise_median = pixel_noise(scene, &cap, px, noise2);
-    for (size_t k = 0; k < npx; k++) /* no same-surface pair: the image's typical noise */
+/* What observe.ply carries per facet, one array each. */
+typedef struct {
+    size_t nf;
+    double *rgb;       /* 3 per facet: the weighted sum of its pure pixels, then its radiance */
+    double *wsum;      /* footprint weight of its pure pixels */
+    double *npix;      /* how many pure pixels it has */
+    double *var_rel;   /* relative variance of its radiance (a weighted sum until finished) */
+    uint8_t *observed; /* its radiance was measured */
+} facet_radiance;
+
+static int facet_radiance_alloc(facet_radiance *fr, size_t nf)
+{
+    fr->nf = nf;
+    fr->rgb = calloc(3 * nf, sizeof *fr->rgb);
+    fr->wsum = calloc(nf, sizeof *fr->wsum);
+    fr->npix = calloc(nf, sizeof *fr->npix);
+    fr->var_rel = calloc(nf, sizeof *fr->var_rel);
+    fr->observed = calloc(nf, 1);
+    return fr->rgb && fr->wsum && fr->npix && fr->var_rel && fr->observed ? 0 : -1;
+}
+
+static void facet_radiance_free(facet_radiance *fr)
+{
+    free(fr->rgb);
+    free(fr->wsum);
+    free(fr->npix);
+    free(fr->var_rel);
+    free(fr->observed);
+}
+
+/* The figures of observe.json. */
+typedef struct {
+    size_t pixels, model_px, excluded_px, bad_px; /* all, on the model, non-finite or negative, bad on the model */
+    size_t by_pixels, by_points;                  /* facets observed either way */
+    double noise_median;                          /* median relative noise variance of a pixel */
+    double area_seen, area_obs;                   /* area the camera sees, and of it observed (m^2) */
+} observe_counts;
+
+/* Pixels with no same-surface pair take the image's typical noise. */
+static void fill_noise_gaps(float *noise2, size_t npx, double noise_median)
+{
+    for (size_t k = 0; k < npx; k++)
         if (noise2[k] < 0) noise2[k] = (float)noise_median;
-    rs_report_time(rep, "pixel_noise", rs_now() - t0);
+}
 
-    /* Serial accumulation in pixel order: the sums do not depend on the thread count. */
-    size_t model_px = 0, bad_px = 0;
-    for (size_t k = 0; k < npx; k++) {
+/* Sums each facet's pure pixels into fr (weighted by footprint). Serial, in pixel order: the
+ * sums do not depend on the thread count. */
+static void accumulate_pure_pixels(const rs_capture *cap, const pixel_hit *px, const float *noise2, facet_radiance *fr,
+                                   observe_counts *n)
+{
+    for (size_t k = 0; k < n->pixels; k++) {
         if (px[k].face == RS_NO_HIT) continue;
-        model_px++;
+        n->model_px++;
         if (!px[k].pure || px[k].weight <= 0) continue;
-        const float *v = cap.pano->data + 3 * k;
+        const float *v = cap->pano->data + 3 * k;
         if (!rs_capture_pixel_ok(v)) {
-            bad_px++;
+            n->bad_px++;
             continue;
         }
         uint32_t f = px[k].face;
-        for (int ch = 0; ch < 3; ch++) rgb[3 * f + ch] += (double)px[k].weight * v[ch];
-        wsum[f] += px[k].weight;
-        var_rel[f] += (double)px[k].weight * px[k].weight * noise2[k]; /* / wsum^2 below */
-        npix[f] += 1;
+        for (int ch = 0; ch < 3; ch++) fr->rgb[3 * f + ch] += (double)px[k].weight * v[ch];
+        fr->wsum[f] += px[k].weight;
+        fr->var_rel[f] += (double)px[k].weight * px[k].weight * noise2[k]; /* / wsum^2 below */
+        fr->npix[f] += 1;
     }
+}
 
-    /* Facets with too few pure pixels: sample points on them instead. */
+/* Each facet's radiance: the mean of its pure pixels when it has enough, else from points
+ * sampled on it (small_facet_radiance); unobserved facets get 0. */
+static void finish_facets(const rs_scene *scene, const rs_capture *cap, const pixel_hit *px, const float *noise2,
+                          const observe_opts *o, facet_radiance *fr, observe_counts *n)
+{
     size_t by_pixels = 0, by_points = 0;
-    t0 = rs_now();
+    double *rgb = fr->rgb, *wsum = fr->wsum, *var_rel = fr->var_rel;
 #pragma omp parallel for schedule(dynamic, 64) reduction(+ : by_pixels, by_points)
-    for (size_t f = 0; f < nf; f++) {
-        if (npix[f] >= (double)min_pixels) {
+    for (size_t f = 0; f < fr->nf; f++) {
+        if (fr->npix[f] >= (double)o->min_pixels) {
             for (int ch = 0; ch < 3; ch++) rgb[3 * f + ch] /= wsum[f];
             var_rel[f] /= wsum[f] * wsum[f];
-            observed[f] = 1;
+            fr->observed[f] = 1;
             by_pixels++;
             continue;
         }
@@ -340,83 +365,140 @@ int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
             continue; /* degenerate facet */
         }
         int used =
-            small_facet_radiance(scene, &cap, px, (uint32_t)f, facet_points, cos_max_view, noise2, l, &share, &v);
-        if (used > 0 && share >= min_visible) {
+            small_facet_radiance(scene, cap, px, (uint32_t)f, o->facet_points, o->cos_max_view, noise2, l, &share, &v);
+        if (used > 0 && share >= o->min_visible) {
             for (int ch = 0; ch < 3; ch++) rgb[3 * f + ch] = l[ch];
             var_rel[f] = v;
-            observed[f] = 1;
+            fr->observed[f] = 1;
             by_points++;
         } else {
             rgb[3 * f] = rgb[3 * f + 1] = rgb[3 * f + 2] = 0;
         }
     }
-    rs_report_time(rep, "small_facets", rs_now() - t0);
+    n->by_pixels = by_pixels;
+    n->by_points = by_points;
+}
 
-    /* Area of the facets the camera sees that ended up observed: the coverage figure. */
-    double area_seen = 0, area_obs = 0;
-    uint8_t *seen = calloc(nf, 1);
-    if (!seen) {
-        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
-        goto out;
-    }
-    for (size_t k = 0; k < npx; k++)
+/* Area of the facets the camera sees, and of those that ended up observed: the coverage figure. */
+static int seen_area(const rs_mesh *mesh, const pixel_hit *px, const uint8_t *observed, observe_counts *n, rs_err *err)
+{
+    uint8_t *seen = calloc(mesh->nfaces, 1);
+    if (!seen) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+    for (size_t k = 0; k < n->pixels; k++)
         if (px[k].face != RS_NO_HIT) seen[px[k].face] = 1;
-    for (size_t f = 0; f < nf; f++) {
-        rs_v3 c, n;
+    for (size_t f = 0; f < mesh->nfaces; f++) {
+        rs_v3 c, nrm;
         double a;
-        rs_mesh_face(mesh, f, &c, &n, &a);
-        if (seen[f]) area_seen += a;
-        if (seen[f] && observed[f]) area_obs += a;
+        rs_mesh_face(mesh, f, &c, &nrm, &a);
+        if (seen[f]) n->area_seen += a;
+        if (seen[f] && observed[f]) n->area_obs += a;
     }
     free(seen);
+    return 0;
+}
 
-    if (write_facet_ids(cfg, &cap, px, err) != 0) goto out;
-    out = rs_ply_new();
-    rs_ply_element *faces = out ? rs_mesh_to_ply(mesh, out) : NULL;
-    if (!faces || rs_faceprop_add_rgb(faces, "radiance", rgb) != 0 ||
-        !rs_ply_add_scalar(faces, "observe_pixels", RS_PLY_INT32, npix)) {
-        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory building observe.ply");
-        goto out;
-    }
-    for (size_t f = 0; f < nf; f++) wsum[f] = observed[f]; /* wsum is free now: the flag as doubles */
-    for (size_t f = 0; f < nf; f++) var_rel[f] = observed[f] ? sqrt(var_rel[f]) : 0;
-    if (!rs_ply_add_scalar(faces, "observed", RS_PLY_UINT8, wsum) ||
-        !rs_ply_add_scalar(faces, "radiance_sigma_rel", RS_PLY_FLOAT32, var_rel)) {
-        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory building observe.ply");
-        goto out;
-    }
+static int write_observe_ply(const rs_config *cfg, const rs_mesh *mesh, const facet_radiance *fr, double noise_median,
+                             rs_err *err)
+{
+    size_t nf = fr->nf;
+    int rc = -1;
+    rs_ply *out = rs_ply_new();
+    double *column = malloc((nf ? nf : 1) * sizeof *column); /* one scalar property at a time */
+    rs_ply_element *faces = out && column ? rs_mesh_to_ply(mesh, out) : NULL;
+    if (!faces || rs_faceprop_add_rgb(faces, "radiance", fr->rgb) != 0 ||
+        !rs_ply_add_scalar(faces, "observe_pixels", RS_PLY_INT32, fr->npix))
+        goto oom;
+    for (size_t f = 0; f < nf; f++) column[f] = fr->observed[f];
+    if (!rs_ply_add_scalar(faces, "observed", RS_PLY_UINT8, column)) goto oom;
+    for (size_t f = 0; f < nf; f++) column[f] = fr->observed[f] ? sqrt(fr->var_rel[f]) : 0;
+    if (!rs_ply_add_scalar(faces, "radiance_sigma_rel", RS_PLY_FLOAT32, column)) goto oom;
     rs_ply_add_comment(out, "rhoscan %s observe: radiance_* is the observed radiance of each facet", RHOSCAN_VERSION);
     rs_ply_add_comment(out,
                        "radiance_sigma_rel: relative standard error of radiance_* from the pixels' noise (each "
                        "pixel's from its same-surface neighbours two pixels away; median pixel noise %.4g)",
                        sqrt(noise_median));
-    if (rs_ply_write(out, rs_work_path(cfg, "observe.ply", path, sizeof path), 1, err) != 0) goto out;
+    char path[4096];
+    rc = rs_ply_write(out, rs_work_path(cfg, "observe.ply", path, sizeof path), 1, err);
+    goto done;
+oom:
+    rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory building observe.ply");
+done:
+    rs_ply_free(out);
+    free(column);
+    return rc;
+}
 
-    rs_json_set_int(rep->metrics, "pixels", (long long)npx);
-    rs_json_set_int(rep->metrics, "model_pixels", (long long)model_px);
-    rs_json_set_int(rep->metrics, "excluded_pixels_nonfinite_or_negative", (long long)(cap.nonfinite + cap.negative));
-    rs_json_set_int(rep->metrics, "excluded_model_pixels_bad_value", (long long)bad_px);
+static void report_observe(rs_report *rep, size_t nf, const observe_counts *n)
+{
+    rs_json_set_int(rep->metrics, "pixels", (long long)n->pixels);
+    rs_json_set_int(rep->metrics, "model_pixels", (long long)n->model_px);
+    rs_json_set_int(rep->metrics, "excluded_pixels_nonfinite_or_negative", (long long)n->excluded_px);
+    rs_json_set_int(rep->metrics, "excluded_model_pixels_bad_value", (long long)n->bad_px);
     rs_json_set_int(rep->metrics, "facets", (long long)nf);
-    rs_json_set_int(rep->metrics, "observed_by_pixels", (long long)by_pixels);
-    rs_json_set_int(rep->metrics, "observed_by_points", (long long)by_points);
-    rs_json_set_int(rep->metrics, "unobserved", (long long)(nf - by_pixels - by_points));
-    rs_json_set_num(rep->metrics, "observed_share_of_seen_area", area_seen > 0 ? area_obs / area_seen : 0);
-    rs_json_set_num(rep->metrics, "pixel_noise_rel_median", sqrt(noise_median));
-    if (nf - by_pixels - by_points)
+    rs_json_set_int(rep->metrics, "observed_by_pixels", (long long)n->by_pixels);
+    rs_json_set_int(rep->metrics, "observed_by_points", (long long)n->by_points);
+    rs_json_set_int(rep->metrics, "unobserved", (long long)(nf - n->by_pixels - n->by_points));
+    rs_json_set_num(rep->metrics, "observed_share_of_seen_area", n->area_seen > 0 ? n->area_obs / n->area_seen : 0);
+    rs_json_set_num(rep->metrics, "pixel_noise_rel_median", sqrt(n->noise_median));
+}
+
+int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
+{
+    observe_opts o;
+    observe_opts_read(cfg, &o);
+    char path[4096];
+    int rc = -1;
+    rs_capture cap = {0};
+    rs_scene *scene = NULL;
+    pixel_hit *px = NULL;
+    float *noise2 = NULL;
+    facet_radiance fr = {0};
+    observe_counts n = {0};
+    rs_mesh *mesh = rs_mesh_read(rs_work_path(cfg, "mesh.ply", path, sizeof path), NULL, err);
+    if (!mesh) return -1;
+    if (rs_capture_load(cfg, "capture", &cap, err) != 0) goto out;
+    if (cap.nonfinite || cap.negative)
+        rs_log_warn("%s: %zu non-finite and %zu negative pixels are excluded", cap.path, cap.nonfinite, cap.negative);
+    double t0 = rs_now();
+    if (!(scene = rs_scene_new(mesh, err))) goto out;
+    rs_report_time(rep, "bvh", rs_now() - t0);
+
+    size_t nf = mesh->nfaces;
+    n.pixels = (size_t)cap.pano->width * cap.pano->height;
+    n.excluded_px = cap.nonfinite + cap.negative;
+    px = malloc(n.pixels * sizeof *px);
+    noise2 = malloc(n.pixels * sizeof *noise2);
+    if (facet_radiance_alloc(&fr, nf) != 0 || !px || !noise2) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu pixels and %zu facets", n.pixels, nf);
+        goto out;
+    }
+    t0 = rs_now();
+    trace_pixels(scene, &cap, o.cos_max_view, o.guard_px, px);
+    rs_report_time(rep, "trace_pixels", rs_now() - t0);
+    t0 = rs_now();
+    n.noise_median = pixel_noise(scene, &cap, px, noise2);
+    fill_noise_gaps(noise2, n.pixels, n.noise_median);
+    rs_report_time(rep, "pixel_noise", rs_now() - t0);
+
+    accumulate_pure_pixels(&cap, px, noise2, &fr, &n);
+    t0 = rs_now();
+    finish_facets(scene, &cap, px, noise2, &o, &fr, &n);
+    rs_report_time(rep, "small_facets", rs_now() - t0);
+    if (seen_area(mesh, px, fr.observed, &n, err) != 0) goto out;
+
+    if (write_facet_ids(cfg, &cap, px, err) != 0 || write_observe_ply(cfg, mesh, &fr, n.noise_median, err) != 0)
+        goto out;
+    report_observe(rep, nf, &n);
+    if (nf - n.by_pixels - n.by_points)
         rs_report_skip(rep, "unobserved facets", "%zu facets are hidden from the camera or seen too little",
-                       nf - by_pixels - by_points);
+                       nf - n.by_pixels - n.by_points);
     rs_log_info("observe: %zu facets, %zu observed by pixels, %zu by points; %.1f %% of the seen area observed", nf,
-                by_pixels, by_points, area_seen > 0 ? 100 * area_obs / area_seen : 0.0);
+                n.by_pixels, n.by_points, n.area_seen > 0 ? 100 * n.area_obs / n.area_seen : 0.0);
     rc = 0;
 out:
-    rs_ply_free(out);
     free(px);
-    free(rgb);
-    free(wsum);
-    free(npix);
-    free(var_rel);
     free(noise2);
-    free(observed);
+    facet_radiance_free(&fr);
     rs_scene_free(scene);
     rs_capture_release(&cap);
     rs_mesh_free(mesh);

@@ -40,6 +40,41 @@ static const char *const fill_class_name[RS_FILL_CLASSES] = {"up", "side", "down
 #define RS_FILL_CLASS_COS   0.70710678 /* normal within 45 degrees of straight up or down */
 #define RS_FILL_PRIOR_SHARE 0.01
 
+/* [reflectance] method: what E is (the header above). */
+typedef enum { RS_REFL_INTERREFLECTION, RS_REFL_DIRECT, RS_REFL_PAPER, RS_REFL_METHODS } rs_refl_method;
+static const char *const refl_method_name[RS_REFL_METHODS] = {"interreflection", "direct", "paper"};
+
+/* The [reflectance] keys, read once. */
+typedef struct {
+    rs_refl_method method;
+    double pool_accuracy;    /* > 0: pool the irradiance within the plane (pool.h; not paper) */
+    long paper_max_facets;   /* paper: larger meshes are refused */
+    double sigma_floor;      /* albedo_sigma_floor */
+    double min_irradiance;   /* share of the median E below which a facet is not estimable */
+    int fill_given;          /* unobserved_albedo is set ... */
+    double fill_given_value; /* ... to this */
+    int fill_by_orientation; /* unobserved_albedo_by is not "all" */
+} refl_opts;
+
+static int refl_opts_read(const rs_config *cfg, refl_opts *o, rs_err *err)
+{
+    const char *method = rs_config_string(cfg, "reflectance", "method");
+    int m = 0;
+    while (m < RS_REFL_METHODS && strcmp(method, refl_method_name[m]) != 0) m++;
+    if (m == RS_REFL_METHODS)
+        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                          "[reflectance] method = %s: expected interreflection, direct or paper", method);
+    o->method = (rs_refl_method)m;
+    o->pool_accuracy = rs_config_real(cfg, "reflectance", "pool_accuracy");
+    o->paper_max_facets = rs_config_int(cfg, "reflectance", "paper_max_facets");
+    o->sigma_floor = rs_config_real(cfg, "reflectance", "albedo_sigma_floor");
+    o->min_irradiance = rs_config_real(cfg, "reflectance", "min_irradiance");
+    o->fill_given = rs_config_has(cfg, "reflectance", "unobserved_albedo");
+    o->fill_given_value = o->fill_given ? rs_config_real(cfg, "reflectance", "unobserved_albedo") : 0;
+    o->fill_by_orientation = strcmp(rs_config_string(cfg, "reflectance", "unobserved_albedo_by"), "all") != 0;
+    return 0;
+}
+
 typedef struct {
     size_t nf;
     const double *area, *L, *esky, *gseen;
@@ -49,7 +84,7 @@ typedef struct {
     const uint8_t *observed;
     const rs_transport *K; /* gather kernel (interreflection) */
     const float *dense;    /* paper kernel, m * m (paper) */
-    int method;            /* 0 interreflection, 1 direct, 2 paper */
+    rs_refl_method method;
     double min_irradiance;
     int fill_given;
     double fill_given_value;
@@ -65,7 +100,6 @@ typedef struct {
     double fill[3];                        /* the mean of all estimable facets */
     double fill_class[RS_FILL_CLASSES][3]; /* what unobserved facets of each orientation take */
     int iterations;
-    size_t blowups; /* paper: rows whose kernel sums past pi */
 } refl_out;
 
 static uint8_t fill_class_of(rs_v3 n)
@@ -98,14 +132,14 @@ static void compute_G(const refl_in *in, const double *Lfill, double *G)
 #pragma omp parallel for schedule(static)
     for (size_t i = 0; i < in->nf; i++) {
         double g[3] = {0, 0, 0};
-        if (in->method == 0) {
+        if (in->method == RS_REFL_INTERREFLECTION) {
             for (int ch = 0; ch < 3; ch++) g[ch] = in->gseen[3 * i + ch];
             for (size_t e = in->K->row_start[i]; e < in->K->row_start[i + 1]; e++) {
                 uint32_t j = in->K->col[e];
                 const double *Lj = in->observed[j] ? in->L + 3 * j : Lfill + 3 * j;
                 for (int ch = 0; ch < 3; ch++) g[ch] += in->K->k_unseen[e] * Lj[ch];
             }
-        } else if (in->method == 2) {
+        } else if (in->method == RS_REFL_PAPER) {
             const float *row = in->dense + i * in->nf;
             for (size_t j = 0; j < in->nf; j++) {
                 if (row[j] == 0) continue;
@@ -130,6 +164,14 @@ static void total_irradiance(const refl_in *in, refl_out *out)
     for (size_t k = 0; k < n3; k++) out->E[k] += in->esun[k];
 }
 
+/* Paper: row i's sum of the dense kernel; past pi the point-to-point form factor diverged. */
+static double paper_row_sum(const refl_in *in, size_t i)
+{
+    double rs = 0;
+    for (size_t j = 0; j < in->nf; j++) rs += in->dense[i * in->nf + j];
+    return rs;
+}
+
 /* One pass: albedo and estimable flags from out->E, then the fill albedos. */
 static void estimate(const refl_in *in, refl_out *out, double Emin)
 {
@@ -140,11 +182,8 @@ static void estimate(const refl_in *in, refl_out *out, double Emin)
         for (int ch = 0; ch < 3; ch++) {
             if (!(isfinite(E[ch]) && E[ch] > Emin && isfinite(in->L[3 * i + ch]))) ok = 0;
         }
-        if (in->method == 2 && in->dense) {
-            double rs = 0;
-            for (size_t j = 0; j < in->nf; j++) rs += in->dense[i * in->nf + j];
-            if (rs > M_PI) ok = 0; /* point-to-point form factor blew up: not written out */
-        }
+        if (in->method == RS_REFL_PAPER && in->dense && paper_row_sum(in, i) > M_PI)
+            ok = 0; /* point-to-point form factor blew up: not written out */
         out->estimable[i] = (uint8_t)ok;
         for (int ch = 0; ch < 3; ch++) out->rho[3 * i + ch] = ok ? M_PI * in->L[3 * i + ch] / E[ch] : 0;
         if (ok) {
@@ -184,7 +223,7 @@ static int solve(const refl_in *in, refl_out *out)
         compute_G(in, out->Lfill, out->G);
         total_irradiance(in, out);
         estimate(in, out, Emin);
-        if (in->method == 1) break; /* direct: no G, nothing to iterate */
+        if (in->method == RS_REFL_DIRECT) break; /* no G, nothing to iterate */
         double change = 0;
         for (size_t i = 0; i < nf; i++) {
             if (in->observed[i]) continue;
@@ -204,7 +243,7 @@ static int solve(const refl_in *in, refl_out *out)
             }
         if (change < 1e-7) break;
     }
-    if (in->method == 1) memset(out->G, 0, 3 * nf * sizeof *out->G);
+    if (in->method == RS_REFL_DIRECT) memset(out->G, 0, 3 * nf * sizeof *out->G);
     return 0;
 }
 
@@ -260,9 +299,9 @@ static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in
     rs_ply_add_comment(ply,
                        "rhoscan %s reflectance: method %s; albedo of non-estimable facets is the fill of "
                        "their orientation: up %.4f %.4f %.4f, side %.4f %.4f %.4f, down %.4f %.4f %.4f",
-                       RHOSCAN_VERSION, rs_config_string(cfg, "reflectance", "method"), out->fill_class[0][0],
-                       out->fill_class[0][1], out->fill_class[0][2], out->fill_class[1][0], out->fill_class[1][1],
-                       out->fill_class[1][2], out->fill_class[2][0], out->fill_class[2][1], out->fill_class[2][2]);
+                       RHOSCAN_VERSION, refl_method_name[in->method], out->fill_class[0][0], out->fill_class[0][1],
+                       out->fill_class[0][2], out->fill_class[1][0], out->fill_class[1][1], out->fill_class[1][2],
+                       out->fill_class[2][0], out->fill_class[2][1], out->fill_class[2][2]);
     rs_ply_add_comment(ply, "rhoscan_fill_albedo %.9g %.9g %.9g", out->fill[0], out->fill[1], out->fill[2]);
     rs_ply_add_comment(ply,
                        "albedo_sigma_rel: standard (1 sigma) relative uncertainty of the albedo = sqrt(%.4g^2 + "
@@ -315,179 +354,298 @@ static int pool_inputs(const rs_ply *irr, const char *ip, size_t nf, double *esu
     return 1;
 }
 
-int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
+/* The stage's per-facet arrays, one allocation each (3 per facet where RGB). */
+typedef struct {
+    size_t nf;
+    double *area;    /* m^2 (mesh.ply) */
+    uint8_t *orient; /* fill class (fill_class_of) */
+    /* observe.ply */
+    double *L, *L_sigma_rel;
+    uint8_t *observed;
+    /* irradiance.ply; esun, inv_dist and gathered only when pooling */
+    double *esky, *gseen, *sky_filled, *esky_sigma, *mc_sigma, *esun, *inv_dist;
+    uint8_t *gathered;
+    /* the solve's */
+    double *rho, *G, *Lfill, *E, *scratch;
+    uint8_t *estimable;
+    /* pooled, what albedo.ply carries (pool_outputs) */
+    double *esky_pooled, *G_pooled, *mc_pooled;
+} refl_facets;
+
+static double *facet_doubles(size_t n)
+{
+    return calloc(n ? n : 1, sizeof(double));
+}
+
+static uint8_t *facet_flags(size_t n)
+{
+    return calloc(n ? n : 1, 1);
+}
+
+static int refl_facets_alloc(refl_facets *fb, size_t nf)
+{
+    fb->nf = nf;
+    double **d3[] = {&fb->L, &fb->esky, &fb->gseen, &fb->esun, &fb->rho, &fb->G, &fb->Lfill, &fb->E, &fb->scratch};
+    double **d1[] = {&fb->area, &fb->L_sigma_rel, &fb->sky_filled, &fb->esky_sigma, &fb->mc_sigma, &fb->inv_dist};
+    uint8_t **f1[] = {&fb->orient, &fb->observed, &fb->gathered, &fb->estimable};
+    int ok = 1;
+    for (size_t k = 0; k < sizeof d3 / sizeof *d3; k++) ok &= (*d3[k] = facet_doubles(3 * nf)) != NULL;
+    for (size_t k = 0; k < sizeof d1 / sizeof *d1; k++) ok &= (*d1[k] = facet_doubles(nf)) != NULL;
+    for (size_t k = 0; k < sizeof f1 / sizeof *f1; k++) ok &= (*f1[k] = facet_flags(nf)) != NULL;
+    return ok ? 0 : -1;
+}
+
+static void refl_facets_free(refl_facets *fb)
+{
+    double *d[] = {fb->area,       fb->L,        fb->L_sigma_rel, fb->esky,        fb->gseen,    fb->sky_filled,
+                   fb->esky_sigma, fb->mc_sigma, fb->esun,        fb->inv_dist,    fb->rho,      fb->G,
+                   fb->Lfill,      fb->E,        fb->scratch,     fb->esky_pooled, fb->G_pooled, fb->mc_pooled};
+    for (size_t k = 0; k < sizeof d / sizeof *d; k++) free(d[k]);
+    free(fb->orient);
+    free(fb->observed);
+    free(fb->gathered);
+    free(fb->estimable);
+}
+
+static void facet_geometry(const rs_mesh *mesh, refl_facets *fb)
+{
+    for (size_t f = 0; f < fb->nf; f++) {
+        rs_v3 c, n;
+        rs_mesh_face(mesh, f, &c, &n, &fb->area[f]);
+        fb->orient[f] = fill_class_of(n);
+    }
+}
+
+/* observe.ply: radiance, observed flags, radiance_sigma_rel. */
+static int read_observe(const rs_config *cfg, refl_facets *fb, rs_err *err)
 {
     char path[4096];
+    size_t nf = fb->nf;
+    double *observed = fb->scratch; /* as doubles; the solve has not started */
+    const char *op = rs_work_path(cfg, "observe.ply", path, sizeof path);
+    rs_ply *obs = rs_ply_read(op, err);
     int rc = -1;
-    rs_ply *obs = NULL, *irr = NULL;
+    if (obs && rs_faceprop_get_rgb(obs, op, "radiance", nf, fb->L, err) == 0 &&
+        rs_faceprop_get(obs, op, "observed", nf, observed, err) == 0 &&
+        optional_prop(obs, op, "radiance_sigma_rel", nf, fb->L_sigma_rel, err) == 0) {
+        for (size_t f = 0; f < nf; f++) fb->observed[f] = observed[f] > 0;
+        rc = 0;
+    }
+    rs_ply_free(obs);
+    return rc;
+}
+
+/* irradiance.ply: E_sky, the gather's seen part, the uncertainty terms and, when pooling is
+ * asked for, its inputs. Returns 1 when pooling can go ahead, 0 when not, -1 on error. */
+static int read_irradiance(const rs_config *cfg, const refl_opts *o, refl_facets *fb, rs_report *rep, rs_err *err)
+{
+    char path[4096];
+    size_t nf = fb->nf;
+    const char *ip = rs_work_path(cfg, "irradiance.ply", path, sizeof path);
+    rs_ply *irr = rs_ply_read(ip, err);
+    int rc = -1;
+    if (!irr || rs_faceprop_get_rgb(irr, ip, "irradiance_sky", nf, fb->esky, err) != 0 ||
+        rs_faceprop_get_rgb(irr, ip, "irradiance_inter_seen", nf, fb->gseen, err) != 0 ||
+        rs_faceprop_get(irr, ip, "sky_filled", nf, fb->sky_filled, err) != 0 ||
+        rs_faceprop_get(irr, ip, "irradiance_sky_sigma", nf, fb->esky_sigma, err) != 0 ||
+        optional_prop(irr, ip, "irradiance_mc_sigma", nf, fb->mc_sigma, err) != 0)
+        goto out;
+    rc = o->pool_accuracy > 0 && o->method != RS_REFL_PAPER
+        ? pool_inputs(irr, ip, nf, fb->esun, fb->inv_dist, fb->gathered, fb->scratch, rep, err)
+        : 0;
+out:
+    rs_ply_free(irr);
+    return rc;
+}
+
+/* The figures of reflectance.json. */
+typedef struct {
+    int pooled;                           /* the irradiance was pooled: */
+    double pool_mean;                     /*   mean facets per pooled mean */
+    size_t pool_pooled, pool_asked;       /*   facets pooled with others, of the observed ones */
+    int paper;                            /* the paper's kernel was built: */
+    double paper_pairs;                   /*   segment tests run */
+    size_t observed, estimable, diverged; /* facets; diverged: paper rows past pi */
+} refl_counts;
+
+/* Each observed facet's pool of plane neighbours (pool.h). */
+static int build_pool(const rs_mesh *mesh, const refl_opts *o, const refl_facets *fb, rs_pool *pool, refl_counts *n,
+                      rs_err *err)
+{
+    if (rs_pool_build(mesh, fb->inv_dist, fb->gathered, fb->observed, o->pool_accuracy, pool) != 0)
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory pooling the irradiance of %zu facets", fb->nf);
+    n->pooled = 1;
+    rs_pool_stats(pool, fb->observed, &n->pool_mean, &n->pool_pooled, &n->pool_asked);
+    rs_log_info("reflectance: irradiance pooled within the plane (accuracy %g): %zu of the %zu observed facets, "
+                "%.1f facets per mean",
+                o->pool_accuracy, n->pool_pooled, n->pool_asked, n->pool_mean);
+    return 0;
+}
+
+/* The method's kernel: transport.ply's (interreflection), the paper's dense one (which reads no
+ * panorama at hit points: gseen becomes 0), none (direct). */
+static int load_kernel(const rs_config *cfg, const refl_opts *o, const rs_mesh *mesh, refl_facets *fb, rs_transport **K,
+                       float **dense, refl_counts *n, rs_report *rep, rs_err *err)
+{
+    char path[4096];
+    size_t nf = fb->nf;
+    switch (o->method) {
+    case RS_REFL_INTERREFLECTION:
+        *K = rs_transport_read(rs_work_path(cfg, "transport.ply", path, sizeof path), nf, err);
+        return *K ? 0 : -1;
+    case RS_REFL_PAPER:
+        if ((long)nf > o->paper_max_facets)
+            return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                              "[reflectance] method = paper on %zu facets: its O(m^3) visibility would not finish "
+                              "in minutes; expected at most [reflectance] paper_max_facets = %ld facets",
+                              nf, o->paper_max_facets);
+        if (rs_paper_kernel(mesh, dense, &n->paper_pairs, err) != 0) return -1;
+        n->paper = 1;
+        memset(fb->gseen, 0, 3 * nf * sizeof *fb->gseen);
+        return 0;
+    default: rs_report_skip(rep, "interreflection", "method = direct ignores light from other facets"); return 0;
+    }
+}
+
+static refl_in solve_inputs(const refl_opts *o, const refl_facets *fb, const rs_transport *K, const float *dense,
+                            const rs_pool *pool)
+{
+    return (refl_in){.nf = fb->nf,
+                     .area = fb->area,
+                     .L = fb->L,
+                     .esky = fb->esky,
+                     .gseen = fb->gseen,
+                     .sky_filled = fb->sky_filled,
+                     .esky_sigma = fb->esky_sigma,
+                     .mc_sigma = fb->mc_sigma,
+                     .L_sigma_rel = fb->L_sigma_rel,
+                     .sigma_floor = o->sigma_floor,
+                     .observed = fb->observed,
+                     .K = K,
+                     .dense = dense,
+                     .method = o->method,
+                     .min_irradiance = o->min_irradiance,
+                     .fill_given = o->fill_given,
+                     .fill_given_value = o->fill_given_value,
+                     .orient = o->fill_by_orientation ? fb->orient : NULL,
+                     .esun = fb->esun,
+                     .pool = pool->start ? pool : NULL};
+}
+
+/* Pooled, the files carry what the albedo divided by: E_sky = sun + pooled rest, G pooled,
+ * and the Monte Carlo noise of that mean; in and out point at those afterwards. */
+static int pool_outputs(const rs_pool *pool, refl_facets *fb, refl_in *in, refl_out *out, rs_err *err)
+{
+    size_t nf = fb->nf;
+    double *rest = fb->scratch; /* the solve is done with it */
+    if (!(fb->esky_pooled = facet_doubles(3 * nf)) || !(fb->G_pooled = facet_doubles(3 * nf)) ||
+        !(fb->mc_pooled = facet_doubles(nf)))
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the pooled irradiance of %zu facets", nf);
+    for (size_t k = 0; k < 3 * nf; k++) rest[k] = fb->esky[k] - fb->esun[k];
+    rs_pool_apply3(pool, rest, fb->esky_pooled);
+    for (size_t k = 0; k < 3 * nf; k++) fb->esky_pooled[k] += fb->esun[k];
+    rs_pool_apply3(pool, out->G, fb->G_pooled);
+    rs_pool_sigma(pool, in->mc_sigma, fb->mc_pooled);
+    in->esky = fb->esky_pooled;
+    in->mc_sigma = fb->mc_pooled;
+    out->G = fb->G_pooled;
+    return 0;
+}
+
+static void count_facets(const refl_in *in, const refl_out *out, refl_counts *n)
+{
+    for (size_t f = 0; f < in->nf; f++) {
+        n->observed += in->observed[f];
+        n->estimable += out->estimable[f];
+        if (in->method == RS_REFL_PAPER && in->observed[f] && !out->estimable[f] && paper_row_sum(in, f) > M_PI)
+            n->diverged++;
+    }
+}
+
+static void report_reflectance(rs_report *rep, const refl_in *in, const refl_out *out, const refl_counts *n)
+{
+    if (n->pooled) {
+        rs_json_set_num(rep->metrics, "pool_mean_facets", n->pool_mean);
+        rs_json_set_int(rep->metrics, "pool_facets_pooled", (long long)n->pool_pooled);
+    }
+    if (n->paper) rs_json_set_num(rep->metrics, "paper_pairs_tested", n->paper_pairs);
+    rs_json_set_str(rep->metrics, "method", refl_method_name[in->method]);
+    rs_json_set_int(rep->metrics, "facets", (long long)in->nf);
+    rs_json_set_int(rep->metrics, "observed", (long long)n->observed);
+    rs_json_set_int(rep->metrics, "estimable", (long long)n->estimable);
+    rs_json_set_int(rep->metrics, "paper_rows_diverged", (long long)n->diverged);
+    rs_json_set_int(rep->metrics, "fill_iterations", out->iterations);
+    rs_json *fill = rs_json_set_arr(rep->metrics, "fill_albedo");
+    for (int ch = 0; ch < 3; ch++) rs_json_push_num(fill, out->fill[ch]);
+    rs_json *by = rs_json_set_obj(rep->metrics, "fill_albedo_by_orientation");
+    for (int c = 0; c < RS_FILL_CLASSES; c++) {
+        rs_json *a = rs_json_set_arr(by, fill_class_name[c]);
+        for (int ch = 0; ch < 3; ch++) rs_json_push_num(a, out->fill_class[c][ch]);
+    }
+}
+
+int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
+{
+    refl_opts o = {0};
+    if (refl_opts_read(cfg, &o, err) != 0) return -1;
+    char path[4096];
+    int rc = -1;
     rs_transport *K = NULL;
     float *dense = NULL;
+    rs_pool pool = {0};
+    refl_facets fb = {0};
+    refl_counts n = {0};
     rs_mesh *mesh = rs_mesh_read(rs_work_path(cfg, "mesh.ply", path, sizeof path), NULL, err);
     if (!mesh) return -1;
     size_t nf = mesh->nfaces;
-    double *buf = calloc(24 * nf + 1, sizeof *buf);
-    uint8_t *flags = calloc(4 * nf + 1, 1);
-    double *pbuf = calloc(10 * nf + 1, sizeof *pbuf); /* E, scratch, esun, inv_dist */
-    rs_pool pool = {0};
-    if (!buf || !flags || !pbuf) {
+    if (refl_facets_alloc(&fb, nf) != 0) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu facets", nf);
         goto out;
     }
-    double *area = buf, *L = buf + nf, *esky = buf + 4 * nf, *gseen = buf + 7 * nf, *obsd = buf + 10 * nf;
-    double *esun = pbuf + 6 * nf, *inv_dist = pbuf + 9 * nf;
-    uint8_t *gathered = flags + 2 * nf, *orient = flags + 3 * nf;
-    refl_out ro = {.rho = buf + 11 * nf,
-                   .G = buf + 14 * nf,
-                   .Lfill = buf + 17 * nf,
-                   .E = pbuf,
-                   .scratch = pbuf + 3 * nf,
-                   .estimable = flags + nf};
-    for (size_t f = 0; f < nf; f++) {
-        rs_v3 c, n;
-        rs_mesh_face(mesh, f, &c, &n, &area[f]);
-        orient[f] = fill_class_of(n);
-    }
-    const char *method = rs_config_string(cfg, "reflectance", "method");
-    int m = strcmp(method, "direct") == 0 ? 1 : (strcmp(method, "paper") == 0 ? 2 : 0);
-    const char *op = rs_work_path(cfg, "observe.ply", path, sizeof path);
-    if (!(obs = rs_ply_read(op, err)) || rs_faceprop_get_rgb(obs, op, "radiance", nf, L, err) != 0 ||
-        rs_faceprop_get(obs, op, "observed", nf, obsd, err) != 0 ||
-        optional_prop(obs, op, "radiance_sigma_rel", nf, buf + 22 * nf, err) != 0)
-        goto out;
-    for (size_t f = 0; f < nf; f++) flags[f] = obsd[f] > 0;
-    const char *ip = rs_work_path(cfg, "irradiance.ply", path, sizeof path);
-    if (!(irr = rs_ply_read(ip, err)) || rs_faceprop_get_rgb(irr, ip, "irradiance_sky", nf, esky, err) != 0 ||
-        rs_faceprop_get_rgb(irr, ip, "irradiance_inter_seen", nf, gseen, err) != 0 ||
-        rs_faceprop_get(irr, ip, "sky_filled", nf, buf + 20 * nf, err) != 0 ||
-        rs_faceprop_get(irr, ip, "irradiance_sky_sigma", nf, buf + 21 * nf, err) != 0 ||
-        optional_prop(irr, ip, "irradiance_mc_sigma", nf, buf + 23 * nf, err) != 0)
-        goto out;
-    double t0 = rs_now(), accuracy = rs_config_real(cfg, "reflectance", "pool_accuracy");
-    int can_pool =
-        accuracy > 0 && m != 2 ? pool_inputs(irr, ip, nf, esun, inv_dist, gathered, ro.scratch, rep, err) : 0;
+    facet_geometry(mesh, &fb);
+    int can_pool = read_observe(cfg, &fb, err) != 0 ? -1 : read_irradiance(cfg, &o, &fb, rep, err);
     if (can_pool < 0) goto out;
+    double t0 = rs_now();
     if (can_pool) {
-        if (rs_pool_build(mesh, inv_dist, gathered, flags, accuracy, &pool) != 0) {
-            rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory pooling the irradiance of %zu facets", nf);
-            goto out;
-        }
-        double mean;
-        size_t pooled, asked;
-        rs_pool_stats(&pool, flags, &mean, &pooled, &asked);
-        rs_json_set_num(rep->metrics, "pool_mean_facets", mean);
-        rs_json_set_int(rep->metrics, "pool_facets_pooled", (long long)pooled);
+        if (build_pool(mesh, &o, &fb, &pool, &n, err) != 0) goto out;
         rs_report_time(rep, "pool", rs_now() - t0);
-        rs_log_info("reflectance: irradiance pooled within the plane (accuracy %g): %zu of the %zu observed facets, "
-                    "%.1f facets per mean",
-                    accuracy, pooled, asked, mean);
     }
     t0 = rs_now();
-    if (m == 0) {
-        if (!(K = rs_transport_read(rs_work_path(cfg, "transport.ply", path, sizeof path), nf, err))) goto out;
-    } else if (m == 2) {
-        long maxf = rs_config_int(cfg, "reflectance", "paper_max_facets");
-        if ((long)nf > maxf) {
-            rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
-                       "[reflectance] method = paper on %zu facets: its O(m^3) visibility would not finish "
-                       "in minutes; expected at most [reflectance] paper_max_facets = %ld facets",
-                       nf, maxf);
-            goto out;
-        }
-        double pairs;
-        if (rs_paper_kernel(mesh, &dense, &pairs, err) != 0) goto out;
-        rs_json_set_num(rep->metrics, "paper_pairs_tested", pairs);
-        memset(gseen, 0, 3 * nf * sizeof *gseen); /* the paper reads no panorama at hit points */
-    } else {
-        rs_report_skip(rep, "interreflection", "method = direct ignores light from other facets");
-    }
+    if (load_kernel(cfg, &o, mesh, &fb, &K, &dense, &n, rep, err) != 0) goto out;
     rs_report_time(rep, "kernel", rs_now() - t0);
-    refl_in in = {nf,
-                  area,
-                  L,
-                  esky,
-                  gseen,
-                  buf + 20 * nf,
-                  buf + 21 * nf,
-                  buf + 23 * nf,
-                  buf + 22 * nf,
-                  rs_config_real(cfg, "reflectance", "albedo_sigma_floor"),
-                  flags,
-                  K,
-                  dense,
-                  m,
-                  rs_config_real(cfg, "reflectance", "min_irradiance"),
-                  rs_config_has(cfg, "reflectance", "unobserved_albedo"),
-                  0,
-                  strcmp(rs_config_string(cfg, "reflectance", "unobserved_albedo_by"), "all") == 0 ? NULL : orient,
-                  esun,
-                  pool.start ? &pool : NULL};
-    if (in.fill_given) in.fill_given_value = rs_config_real(cfg, "reflectance", "unobserved_albedo");
+
+    refl_in in = solve_inputs(&o, &fb, K, dense, &pool);
+    refl_out ro = {
+        .rho = fb.rho, .G = fb.G, .Lfill = fb.Lfill, .E = fb.E, .scratch = fb.scratch, .estimable = fb.estimable};
     t0 = rs_now();
     if (solve(&in, &ro) != 0) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
         goto out;
     }
     rs_report_time(rep, "solve", rs_now() - t0);
-    /* Pooled, the files carry what the albedo divided by: E_sky = sun + pooled rest, G pooled,
-     * and the Monte Carlo noise of that mean. */
-    if (in.pool) { /* into buffers the solve is done with: E, scratch, inv_dist */
-        double *esky_p = ro.E, *G_p = ro.scratch, *mc_p = inv_dist;
-        for (size_t k = 0; k < 3 * nf; k++) G_p[k] = esky[k] - esun[k];
-        rs_pool_apply3(&pool, G_p, esky_p);
-        for (size_t k = 0; k < 3 * nf; k++) esky_p[k] += esun[k];
-        rs_pool_apply3(&pool, ro.G, G_p);
-        rs_pool_sigma(&pool, in.mc_sigma, mc_p);
-        in.esky = esky_p;
-        in.mc_sigma = mc_p;
-        ro.G = G_p;
-    }
+    if (in.pool && pool_outputs(&pool, &fb, &in, &ro, err) != 0) goto out;
     if (rs_greycard_report(cfg, nf, in.esky, ro.G, ro.rho, ro.estimable, rep->metrics, err) != 0) goto out;
-    size_t nobs = 0, nest = 0, blow = 0;
-    for (size_t f = 0; f < nf; f++) {
-        nobs += flags[f];
-        nest += ro.estimable[f];
-        if (m == 2 && flags[f] && !ro.estimable[f]) {
-            double rs = 0;
-            for (size_t j = 0; j < nf; j++) rs += dense[f * nf + j];
-            if (rs > M_PI) blow++;
-        }
-    }
-    if (blow)
+    count_facets(&in, &ro, &n);
+    if (n.diverged)
         rs_log_warn("paper: %zu facets have kernel row sums above pi (the point-to-point form factor "
                     "diverges for close neighbours); they are flagged not estimable",
-                    blow);
-    rs_json_set_str(rep->metrics, "method", method);
-    rs_json_set_int(rep->metrics, "facets", (long long)nf);
-    rs_json_set_int(rep->metrics, "observed", (long long)nobs);
-    rs_json_set_int(rep->metrics, "estimable", (long long)nest);
-    rs_json_set_int(rep->metrics, "paper_rows_diverged", (long long)blow);
-    rs_json_set_int(rep->metrics, "fill_iterations", ro.iterations);
-    rs_json *fill = rs_json_set_arr(rep->metrics, "fill_albedo");
-    for (int ch = 0; ch < 3; ch++) rs_json_push_num(fill, ro.fill[ch]);
-    rs_json *by = rs_json_set_obj(rep->metrics, "fill_albedo_by_orientation");
-    for (int c = 0; c < RS_FILL_CLASSES; c++) {
-        rs_json *a = rs_json_set_arr(by, fill_class_name[c]);
-        for (int ch = 0; ch < 3; ch++) rs_json_push_num(a, ro.fill_class[c][ch]);
-    }
-    if (nobs > nest)
+                    n.diverged);
+    report_reflectance(rep, &in, &ro, &n);
+    if (n.observed > n.estimable)
         rs_report_skip(rep, "albedo of observed facets",
                        "%zu observed facets receive too little light "
                        "or are degenerate: flagged estimable = 0",
-                       nobs - nest);
+                       n.observed - n.estimable);
     rs_log_info("reflectance (%s): %zu facets, %zu observed, %zu estimable; fill albedo up %.3f, side %.3f, "
                 "down %.3f (luminance)",
-                method, nf, nobs, nest, lum3(ro.fill_class[RS_FILL_UP]), lum3(ro.fill_class[RS_FILL_SIDE]),
-                lum3(ro.fill_class[RS_FILL_DOWN]));
+                refl_method_name[o.method], nf, n.observed, n.estimable, lum3(ro.fill_class[RS_FILL_UP]),
+                lum3(ro.fill_class[RS_FILL_SIDE]), lum3(ro.fill_class[RS_FILL_DOWN]));
     rc = write_albedo(cfg, mesh, &in, &ro, err);
 out:
-    free(buf);
-    free(flags);
-    free(pbuf);
+    refl_facets_free(&fb);
     rs_pool_free(&pool);
     free(dense);
     rs_transport_free(K);
-    rs_ply_free(obs);
-    rs_ply_free(irr);
     rs_mesh_free(mesh);
     return rc;
 }

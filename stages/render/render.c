@@ -46,108 +46,163 @@ static int write_pair(const rs_config *cfg, const rs_image *img, const char *nam
     return rs_image_write_png(img, rs_work_path(cfg, file, path, sizeof path), png_scale, err);
 }
 
-int rs_render_run(const rs_config *cfg, rs_report *rep, rs_err *err)
+/* The [render] keys, read once. */
+typedef struct {
+    double tolerance;   /* relative change that ends the forward solve */
+    int max_iterations; /* ... or this many iterations */
+    int exposure_given; /* exposure is set: the previews' exposure; else from the observation */
+    double exposure;
+} render_opts;
+
+static void render_opts_read(const rs_config *cfg, render_opts *o)
+{
+    o->tolerance = rs_config_real(cfg, "render", "tolerance");
+    o->max_iterations = (int)rs_config_int(cfg, "render", "max_iterations");
+    o->exposure_given = rs_config_has(cfg, "render", "exposure");
+    o->exposure = o->exposure_given ? rs_config_real(cfg, "render", "exposure") : 0;
+}
+
+/* Per facet, 3 each: albedo.ply's, and the forward model's radiance and interreflection. */
+typedef struct {
+    size_t nf;
+    double *rho, *esky, *Lobs; /* albedo, E_sky and observed radiance (albedo.ply) */
+    double *L, *G;             /* the forward model's */
+} render_facets;
+
+static int render_facets_alloc(render_facets *fb, size_t nf)
+{
+    fb->nf = nf;
+    double **all[] = {&fb->rho, &fb->esky, &fb->Lobs, &fb->L, &fb->G};
+    int ok = 1;
+    for (size_t k = 0; k < sizeof all / sizeof *all; k++)
+        ok &= (*all[k] = malloc((3 * nf + 1) * sizeof(double))) != NULL;
+    return ok ? 0 : -1;
+}
+
+static void render_facets_free(render_facets *fb)
+{
+    free(fb->rho);
+    free(fb->esky);
+    free(fb->Lobs);
+    free(fb->L);
+    free(fb->G);
+}
+
+/* The images of the camera's view (3 channels, the panorama's size). */
+typedef struct {
+    rs_image *irr, *albedo, *synth, *diff, *obs;
+} render_images;
+
+static int render_images_alloc(render_images *im, int w, int h)
+{
+    rs_image **all[] = {&im->irr, &im->albedo, &im->synth, &im->diff, &im->obs};
+    int ok = 1;
+    for (size_t k = 0; k < sizeof all / sizeof *all; k++) ok &= (*all[k] = rs_image_new(w, h, 3)) != NULL;
+    return ok ? 0 : -1;
+}
+
+static void render_images_free(render_images *im)
+{
+    rs_image_free(im->irr);
+    rs_image_free(im->albedo);
+    rs_image_free(im->synth);
+    rs_image_free(im->diff);
+    rs_image_free(im->obs);
+}
+
+/* The figures of render.json. */
+typedef struct {
+    size_t capped;     /* albedo channels capped for the forward model */
+    int iterations;    /* of the forward solve */
+    double residual;   /* its last relative change */
+    int converged;     /* below [render] tolerance */
+    size_t used;       /* model pixels compared */
+    double rel;        /* relative difference over them */
+    double rel_facets; /* the same over the facets' observed radiance */
+    double expo;       /* the previews' exposure */
+    int uncertainty;   /* the uncertainty images were written */
+} render_counts;
+
+/* facet_id.exr, checked against the panorama's size. */
+static rs_image *read_facet_ids(const rs_config *cfg, const rs_capture *cap, rs_err *err)
 {
     char path[4096];
-    int rc = -1;
-    rs_capture cap = {0};
-    rs_ply *alb = NULL;
-    rs_transport *K = NULL;
-    rs_image *ids = NULL, *img[5] = {NULL, NULL, NULL, NULL, NULL};
-    double *buf = NULL;
-    const char *ap = rs_work_path(cfg, "albedo.ply", path, sizeof path);
-    rs_mesh *mesh = rs_mesh_read(ap, &alb, err);
-    if (!mesh) return -1;
-    size_t nf = mesh->nfaces;
-    buf = malloc((15 * nf + 1) * sizeof *buf);
-    if (!buf) {
-        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
-        goto out;
-    }
-    double *rho = buf, *esky = buf + 3 * nf, *L = buf + 6 * nf, *G = buf + 9 * nf, *Lobs = buf + 12 * nf;
-    if (rs_faceprop_get_rgb(alb, ap, "albedo", nf, rho, err) != 0 ||
-        rs_faceprop_get_rgb(alb, ap, "irradiance_sky", nf, esky, err) != 0 ||
-        rs_faceprop_get_rgb(alb, ap, "radiance", nf, Lobs, err) != 0)
-        goto out;
-    if (!(K = rs_transport_read(rs_work_path(cfg, "transport.ply", path, sizeof path), nf, err))) goto out;
-    if (rs_capture_load(cfg, "capture", &cap, err) != 0) goto out;
     const char *idp = rs_work_path(cfg, "facet_id.exr", path, sizeof path);
-    if (!(ids = rs_image_read(idp, err))) goto out;
-    if (ids->width != cap.pano->width || ids->height != cap.pano->height || ids->channels != 1) {
+    rs_image *ids = rs_image_read(idp, err);
+    if (ids && (ids->width != cap->pano->width || ids->height != cap->pano->height || ids->channels != 1)) {
         rs_err_set(err, RS_ERR_INPUT, idp, 0, "does not match the panorama's size (rerun observe)");
-        goto out;
+        rs_image_free(ids);
+        return NULL;
     }
-    /* An estimate of 1 or more (the direct method in a concave corner, or a facet with too
-     * little light) is not a physical albedo, and with it the forward model has no finite
-     * solution: render with it capped just below 1, and say how many were. */
-    const double rho_max = 0.999;
+    return ids;
+}
+
+/* Caps rho[0..n) at rho_max (non-finite negatives at 0); returns how many it capped. */
+static size_t cap_albedo(double *rho, size_t n, double rho_max)
+{
     size_t capped = 0;
-    for (size_t i = 0; i < 3 * nf; i++)
+    for (size_t i = 0; i < n; i++)
         if (!(rho[i] <= rho_max)) {
             rho[i] = isfinite(rho[i]) || rho[i] > 0 ? rho_max : 0;
             capped++;
         }
-    if (capped)
-        rs_report_skip(rep, "albedo above 1", "%zu facet channels capped at %.3f for the forward model", capped,
-                       rho_max);
-    rs_json_set_int(rep->metrics, "albedo_channels_capped", (long long)capped);
-    double residual, t0 = rs_now();
-    int iters = rs_transport_solve(K, rho, esky, L, G, rs_config_real(cfg, "render", "tolerance"),
-                                   (int)rs_config_int(cfg, "render", "max_iterations"), &residual);
-    if (iters < 0) {
-        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
-        goto out;
-    }
-    rs_report_time(rep, "forward_solve", rs_now() - t0);
-    int converged = residual < rs_config_real(cfg, "render", "tolerance");
-    if (!converged) rs_log_warn("forward solve stopped after %d iterations with relative change %.3g", iters, residual);
+    return capped;
+}
 
-    int w = cap.pano->width, h = cap.pano->height;
-    for (int k = 0; k < 5; k++)
-        if (!(img[k] = rs_image_new(w, h, 3))) {
-            rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
-            goto out;
-        }
-    rs_image *irr = img[0], *albi = img[1], *syn = img[2], *diff = img[3], *obs = img[4];
+/* The camera's view of the forward model: each model pixel takes its facet's irradiance,
+ * albedo and radiance, the sky stays as observed; the relative difference to the observation
+ * over the model pixels with a usable value goes to n. */
+static void compose_view(const rs_capture *cap, const rs_image *ids, const render_facets *fb, render_images *im,
+                         render_counts *n)
+{
     double sum_abs[3] = {0, 0, 0}, sum_obs[3] = {0, 0, 0};
-    size_t npx = (size_t)w * h, used = 0;
+    size_t npx = (size_t)cap->pano->width * cap->pano->height, used = 0, nf = fb->nf;
+    const double *esky = fb->esky, *G = fb->G, *rho = fb->rho, *L = fb->L;
     for (size_t k = 0; k < npx; k++) {
-        const float *o = cap.pano->data + 3 * k;
+        const float *o = cap->pano->data + 3 * k;
         float id = ids->data[k];
-        for (int ch = 0; ch < 3; ch++) obs->data[3 * k + ch] = isfinite(o[ch]) ? o[ch] : 0;
+        for (int ch = 0; ch < 3; ch++) im->obs->data[3 * k + ch] = isfinite(o[ch]) ? o[ch] : 0;
         if (!(id >= 0 && id < (float)nf)) {
-            memcpy(syn->data + 3 * k, obs->data + 3 * k, 3 * sizeof(float)); /* sky as observed */
+            memcpy(im->synth->data + 3 * k, im->obs->data + 3 * k, 3 * sizeof(float)); /* sky as observed */
             continue;
         }
         size_t f = (size_t)id;
         for (int ch = 0; ch < 3; ch++) {
-            irr->data[3 * k + ch] = (float)(esky[3 * f + ch] + G[3 * f + ch]);
-            albi->data[3 * k + ch] = (float)rho[3 * f + ch];
-            syn->data[3 * k + ch] = (float)L[3 * f + ch];
+            im->irr->data[3 * k + ch] = (float)(esky[3 * f + ch] + G[3 * f + ch]);
+            im->albedo->data[3 * k + ch] = (float)rho[3 * f + ch];
+            im->synth->data[3 * k + ch] = (float)L[3 * f + ch];
         }
         if (!rs_capture_pixel_ok(o)) continue;
         used++;
         for (int ch = 0; ch < 3; ch++) {
-            diff->data[3 * k + ch] = (float)(L[3 * f + ch] - o[ch]);
+            im->diff->data[3 * k + ch] = (float)(L[3 * f + ch] - o[ch]);
             sum_abs[ch] += fabs(L[3 * f + ch] - o[ch]);
             sum_obs[ch] += o[ch];
         }
     }
     double rel = 0;
     for (int ch = 0; ch < 3; ch++) rel += (sum_obs[ch] > 0 ? sum_abs[ch] / sum_obs[ch] : 0) / 3;
-    /* How well the facet-constant model explains the observed facets: the same figure per facet. */
-    double fsum = 0, fobs = 0;
-    for (size_t f = 0; f < nf; f++)
-        for (int ch = 0; ch < 3; ch++) {
-            fsum += fabs(L[3 * f + ch] - Lobs[3 * f + ch]);
-            fobs += Lobs[3 * f + ch];
-        }
+    n->used = used;
+    n->rel = rel;
+}
 
-    double expo = rs_config_has(cfg, "render", "exposure") ? rs_config_real(cfg, "render", "exposure")
-                                                           : auto_exposure(obs, ids->data);
-    /* Nine independent files, written on all threads: one by one, with the EXR writer serial,
-     * they were about a third of this stage and left the second core idle (perf). */
-    float irr_expo = auto_exposure(irr, ids->data);
+/* How well the facet-constant model explains the observed facets: the same figure per facet. */
+static double facet_difference(const render_facets *fb)
+{
+    double fsum = 0, fobs = 0;
+    for (size_t f = 0; f < fb->nf; f++)
+        for (int ch = 0; ch < 3; ch++) {
+            fsum += fabs(fb->L[3 * f + ch] - fb->Lobs[3 * f + ch]);
+            fobs += fb->Lobs[3 * f + ch];
+        }
+    return fobs > 0 ? fsum / fobs : 0;
+}
+
+/* Nine independent files, written on all threads: one by one, with the EXR writer serial,
+ * they were about a third of this stage and left the second core idle (perf). */
+static int write_view(const rs_config *cfg, const render_images *im, const rs_image *ids, double expo, rs_err *err)
+{
+    float irr_expo = auto_exposure(im->irr, ids->data);
     rs_err werr[5];
     int wrc[5];
 #pragma omp parallel for schedule(dynamic, 1)
@@ -155,40 +210,118 @@ int rs_render_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         char opath[4096];
         memset(&werr[k], 0, sizeof werr[k]);
         switch (k) {
-        case 0: wrc[k] = write_pair(cfg, irr, "irradiance", irr_expo, &werr[k]); break;
-        case 1: wrc[k] = write_pair(cfg, albi, "albedo", 1.0f, &werr[k]); break;
-        case 2: wrc[k] = write_pair(cfg, syn, "synth", (float)expo, &werr[k]); break;
-        case 3: wrc[k] = write_pair(cfg, diff, "diff", (float)expo * 4, &werr[k]); break;
+        case 0: wrc[k] = write_pair(cfg, im->irr, "irradiance", irr_expo, &werr[k]); break;
+        case 1: wrc[k] = write_pair(cfg, im->albedo, "albedo", 1.0f, &werr[k]); break;
+        case 2: wrc[k] = write_pair(cfg, im->synth, "synth", (float)expo, &werr[k]); break;
+        case 3: wrc[k] = write_pair(cfg, im->diff, "diff", (float)expo * 4, &werr[k]); break;
         default:
-            wrc[k] =
-                rs_image_write_png(obs, rs_work_path(cfg, "observed.png", opath, sizeof opath), (float)expo, &werr[k]);
+            wrc[k] = rs_image_write_png(im->obs, rs_work_path(cfg, "observed.png", opath, sizeof opath), (float)expo,
+                                        &werr[k]);
         }
     }
     for (int k = 0; k < 5; k++)
         if (wrc[k] != 0) {
             if (err) *err = werr[k];
-            goto out;
+            return -1;
         }
-    int unc = rs_render_uncertainty_images(cfg, alb, ap, nf, ids, err);
-    if (unc < 0) goto out;
-    rs_json_set_bool(rep->metrics, "uncertainty_images", unc);
-    rs_json_set_int(rep->metrics, "forward_iterations", iters);
-    rs_json_set_num(rep->metrics, "forward_residual", residual);
-    rs_json_set_bool(rep->metrics, "forward_converged", converged);
-    rs_json_set_int(rep->metrics, "model_pixels_compared", (long long)used);
-    rs_json_set_num(rep->metrics, "relative_difference_model_pixels", rel);
-    rs_json_set_num(rep->metrics, "relative_difference_facets", fobs > 0 ? fsum / fobs : 0);
-    rs_json_set_num(rep->metrics, "preview_exposure", expo);
-    rs_log_info("render: forward solve %d iterations (change %.2g); relative difference %.4f over %zu pixels", iters,
-                residual, rel, used);
+    return 0;
+}
+
+static void report_render(rs_report *rep, const render_counts *n)
+{
+    rs_json_set_int(rep->metrics, "albedo_channels_capped", (long long)n->capped);
+    rs_json_set_bool(rep->metrics, "uncertainty_images", n->uncertainty);
+    rs_json_set_int(rep->metrics, "forward_iterations", n->iterations);
+    rs_json_set_num(rep->metrics, "forward_residual", n->residual);
+    rs_json_set_bool(rep->metrics, "forward_converged", n->converged);
+    rs_json_set_int(rep->metrics, "model_pixels_compared", (long long)n->used);
+    rs_json_set_num(rep->metrics, "relative_difference_model_pixels", n->rel);
+    rs_json_set_num(rep->metrics, "relative_difference_facets", n->rel_facets);
+    rs_json_set_num(rep->metrics, "preview_exposure", n->expo);
+}
+
+/* What the stage reads, and albedo.ply's per-facet values into fb. */
+typedef struct {
+    char alb_path[4096];
+    rs_ply *alb; /* albedo.ply, kept for the uncertainty images */
+    rs_mesh *mesh;
+    rs_transport *K;
+    rs_capture cap;
+    rs_image *ids; /* facet_id.exr */
+} render_inputs;
+
+static int read_inputs(const rs_config *cfg, render_inputs *in, render_facets *fb, rs_err *err)
+{
+    const char *ap = rs_work_path(cfg, "albedo.ply", in->alb_path, sizeof in->alb_path);
+    if (!(in->mesh = rs_mesh_read(ap, &in->alb, err))) return -1;
+    size_t nf = in->mesh->nfaces;
+    if (render_facets_alloc(fb, nf) != 0) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+    if (rs_faceprop_get_rgb(in->alb, ap, "albedo", nf, fb->rho, err) != 0 ||
+        rs_faceprop_get_rgb(in->alb, ap, "irradiance_sky", nf, fb->esky, err) != 0 ||
+        rs_faceprop_get_rgb(in->alb, ap, "radiance", nf, fb->Lobs, err) != 0)
+        return -1;
+    char path[4096];
+    if (!(in->K = rs_transport_read(rs_work_path(cfg, "transport.ply", path, sizeof path), nf, err))) return -1;
+    if (rs_capture_load(cfg, "capture", &in->cap, err) != 0) return -1;
+    return (in->ids = read_facet_ids(cfg, &in->cap, err)) ? 0 : -1;
+}
+
+static void render_inputs_free(render_inputs *in)
+{
+    rs_image_free(in->ids);
+    rs_capture_release(&in->cap);
+    rs_transport_free(in->K);
+    rs_ply_free(in->alb);
+    rs_mesh_free(in->mesh);
+}
+
+int rs_render_run(const rs_config *cfg, rs_report *rep, rs_err *err)
+{
+    render_opts o;
+    render_opts_read(cfg, &o);
+    int rc = -1;
+    render_inputs in = {0};
+    render_images im = {0};
+    render_facets fb = {0};
+    render_counts n = {0};
+    if (read_inputs(cfg, &in, &fb, err) != 0) goto out;
+    size_t nf = fb.nf;
+    const rs_image *ids = in.ids;
+
+    /* An estimate of 1 or more (the direct method in a concave corner, or a facet with too
+     * little light) is not a physical albedo, and with it the forward model has no finite
+     * solution: render with it capped just below 1, and say how many were. */
+    const double rho_max = 0.999;
+    if ((n.capped = cap_albedo(fb.rho, 3 * nf, rho_max)))
+        rs_report_skip(rep, "albedo above 1", "%zu facet channels capped at %.3f for the forward model", n.capped,
+                       rho_max);
+    double t0 = rs_now();
+    n.iterations = rs_transport_solve(in.K, fb.rho, fb.esky, fb.L, fb.G, o.tolerance, o.max_iterations, &n.residual);
+    if (n.iterations < 0) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+        goto out;
+    }
+    rs_report_time(rep, "forward_solve", rs_now() - t0);
+    n.converged = n.residual < o.tolerance;
+    if (!n.converged)
+        rs_log_warn("forward solve stopped after %d iterations with relative change %.3g", n.iterations, n.residual);
+
+    if (render_images_alloc(&im, ids->width, ids->height) != 0) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+        goto out;
+    }
+    compose_view(&in.cap, ids, &fb, &im, &n);
+    n.rel_facets = facet_difference(&fb);
+    n.expo = o.exposure_given ? o.exposure : auto_exposure(im.obs, ids->data);
+    if (write_view(cfg, &im, ids, n.expo, err) != 0) goto out;
+    if ((n.uncertainty = rs_render_uncertainty_images(cfg, in.alb, in.alb_path, nf, ids, err)) < 0) goto out;
+    report_render(rep, &n);
+    rs_log_info("render: forward solve %d iterations (change %.2g); relative difference %.4f over %zu pixels",
+                n.iterations, n.residual, n.rel, n.used);
     rc = 0;
 out:
-    for (int k = 0; k < 5; k++) rs_image_free(img[k]);
-    rs_image_free(ids);
-    rs_capture_release(&cap);
-    rs_transport_free(K);
-    rs_ply_free(alb);
-    free(buf);
-    rs_mesh_free(mesh);
+    render_images_free(&im);
+    render_facets_free(&fb);
+    render_inputs_free(&in);
     return rc;
 }

@@ -66,14 +66,14 @@ int rs_render_uncertainty_images(const rs_config *cfg, const rs_ply *alb, const 
             }
         return 0;
     }
-    double *v = malloc(2 * nf * sizeof *v);
-    if (!v) {
-        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
-        return -1;
-    }
+    double *v[2] = {malloc((nf ? nf : 1) * sizeof(double)), malloc((nf ? nf : 1) * sizeof(double))}; /* props[] */
     int rc = 1;
+    if (!v[0] || !v[1]) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+        rc = -1;
+    }
     for (int i = 0; i < 2 && rc == 1; i++)
-        if (rs_faceprop_get(alb, file, props[i], nf, v + i * nf, err) != 0) rc = -1;
+        if (rs_faceprop_get(alb, file, props[i], nf, v[i], err) != 0) rc = -1;
     /* The two images on both threads: written one after the other they left the second core
      * idle for a fifth of the render stage (perf). */
     rs_err werr[2];
@@ -82,7 +82,7 @@ int rs_render_uncertainty_images(const rs_config *cfg, const rs_ply *alb, const 
 #pragma omp parallel for schedule(static, 1)
         for (int i = 0; i < 2; i++) {
             memset(&werr[i], 0, sizeof werr[i]);
-            wrc[i] = write_one(cfg, v + i * nf, nf, ids, i, &werr[i]);
+            wrc[i] = write_one(cfg, v[i], nf, ids, i, &werr[i]);
         }
         for (int i = 0; i < 2 && rc == 1; i++)
             if (wrc[i] != 0) {
@@ -90,6 +90,7 @@ int rs_render_uncertainty_images(const rs_config *cfg, const rs_ply *alb, const 
                 rc = -1;
             }
     }
-    free(v);
+    free(v[0]);
+    free(v[1]);
     return rc;
 }
