@@ -1,5 +1,5 @@
 /* calib_files: the files through which the calib stage hands its results to the stages that load
- * the capture (common/capture.c): the stitched panorama and the solved pose, in the work folder. */
+ * the capture (pipeline/capture_load.c): the stitched panorama and the solved pose, in the work folder. */
 #ifndef RS_CALIB_FILES_H
 #define RS_CALIB_FILES_H
 

@@ -8,6 +8,7 @@ cd "$(dirname "$0")/.."
 tools/setup-debian.sh --tests
 # The layering first: a forbidden include fails in a second, before any build.
 python3 tools/check_layers.py
+python3 tools/check_functions.py
 cmake -S . -B build -DCMAKE_BUILD_TYPE=RelWithDebInfo
 cmake --build build -j2
 ctest --test-dir build --output-on-failure -j2

@@ -78,6 +78,9 @@ def main():
     exp = json.load(open(a.expected))
     tmp = a.keep or tempfile.mkdtemp(prefix='rhoscan-playback-')
     work = os.path.join(tmp, 'work')
+    # The config by its absolute path: the JSON records name it as given, and the digests must
+    # not depend on the folder the test was started from.
+    a.config = os.path.abspath(a.config)
     r = subprocess.run([os.path.join(a.bin, 'rhoscan'), 'run', a.config, '--set', 'pipeline.workdir=' + work])
     if r.returncode != 0:
         print('FAIL: rhoscan run exited %d' % r.returncode); return 1
