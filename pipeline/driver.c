@@ -42,13 +42,13 @@ int rs_merge_metrics(const rs_stage_def *stages, const rs_config *cfg, const rs_
         size_t size;
         snprintf(name, sizeof name, "%s.json", d->name);
         if (rs_read_file(rs_work_path(cfg, name, path, sizeof path), &text, &size, NULL) == 0 && size > 1)
-            rs_json_set_raw(by_stage, d->name, text);
+            rs_json_set_parsed(by_stage, d->name, text);
         free(text);
     }
     char *run_text = rs_json_text(run);
     if (run_text) {
         run_text[strlen(run_text) - 1] = 0; /* drop the newline */
-        rs_json_set_raw(all, "run", run_text);
+        rs_json_set_parsed(all, "run", run_text);
     }
     free(run_text);
     char path[4096];
