@@ -41,6 +41,7 @@ typedef struct section_seen {
 
 struct rs_config {
     char *file, *dir;
+    char *cwd; /* what relative paths given with --set are relative to */
     entry *entries;
     int nentries, cap_entries;
     section_seen *sections;
@@ -136,7 +137,9 @@ static int set_value(rs_config *cfg, const char *file, long line, const char *se
                           "and %ld; keep one",
                           section, key, old->line, line);
     rs_cfg_value v;
-    int rc = rs_cfg_parse(k, text, cfg->dir, &v, why, sizeof why);
+    /* A path in the file is relative to the file; one typed on the command line, to the folder
+     * the command was typed in, as every other program's arguments are. */
+    int rc = rs_cfg_parse(k, text, line > 0 ? cfg->dir : cfg->cwd, &v, why, sizeof why);
     if (rc == -2) return oom(err);
     if (rc)
         return rs_err_set(err, RS_ERR_INPUT, file, line, "[%s] %s = \"%.120s%s\": %s", section, key, text,
@@ -332,7 +335,9 @@ static rs_config *load_text(const char *text, size_t size, const char *name, con
         oom(err);
         return NULL;
     }
-    if (!(cfg->dir = absolute_dir(dir, err)) || parse_text(cfg, text, size, name, err) != 0) goto fail;
+    if (!(cfg->dir = absolute_dir(dir, err)) || !(cfg->cwd = absolute_dir(NULL, err)) ||
+        parse_text(cfg, text, size, name, err) != 0)
+        goto fail;
     for (int i = 0; overrides && overrides[i]; i++)
         if (apply_override(cfg, overrides[i], err) != 0) goto fail;
     return cfg;
@@ -412,6 +417,7 @@ void rs_config_free(rs_config *cfg)
     free(cfg->sections);
     free(cfg->file);
     free(cfg->dir);
+    free(cfg->cwd);
     free(cfg);
 }
 
@@ -449,6 +455,14 @@ static const rs_cfg_value *value_for(const rs_config *cfg, const char *section, 
     if (rs_cfg_parse(k, k->def, cfg->dir, tmp, why, sizeof why) != 0)
         die("the default of [%s] %s, \"%s\", is invalid: %s", k->section, key, k->def, why);
     return tmp;
+}
+
+rs_cfg_origin rs_config_origin(const rs_config *cfg, const char *section, const char *key)
+{
+    const rs_cfg_key *k = row_for(section, key, ~0u, "rs_config_origin");
+    const entry *e = find_entry(cfg, section, key);
+    if (e) return e->line > 0 ? RS_CFG_FROM_FILE : RS_CFG_FROM_SET;
+    return k->def ? RS_CFG_FROM_DEFAULT : RS_CFG_UNSET;
 }
 
 int rs_config_has(const rs_config *cfg, const char *section, const char *key)

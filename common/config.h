@@ -1,5 +1,7 @@
 /* config: INI configuration files (libinih) checked against one table of known keys.
  * Precedence: built-in default < config file < --set section.key=value overrides.
+ * Relative paths in the file are relative to the file's folder; in an override, to the current
+ * folder (where the command was typed).
  * Sections named "capture.NAME" take the keys of "capture" (several captures).
  * Every key is validated at load time, so the getters below cannot fail. */
 #ifndef RS_CONFIG_H
@@ -47,6 +49,10 @@ rs_config *rs_config_load(const char *path, const char *const *overrides, rs_err
 rs_config *rs_config_load_string(const char *text, const char *name, const char *base_dir, const char *const *overrides,
                                  rs_err *err);
 void rs_config_free(rs_config *cfg);
+
+/* Where the value in effect comes from. */
+typedef enum { RS_CFG_UNSET, RS_CFG_FROM_DEFAULT, RS_CFG_FROM_FILE, RS_CFG_FROM_SET } rs_cfg_origin;
+rs_cfg_origin rs_config_origin(const rs_config *cfg, const char *section, const char *key);
 
 /* 1 if the key was given in the file or an override (not only defaulted). */
 int rs_config_has(const rs_config *cfg, const char *section, const char *key);

@@ -6,27 +6,37 @@
 #include <string.h>
 #include "common/fileio.h"
 #include "common/log.h"
+#include "pipeline/effective.h"
 #include "pipeline/options.h"
+#include "pipeline/version.h"
 
-enum { RUN_FROM, RUN_ONLY, RUN_FORCE, RUN_SET, RUN_QUIET, RUN_VERBOSE, RUN_OPTIONS };
+enum { RUN_FROM, RUN_ONLY, RUN_FORCE, RUN_SET, RUN_PRINT_CONFIG, RUN_QUIET, RUN_VERBOSE, RUN_HELP, RUN_VERSION,
+       RUN_OPTIONS };
 static const rs_option run_options[] = {
     [RUN_FROM] = {"from", "STAGE", "run STAGE and every later stage, whether or not they changed"},
     [RUN_ONLY] = {"only", "STAGE", "run STAGE alone"},
     [RUN_FORCE] = {"force", NULL, "run every stage"},
     [RUN_SET] = {"set", "s.k=v", "override a config key (repeatable); configs/KEYS.md lists them"},
-    [RUN_QUIET] = {"quiet", NULL, NULL},
-    [RUN_VERBOSE] = {"verbose", NULL, NULL},
+    [RUN_PRINT_CONFIG] = {"print-config", NULL, "print the configuration in effect and where each value came from"},
+    [RUN_QUIET] = {"quiet", NULL, "warnings and errors only"},
+    [RUN_VERBOSE] = {"verbose", NULL, "debugging messages too"},
+    [RUN_HELP] = {"help", NULL, "this text", 'h'},
+    [RUN_VERSION] = {"version", NULL, "the version and git commit", 'V'},
     [RUN_OPTIONS] = {NULL}};
 
 static void usage(const rs_stage_def *stages, FILE *out)
 {
     fprintf(out,
-            "usage: rhoscan run [--from STAGE] [--only STAGE] [--force] [--set section.key=value]... CONFIG\n"
-            "       rhoscan help\n"
-            "Options may stand before or after CONFIG.\n");
+            "usage: rhoscan run [OPTIONS] CONFIG     run the pipeline: every stage whose inputs or config changed\n"
+            "       rhoscan STAGE [OPTIONS] CONFIG   run one stage (the same as the program rhoscan-STAGE)\n"
+            "       rhoscan help [STAGE]             this text, or a stage's\n"
+            "       rhoscan version                  the version and git commit (also --version)\n"
+            "Options of run (before or after CONFIG; --NAME=VALUE works as --NAME VALUE):\n");
     rs_options_print(out, run_options);
-    fprintf(out, "Stages, in order (each is also a program rhoscan-STAGE CONFIG):\n");
+    fprintf(out, "Stages, in order:\n");
     for (const rs_stage_def *d = stages; d->name; d++) fprintf(out, "  %-12s %s\n", d->name, d->help);
+    fputs(RS_PATHS_NOTE, out);
+    fputs("Exit codes: 0 success, 1 bad input or config, 2 system error (I/O, memory), 3 internal error.\n", out);
 }
 
 int rs_merge_metrics(const rs_stage_def *stages, const rs_config *cfg, const rs_json *run, rs_err *err)
@@ -34,7 +44,9 @@ int rs_merge_metrics(const rs_stage_def *stages, const rs_config *cfg, const rs_
     rs_json *all = rs_json_object();
     if (!all) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
     rs_json_set_str(all, "program", "rhoscan " RHOSCAN_VERSION);
+    rs_json_set_str(all, "git_commit", rs_version_commit());
     rs_json_set_str(all, "config", rs_config_file(cfg));
+    rs_config_effective_json(cfg, all);
     rs_json *by_stage = rs_json_set_obj(all, "stages");
     for (const rs_stage_def *d = stages; d->name; d++) {
         char name[128], path[4096];
@@ -42,13 +54,13 @@ int rs_merge_metrics(const rs_stage_def *stages, const rs_config *cfg, const rs_
         size_t size;
         snprintf(name, sizeof name, "%s.json", d->name);
         if (rs_read_file(rs_work_path(cfg, name, path, sizeof path), &text, &size, NULL) == 0 && size > 1)
-            rs_json_set_raw(by_stage, d->name, text);
+            rs_json_set_parsed(by_stage, d->name, text);
         free(text);
     }
     char *run_text = rs_json_text(run);
     if (run_text) {
         run_text[strlen(run_text) - 1] = 0; /* drop the newline */
-        rs_json_set_raw(all, "run", run_text);
+        rs_json_set_parsed(all, "run", run_text);
     }
     free(run_text);
     char path[4096];
@@ -73,6 +85,22 @@ static void why_not_run(const rs_stage_def *d, const rs_config *cfg, const rs_ru
     }
 }
 
+/* The run's last line: what ran and what did not, in words that fit the count. */
+static void log_done(const rs_stage_def *stages, const rs_run_opts *opts, int nran, double seconds)
+{
+    int nstages = 0;
+    while (stages[nstages].name) nstages++;
+    if (opts->only)
+        rs_log_info("done in %.1f s: stage %s %s (see metrics.json)", seconds, opts->only, nran ? "run" : "not run");
+    else if (nran == 0)
+        rs_log_info("done in %.1f s: every stage was up to date, nothing run (see metrics.json)", seconds);
+    else if (nran == nstages)
+        rs_log_info("done in %.1f s: all %d stages run (see metrics.json)", seconds, nstages);
+    else
+        rs_log_info("done in %.1f s: %d of %d stages run, the other %d %s (see metrics.json)", seconds, nran, nstages,
+                    nstages - nran, opts->from ? "before --from" : "up to date");
+}
+
 int rs_run_pipeline(const rs_stage_def *stages, const rs_config *cfg, const rs_run_opts *opts, rs_err *err)
 {
     rs_skips skips = {0};
@@ -87,7 +115,6 @@ int rs_run_pipeline(const rs_stage_def *stages, const rs_config *cfg, const rs_r
         if (opts->only && strcmp(d->name, opts->only) != 0) continue;
         why_not_run(d, cfg, opts, reached_from, why, sizeof why);
         if (why[0]) {
-            rs_log_info("skipped stage %s: %s", d->name, why);
             char what[64];
             snprintf(what, sizeof what, "stage %s", d->name);
             rs_report_skip(&run_rep, what, "%s", why);
@@ -97,6 +124,7 @@ int rs_run_pipeline(const rs_stage_def *stages, const rs_config *cfg, const rs_r
             continue;
         }
         if (rs_stage_execute(d, cfg, &skips, err) != 0) {
+            rs_stage_explain_missing(d, stages, cfg, err);
             rc = -1;
             break;
         }
@@ -107,9 +135,7 @@ int rs_run_pipeline(const rs_stage_def *stages, const rs_config *cfg, const rs_r
     if (rc == 0) {
         rs_skips_log(&skips);
         rc = rs_merge_metrics(stages, cfg, run, err);
-        if (rc == 0)
-            rs_log_info("done in %.1f s: %d stage%s run, the rest up to date (see metrics.json)", rs_now() - t0, nran,
-                        nran == 1 ? "" : "s");
+        if (rc == 0) log_done(stages, opts, nran, rs_now() - t0);
     }
     rs_skips_release(&skips);
     rs_json_free(run);
@@ -119,7 +145,7 @@ int rs_run_pipeline(const rs_stage_def *stages, const rs_config *cfg, const rs_r
 /* `rhoscan run`'s options after the word run into opts, sets and *config; 0, or the exit code
  * after saying what was wrong. */
 static int read_run_options(const rs_stage_def *stages, int argc, char **argv, rs_run_opts *opts, const char **sets,
-                            const char **config)
+                            const char **config, int *print_config)
 {
     int nsets = 0;
     rs_opt_scan opt;
@@ -132,6 +158,9 @@ static int read_run_options(const rs_stage_def *stages, int argc, char **argv, r
         case RUN_SET: sets[nsets++] = opt.value; break;
         case RUN_QUIET: rs_log_set_level(RS_LOG_WARN); break;
         case RUN_VERBOSE: rs_log_set_level(RS_LOG_DEBUG); break;
+        case RUN_PRINT_CONFIG: *print_config = 1; break;
+        case RUN_HELP: usage(stages, stdout); return rs_stdout_check("rhoscan") ? 2 : -1;
+        case RUN_VERSION: printf("%s\n", rs_version()); return rs_stdout_check("rhoscan") ? 2 : -1;
         default:
             rs_opt_unexpected(&opt, "rhoscan");
             usage(stages, stderr);
@@ -152,35 +181,66 @@ static int read_run_options(const rs_stage_def *stages, int argc, char **argv, r
     return 0;
 }
 
-int rs_driver_main(const rs_stage_def *stages, int argc, char **argv)
+/* `rhoscan run ...`: the exit code. */
+static int run_command(const rs_stage_def *stages, int argc, char **argv)
 {
-    rs_program_start("rhoscan");
-    if (argc < 2 || strcmp(argv[1], "help") == 0 || strcmp(argv[1], "--help") == 0) {
-        usage(stages, argc < 2 ? stderr : stdout);
-        return argc < 2 ? 1 : rs_stdout_check("rhoscan");
-    }
-    if (strcmp(argv[1], "run") != 0) {
-        fprintf(stderr, "rhoscan: unknown command '%s'\n", argv[1]);
-        usage(stages, stderr);
-        return 1;
-    }
     const char **sets = calloc((size_t)argc + 1, sizeof *sets);
     const char *config = NULL;
     rs_run_opts opts = {NULL, NULL, 0};
-    int rc = read_run_options(stages, argc, argv, &opts, sets, &config);
+    int print_config = 0;
+    int rc = read_run_options(stages, argc, argv, &opts, sets, &config, &print_config);
     if (rc != 0) {
         free(sets);
-        return rc;
+        return rc < 0 ? 0 : rc;   /* -1: help or version printed */
     }
     rs_config *cfg = rs_program_config(config, sets, &rc);
     free(sets);
     if (!cfg) return rc;
-    rs_err err;
-    rs_err_clear(&err);
-    if (rs_run_pipeline(stages, cfg, &opts, &err) != 0) {
-        rs_log_error(&err);
-        rc = err.kind ? (int)err.kind : 3;
+    if (print_config) {
+        rs_config_print_sections(cfg, NULL, stdout);
+        rc = rs_stdout_check("rhoscan");
+    } else {
+        rs_err err;
+        rs_err_clear(&err);
+        if (rs_run_pipeline(stages, cfg, &opts, &err) != 0) {
+            rs_log_error(&err);
+            rc = err.kind ? (int)err.kind : 3;
+        }
     }
     rs_config_free(cfg);
     return rc;
+}
+
+static int is_any(const char *arg, const char *a, const char *b, const char *c)
+{
+    return strcmp(arg, a) == 0 || strcmp(arg, b) == 0 || strcmp(arg, c) == 0;
+}
+
+int rs_driver_main(const rs_stage_def *stages, int argc, char **argv)
+{
+    rs_program_start("rhoscan");
+    if (argc < 2) {
+        usage(stages, stderr);
+        return 1;
+    }
+    const char *command = argv[1];
+    if (is_any(command, "help", "--help", "-h")) {
+        const rs_stage_def *d = argc > 2 ? rs_stage_lookup(stages, argv[2]) : NULL;
+        if (d) {   /* rhoscan help STAGE: the stage's own --help */
+            char *help_argv[] = {argv[2], "--help", NULL};
+            return rs_stage_main(d, 2, help_argv);
+        }
+        usage(stages, stdout);
+        return rs_stdout_check("rhoscan");
+    }
+    if (is_any(command, "version", "--version", "-V")) {
+        printf("%s\n", rs_version());
+        return rs_stdout_check("rhoscan");
+    }
+    if (strcmp(command, "run") == 0) return run_command(stages, argc, argv);
+    const rs_stage_def *d = rs_stage_lookup(stages, command);
+    if (d) return rs_stage_main_of(d, stages, argc - 1, argv + 1);   /* git-style: rhoscan mesh CONFIG */
+    fprintf(stderr, "rhoscan: unknown command '%s'\n", command);
+    usage(stages, stderr);
+    return 1;
 }

@@ -67,15 +67,25 @@ void rs_opt_unexpected(const rs_opt_scan *s, const char *prog)
     fprintf(stderr, "%s: unexpected argument '%s'\n", prog, s->bad ? s->bad : "");
 }
 
+/* "-h, --help" or "--from STAGE" into buf. */
+static const char *spelling_of(const rs_option *o, char *buf, size_t n)
+{
+    char letter[8] = "";
+    if (o->letter) snprintf(letter, sizeof letter, "-%c, ", o->letter);
+    snprintf(buf, n, "%s--%s%s%s", letter, o->name, o->value_name ? " " : "", o->value_name ? o->value_name : "");
+    return buf;
+}
+
 void rs_options_print(FILE *out, const rs_option *table)
 {
     char spelling[128];
+    int width = 0;
     for (const rs_option *o = table; o->name; o++) {
-        if (!o->help) continue;
-        snprintf(spelling, sizeof spelling, "--%s%s%s", o->name, o->value_name ? " " : "",
-                 o->value_name ? o->value_name : "");
-        fprintf(out, "  %-14s %s\n", spelling, o->help);
+        int n = (int)strlen(spelling_of(o, spelling, sizeof spelling));
+        if (o->help && n > width) width = n;
     }
+    for (const rs_option *o = table; o->name; o++)
+        if (o->help) fprintf(out, "  %-*s  %s\n", width, spelling_of(o, spelling, sizeof spelling), o->help);
     const char *sep = "  ";
     for (const rs_option *o = table; o->name; o++) {
         if (o->help) continue;

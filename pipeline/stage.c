@@ -15,12 +15,16 @@
 #endif
 #include "common/fileio.h"
 #include "common/log.h"
+#include "pipeline/effective.h"
 #include "pipeline/options.h"
+#include "pipeline/version.h"
 
 void rs_skips_add(rs_skips *s, const char *stage, const char *what, const char *why)
 {
     char line[768];
-    int n = snprintf(line, sizeof line, "  %s: %s: %s\n", stage, what, why);
+    /* The driver's own skips are whole stages ("stage mesh"): they need no prefix. */
+    int n = strcmp(stage, "run") == 0 ? snprintf(line, sizeof line, "  %s: %s\n", what, why)
+                                      : snprintf(line, sizeof line, "  %s: %s: %s\n", stage, what, why);
     if (n <= 0) return;
     char *grown = realloc(s->lines, s->len + (size_t)n + 1);
     if (!grown) return;
@@ -230,9 +234,20 @@ const rs_stage_def *rs_stage_lookup(const rs_stage_def *table, const char *name)
     return NULL;
 }
 
+/* Removes the work folder this run created when nothing was written into it but the state
+ * folder: a failed first run leaves no empty folder behind (rmdir refuses anything else). */
+static void remove_if_created(const char *dir, int existed)
+{
+    char path[4096];
+    if (existed) return;
+    rmdir(rs_path_join(path, sizeof path, dir, ".rhoscan"));
+    rmdir(dir);
+}
+
 int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_skips *skips, rs_err *err)
 {
     char dir[4096], path[4096];
+    int existed = rs_config_path(cfg, "pipeline", "workdir", dir, sizeof dir) && access(dir, F_OK) == 0;
     if (rs_workdir(cfg, dir, sizeof dir, err) != 0) return -1;
     if (rs_mkdir_p(rs_path_join(path, sizeof path, dir, ".rhoscan"), err) != 0) return -1;
 
@@ -252,6 +267,7 @@ int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_skips *sk
     double wall = rs_now() - t0;
     if (rc != 0) {
         rs_json_free(rep.metrics);
+        remove_if_created(dir, existed);
         return -1;
     }
     rs_json_set_num(rep.metrics, "wall_time_s", wall);
@@ -272,15 +288,6 @@ int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_skips *sk
     free(state);
     if (rc == 0) rs_log_info("%s: done in %.2f s", def->name, wall);
     return rc;
-}
-
-static void stage_usage(const char *stage, FILE *out)
-{
-    fprintf(out,
-            "usage: rhoscan-%s [--set section.key=value]... [--print-config] [--quiet|--verbose] CONFIG\n"
-            "Runs the %s stage of rhoscan on the work folder named by CONFIG ([pipeline] workdir).\n"
-            "Options may stand before or after CONFIG; configs/KEYS.md lists every key.\n",
-            stage, stage);
 }
 
 int rs_stdout_check(const char *prog)
@@ -307,36 +314,88 @@ rs_config *rs_program_config(const char *path, const char *const *sets, int *exi
     return cfg;
 }
 
-enum { STAGE_SET, STAGE_PRINT_CONFIG, STAGE_QUIET, STAGE_VERBOSE, STAGE_HELP, STAGE_OPTIONS };
+enum { STAGE_SET, STAGE_PRINT_CONFIG, STAGE_QUIET, STAGE_VERBOSE, STAGE_HELP, STAGE_VERSION, STAGE_OPTIONS };
 static const rs_option stage_options[] = {
     [STAGE_SET] = {"set", "section.key=value", "override a config key (repeatable); configs/KEYS.md lists them"},
     [STAGE_PRINT_CONFIG] = {"print-config", NULL, "print the stage's config sections as in effect, run nothing"},
     [STAGE_QUIET] = {"quiet", NULL, "warnings and errors only"},
     [STAGE_VERBOSE] = {"verbose", NULL, "debugging messages too"},
     [STAGE_HELP] = {"help", NULL, "this text", 'h'},
+    [STAGE_VERSION] = {"version", NULL, "the version and git commit", 'V'},
     [STAGE_OPTIONS] = {NULL}};
 
-/* The stage's config sections as in effect on stdout. */
+static void stage_usage(const char *stage, FILE *out)
+{
+    fprintf(out,
+            "usage: rhoscan-%s [OPTIONS] CONFIG   (or: rhoscan %s [OPTIONS] CONFIG)\n"
+            "Runs the %s stage of rhoscan on the work folder named by CONFIG ([pipeline] workdir).\n"
+            "Options may stand before or after CONFIG; --NAME=VALUE works as --NAME VALUE.\n",
+            stage, stage, stage);
+    rs_options_print(out, stage_options);
+    fputs(RS_PATHS_NOTE, out);
+}
+
+/* The stage's config sections as in effect, each value with where it came from. */
 static int print_config(const rs_stage_def *def, const rs_config *cfg, const char *prog)
 {
-    char words[256];
-    snprintf(words, sizeof words, "%s", def->sections);
-    for (char *s = strtok(words, " "); s; s = strtok(NULL, " ")) {
-        char *text = rs_config_section_text(cfg, s);
-        if (text) fputs(text, stdout);
-        free(text);
-    }
+    rs_config_print_sections(cfg, def->sections, stdout);
     return rs_stdout_check(prog);
 }
 
+/* 1 when word is one of the space-separated words of list. */
+static int has_word(const char *list, const char *word)
+{
+    size_t n = strlen(word);
+    for (const char *w = list; w && (w = strstr(w, word)); w += n)
+        if ((w == list || w[-1] == ' ') && (w[n] == ' ' || w[n] == 0)) return 1;
+    return 0;
+}
+
+typedef struct {
+    const rs_config *cfg;
+    const char *missing_path;
+    const char *found; /* the input's name when it is the missing file */
+    char name[128];
+} missing_state;
+
+static void match_input(const char *name, void *user)
+{
+    missing_state *m = user;
+    char path[4096];
+    if (!m->found && strcmp(rs_work_path(m->cfg, name, path, sizeof path), m->missing_path) == 0) {
+        snprintf(m->name, sizeof m->name, "%s", name);
+        m->found = m->name;
+    }
+}
+
+void rs_stage_explain_missing(const rs_stage_def *def, const rs_stage_def *table, const rs_config *cfg, rs_err *err)
+{
+    if (!err || !err->file[0] || access(err->file, F_OK) == 0) return;
+    missing_state m = {cfg, err->file, NULL, ""};
+    each_word(def->inputs, match_input, &m);
+    if (!m.found) return;
+    const rs_stage_def *producer = NULL;
+    for (const rs_stage_def *d = table; d && d->name && !producer; d++)
+        if (has_word(d->outputs, m.found)) producer = d;
+    size_t len = strlen(err->msg);
+    if (producer)
+        snprintf(err->msg + len, sizeof err->msg - len,
+                 "; the %s stage writes %s: run `rhoscan run %s` (or `rhoscan %s %s`) first", producer->name, m.found,
+                 rs_config_file(cfg), producer->name, rs_config_file(cfg));
+    else
+        snprintf(err->msg + len, sizeof err->msg - len, "; an earlier stage writes %s: run `rhoscan run %s` first",
+                 m.found, rs_config_file(cfg));
+}
+
 /* Runs the stage and logs the summary of its skips; the exit code. */
-static int run_stage(const rs_stage_def *def, const rs_config *cfg)
+static int run_stage(const rs_stage_def *def, const rs_stage_def *table, const rs_config *cfg)
 {
     rs_err err;
     rs_err_clear(&err);
     rs_skips skips = {0};
     int rc = 0;
     if (rs_stage_execute(def, cfg, &skips, &err) != 0) {
+        rs_stage_explain_missing(def, table, cfg, &err);
         rs_log_error(&err);
         rc = err.kind ? (int)err.kind : 3;
     } else {
@@ -347,6 +406,11 @@ static int run_stage(const rs_stage_def *def, const rs_config *cfg)
 }
 
 int rs_stage_main(const rs_stage_def *def, int argc, char **argv)
+{
+    return rs_stage_main_of(def, NULL, argc, argv);
+}
+
+int rs_stage_main_of(const rs_stage_def *def, const rs_stage_def *table, int argc, char **argv)
 {
     const char *stage = def->name;
     char prog[128];
@@ -366,6 +430,10 @@ int rs_stage_main(const rs_stage_def *def, int argc, char **argv)
             stage_usage(stage, stdout);
             free(sets);
             return rs_stdout_check(prog);
+        case STAGE_VERSION:
+            printf("%s\n", rs_version());
+            free(sets);
+            return rs_stdout_check(prog);
         default:
             rs_opt_unexpected(&opt, prog);
             stage_usage(stage, stderr);
@@ -382,7 +450,7 @@ int rs_stage_main(const rs_stage_def *def, int argc, char **argv)
     rs_config *cfg = rs_program_config(opt.operand, sets, &rc);
     free(sets);
     if (!cfg) return rc;
-    rc = want_config ? print_config(def, cfg, prog) : run_stage(def, cfg);
+    rc = want_config ? print_config(def, cfg, prog) : run_stage(def, table, cfg);
     rs_config_free(cfg);
     return rc;
 }

@@ -81,5 +81,12 @@ rs_config *rs_program_config(const char *path, const char *const *sets, int *exi
  * --print-config, --quiet, --verbose, --help (pipeline/options.h); CONFIG anywhere among them.
  * Logs the summary of what the stage skipped. Returns the exit code. */
 int rs_stage_main(const rs_stage_def *def, int argc, char **argv);
+/* The same, for `rhoscan STAGE CONFIG`: table (the whole pipeline's, or NULL) names the stage
+ * that writes a missing input in the error. */
+int rs_stage_main_of(const rs_stage_def *def, const rs_stage_def *table, int argc, char **argv);
+
+/* When err names a work-folder input of def that does not exist, appends which stage of table
+ * writes it (table may be NULL) and what to run first. */
+void rs_stage_explain_missing(const rs_stage_def *def, const rs_stage_def *table, const rs_config *cfg, rs_err *err);
 
 #endif

@@ -1,6 +1,8 @@
 /* testutil: helpers shared by the test programs (see testutil.h). */
 #include "tests/testutil.h"
 
+#include <cjson/cJSON.h>
+
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -128,35 +130,82 @@ const char *rs_test_read_text(const char *path)
     return buf;
 }
 
+static cJSON *json_held;   /* the last document parsed: one at a time, freed by the next */
+
+const cJSON *rs_test_json_text(const char *text)
+{
+    cJSON_Delete(json_held);
+    json_held = cJSON_Parse(text);
+    if (!json_held) fail_msg("not JSON (cJSON stops at: %.40s)", cJSON_GetErrorPtr() ? cJSON_GetErrorPtr() : "?");
+    return json_held;
+}
+
+const cJSON *rs_test_json_file(const char *path)
+{
+    return rs_test_json_text(rs_test_read_text(path));
+}
+
+/* The first node below node, depth first, at the end of the path key ("a/b": a b inside an a;
+ * every a is tried in turn). */
+static const cJSON *find_path(const cJSON *node, const char *key)
+{
+    size_t n = strcspn(key, "/");
+    for (const cJSON *c = node ? node->child : NULL; c; c = c->next) {
+        if (c->string && strlen(c->string) == n && strncmp(c->string, key, n) == 0) {
+            const cJSON *end = key[n] ? find_path(c, key + n + 1) : c;
+            if (end) return end;
+        }
+        const cJSON *below = find_path(c, key);
+        if (below) return below;
+    }
+    return NULL;
+}
+
+const cJSON *rs_test_json_find(const cJSON *root, const char *key)
+{
+    return *key ? find_path(root, key) : root;
+}
+
+static const cJSON *must_find(const cJSON *root, const char *key)
+{
+    const cJSON *v = rs_test_json_find(root, key);
+    if (!v) fail_msg("JSON has no key \"%s\"", key);
+    return v;
+}
+
+double rs_test_json_num(const cJSON *root, const char *key)
+{
+    const cJSON *v = must_find(root, key);
+    if (!cJSON_IsNumber(v)) fail_msg("JSON key \"%s\" is not a number", key);
+    return v->valuedouble;
+}
+
+const char *rs_test_json_str(const cJSON *root, const char *key)
+{
+    const cJSON *v = must_find(root, key);
+    if (!cJSON_IsString(v)) fail_msg("JSON key \"%s\" is not a string", key);
+    return v->valuestring;
+}
+
+void rs_test_json_vec3(const cJSON *root, const char *key, double v[3])
+{
+    const cJSON *a = must_find(root, key);
+    if (!cJSON_IsArray(a) || cJSON_GetArraySize(a) < 3) fail_msg("JSON key \"%s\" is not an array of 3", key);
+    for (int k = 0; k < 3; k++) {
+        const cJSON *x = cJSON_GetArrayItem(a, k);
+        if (!cJSON_IsNumber(x)) fail_msg("JSON key \"%s\"[%d] is not a number", key, k);
+        v[k] = x->valuedouble;
+    }
+}
+
 double rs_test_json_number(const char *path, const char *key)
 {
-    const char *text = rs_test_read_text(path);
-    char pat[128];
-    snprintf(pat, sizeof pat, "\"%s\": ", key);
-    const char *p = strstr(text, pat);
-    assert_non_null(p);
-    return strtod(p + strlen(pat), NULL);
+    return rs_test_json_num(rs_test_json_file(path), key);
 }
 
 void rs_test_json_rgb(const char *path, const char *key, double v[3])
 {
-    const char *p = rs_test_read_text(path);
-    char pat[128];
-    for (const char *k = key; p && *k;) {
-        size_t n = strcspn(k, "/");
-        snprintf(pat, sizeof pat, "\"%.*s\"", (int)n, k);
-        p = strstr(p, pat);
-        k += n + (k[n] == '/');
-    }
-    assert_non_null(p);
-    p = strchr(p, '[');
-    assert_non_null(p);
-    for (int ch = 0; ch < 3; ch++) {
-        char *end;
-        v[ch] = strtod(p + 1, &end);
-        assert_true(end != p + 1);
-        p = end;
-    }
+    rs_test_json_vec3(rs_test_json_file(path), key, v);
 }
 
 void rs_test_rhoscan(const char *dir, const char *sets)

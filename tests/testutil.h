@@ -22,11 +22,23 @@ void rs_test_write(const char *path, const char *text);
 /* The whole text file (at most 64 KB) in a static buffer, valid until the next call; fails the
  * test when it cannot be read. */
 const char *rs_test_read_text(const char *path);
-/* The number after "key": in a stage's JSON file (its first occurrence); fails the test when
- * the key is absent. */
+/* JSON read with cJSON (Debian's libcjson), never by searching text. A key is found where it
+ * first stands in the document (depth first, in file order); "outer/inner" finds inner's first
+ * occurrence inside outer's value. The helpers fail the test when a key is absent. */
+struct cJSON;
+/* path's JSON, parsed; owned by the test utilities until the next call. */
+const struct cJSON *rs_test_json_file(const char *path);
+/* text parsed; owned by the test utilities until the next call. */
+const struct cJSON *rs_test_json_text(const char *text);
+/* The value of key under root, NULL when absent. */
+const struct cJSON *rs_test_json_find(const struct cJSON *root, const char *key);
+/* The number, string or three-number array of key under root (failing when absent or of
+ * another type); the string is root's. */
+double rs_test_json_num(const struct cJSON *root, const char *key);
+const char *rs_test_json_str(const struct cJSON *root, const char *key);
+void rs_test_json_vec3(const struct cJSON *root, const char *key, double v[3]);
+/* The same straight from a stage's JSON file. */
 double rs_test_json_number(const char *path, const char *key);
-/* The three numbers of the array after "key" in a stage's JSON file; key may be "outer/inner"
- * (inner's first occurrence after outer's). Fails the test when a key or a number is absent. */
 void rs_test_json_rgb(const char *path, const char *key, double v[3]);
 
 /* RHOSCAN_SHARED_DIR when it exists. When it does not: prints why and exits 77 (ctest skip),

@@ -2,7 +2,7 @@
 # Installs the Debian 12 packages rhoscan builds and tests with (run as root).
 # Usage: tools/setup-debian.sh [--tests]   (--tests adds what the test suites need)
 set -eu
-pkgs="build-essential cmake pkg-config libembree-dev libtbb-dev libopenexr-dev libstb-dev zlib1g-dev libinih-dev libopencv-dev libpcl-dev"
+pkgs="build-essential cmake pkg-config libembree-dev libtbb-dev libopenexr-dev libstb-dev zlib1g-dev libinih-dev libcjson-dev libopencv-dev libpcl-dev"
 # libpcl-dev: point-cloud cleaning, normals and surface reconstruction (common/pcl_bridge.cpp).
 # libopencv-dev: rig files, TIFF frames and HDR merging in the calib stage (calib/cv_adapter.cpp).
 if [ "${1:-}" = "--tests" ]; then

@@ -387,7 +387,7 @@ int rs_calib_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     }
     if (!have_rig && !have_pairs && !rs_config_has(cfg, "colmap", "model") &&
         !rs_config_has(cfg, "capture", "refine_edges"))
-        rs_report_skip(rep, "calib",
+        rs_report_skip(rep, "calibration",
                        "no [rig] file, no [capture] correspondences and no [colmap] model: nothing to "
                        "calibrate");
     return 0;

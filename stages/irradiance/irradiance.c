@@ -210,7 +210,7 @@ static void log_sky_map(const rs_irradiance_opts *o, const rs_irradiance_state *
                     info->sky_pano_scale[2], info->sky_overlap_sr);
     if (info->fill.cv_folds)
         rs_log_info("irradiance: held-out sky blocks (%d): relative error of their light filled by rows %.3f, by the "
-                    "model %.3f; sun %s",
+                    "model %.3f; the sun placed from: %s",
                     info->fill.cv_folds, info->fill.cv_rel_row, info->fill.cv_rel_model,
                     rs_irradiance_sun_source_name(info->fill.sun_source));
     if (s->so.fill.method == RS_SKYFILL_MODEL && !info->fill.fit_samples)

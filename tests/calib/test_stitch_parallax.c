@@ -2,6 +2,7 @@
  * whose centres sit 6 cm off the rig centre looks at a room 2 to 5 m away; frames ray-cast from
  * each camera's true centre, stitched with and without the model, against the panorama cast from
  * the rig centre, and the per-camera gains recovered from the overlaps. */
+#include <cjson/cJSON.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -320,11 +321,10 @@ static double stage_psnr(const fixture *f, const char *dir, const char *extra, c
     char *rep = NULL;
     size_t size;
     assert_int_equal(rs_read_file(rs_test_path(dir, "out/calib.json"), &rep, &size, &err), 0);
-    int yes = strstr(rep, "\"parallax_corrected\": true") != NULL,
-        no = strstr(rep, "\"parallax_corrected\": false") != NULL;
+    const struct cJSON *flag = rs_test_json_find(rs_test_json_text(rep), "parallax_corrected");
     free(rep);
-    assert_true(yes != no);
-    *corrected = yes;
+    assert_true(cJSON_IsBool(flag));
+    *corrected = cJSON_IsTrue(flag);
     double share, p = psnr(f, pano, pano, &share);
     rs_image_free(pano);
     return p;

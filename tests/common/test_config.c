@@ -225,7 +225,10 @@ static void test_capture_sections(void **state)
     assert_true(p[0] == 7 && p[1] == 8 && p[2] == 9);
     assert_int_equal(rs_config_reals(cfg, "capture", "position", p), -1); /* unset, no default */
     char path[RS_CFG_PATH_MAX];
-    assert_string_equal(rs_config_path(cfg, "capture.north", "panorama", path, sizeof path), "/base/n2.exr");
+    char cwd[RS_CFG_PATH_MAX], want[RS_CFG_PATH_MAX + 16];
+    assert_non_null(getcwd(cwd, sizeof cwd));
+    snprintf(want, sizeof want, "%s/n2.exr", strcmp(cwd, "/") ? cwd : ""); /* --set: the current folder's */
+    assert_string_equal(rs_config_path(cfg, "capture.north", "panorama", path, sizeof path), want);
     assert_string_equal(rs_config_path(cfg, "capture", "panorama", path, sizeof path), "/base/main.exr");
     assert_null(rs_config_path(cfg, "capture.south", "panorama", path, sizeof path));
     assert_false(rs_config_has(cfg, "capture.south", "position"));
@@ -298,7 +301,11 @@ static void test_paths(void **state)
                   "scan = a.ptx   ./b/c.ply /abs/d.ply\n[capture]\npanorama = /x/../p.exr\n");
     const char *ov[] = {"pipeline.workdir=work", NULL};
     rs_err err;
+    char cwd[RS_CFG_PATH_MAX];
+    assert_non_null(getcwd(cwd, sizeof cwd));
+    assert_int_equal(chdir(dir), 0); /* a --set path is relative to where the command was typed */
     rs_config *cfg = rs_config_load(file, ov, &err);
+    assert_int_equal(chdir(cwd), 0);
     assert_non_null(cfg);
     assert_string_equal(rs_config_dir(cfg), sub);
     snprintf(want, sizeof want, "%s/meshes/m.ply", dir);
@@ -310,12 +317,14 @@ static void test_paths(void **state)
     assert_string_equal(rs_config_path_at(cfg, "ingest", "scan", 1, path, sizeof path), want);
     assert_string_equal(rs_config_path_at(cfg, "ingest", "scan", 2, path, sizeof path), "/abs/d.ply");
     assert_string_equal(rs_config_path(cfg, "capture", "panorama", path, sizeof path), "/p.exr");
-    snprintf(want, sizeof want, "%s/work", sub); /* --set paths: relative to the config too */
+    snprintf(want, sizeof want, "%s/work", dir); /* the current folder's, not the config's (sub) */
     assert_string_equal(rs_config_path(cfg, "pipeline", "workdir", path, sizeof path), want);
+    assert_int_equal(rs_config_origin(cfg, "pipeline", "workdir"), RS_CFG_FROM_SET);
+    assert_int_equal(rs_config_origin(cfg, "mesh", "input_mesh"), RS_CFG_FROM_FILE);
+    assert_int_equal(rs_config_origin(cfg, "irradiance", "samples"), RS_CFG_FROM_DEFAULT);
+    assert_int_equal(rs_config_origin(cfg, "mesh", "facet_size"), RS_CFG_UNSET);
     rs_config_free(cfg);
     /* load_string: relative base_dir is taken from the current folder. */
-    char cwd[RS_CFG_PATH_MAX];
-    assert_non_null(getcwd(cwd, sizeof cwd));
     cfg = rs_config_load_string("[mesh]\ninput_mesh = m.ply\n", "s", "rel/", NULL, &err);
     assert_non_null(cfg);
     snprintf(want, sizeof want, "%s/rel/m.ply", strcmp(cwd, "/") ? cwd : "");

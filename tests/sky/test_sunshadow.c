@@ -331,12 +331,10 @@ static void test_searched_sun(void **state)
     rs_test_rhoscan(dir, "");
     const char *json = rs_test_path(dir, "work/irradiance.json");
     double dni = rs_test_json_number(json, "direct_normal_irradiance");
-    const char *buf = rs_test_read_text(json);
-    assert_non_null(strstr(buf, "\"direction_from\": \"shadows\""));
-    const char *p = strstr(strstr(buf, "\"explicit_sun\""), "\"direction\": [");
-    assert_non_null(p);
+    const struct cJSON *doc = rs_test_json_file(json);
+    assert_string_equal(rs_test_json_str(doc, "direction_from"), "shadows");
     double d[3];
-    assert_int_equal(sscanf(p, "\"direction\": [%lf, %lf, %lf]", &d[0], &d[1], &d[2]), 3);
+    rs_test_json_vec3(doc, "explicit_sun/direction", d);
     double el = SUN_EL_DEG * M_PI / 180, ang = acos(fmin(1, d[0] * cos(el) + d[2] * sin(el))) * 180 / M_PI;
     double s1 = given_sunlit_ground(m, esky1), s2 = sunlit_ground(dir, m);
     print_message("searched sun %.2f deg from the true one, DNI %.4f (true %g); sunlit ground E_sky %.4f against "
@@ -362,18 +360,16 @@ static void test_searched_sun_refits_model(void **state)
     rs_mesh *m = hidden_sun_scene(dir, DNI, 0, 10 * M_PI / 180, 1, &esky1);
     rs_test_rhoscan(dir, "--set sky.fill=model");
     const char *json = rs_test_path(dir, "work/irradiance.json");
-    const char *buf = rs_test_read_text(json);
     double off = rs_test_json_number(json, "search_off_sky_estimate_deg");
     double dni = rs_test_json_number(json, "direct_normal_irradiance");
-    const char *p = strstr(buf, "\"sun_direction\": [");
-    assert_non_null(p);
+    const struct cJSON *doc = rs_test_json_file(json);
     double d[3];
-    assert_int_equal(sscanf(p, "\"sun_direction\": [%lf, %lf, %lf]", &d[0], &d[1], &d[2]), 3);
+    rs_test_json_vec3(doc, "sun_direction", d);
     double el = SUN_EL_DEG * M_PI / 180, ang = acos(fmin(1, d[0] * cos(el) + d[2] * sin(el))) * 180 / M_PI;
     print_message("model fill: the glow put the sun %.1f deg from the searched one; the refitted model's sun is "
                   "%.2f deg from the true one; DNI %.4f (true %g)\n",
                   off, ang, dni, DNI);
-    assert_non_null(strstr(buf, "\"sun_source\": \"shadows\""));
+    assert_string_equal(rs_test_json_str(doc, "sun_source"), "shadows");
     assert_true(off > 4); /* the first fit's sun was elsewhere: the refit moved it */
     assert_true(ang < 2);
     assert_true(fabs(dni - DNI) < 0.02 * DNI);

@@ -1,10 +1,12 @@
 /* The programs' behaviour on bad input: a clear message naming the file, the line or key, and
  * what was expected, with a non-zero exit; and, for panorama pixels that are not finite, a
  * warning and finite results. */
+#include <cjson/cJSON.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 #include "common/image.h"
 #include "tests/fixtures.h"
 #include "tests/meshgen.h"
@@ -189,7 +191,13 @@ static void test_reruns(void **state)
     assert_int_equal(run(cfg, NULL, &out), 0);
     free(out);
     assert_int_equal(run(cfg, NULL, &out), 0);
-    assert_non_null(strstr(out, "0 stages run"));
+    assert_non_null(strstr(out, "every stage was up to date, nothing run"));
+    /* Each skipped stage is said once as it is skipped, and once in the summary, unprefixed. */
+    const char *first = strstr(out, "rhoscan: skipped stage mesh: ");
+    assert_non_null(first);
+    assert_null(strstr(first + 1, "rhoscan: skipped stage mesh: "));
+    assert_non_null(strstr(out, "\n  stage mesh: inputs and config sections"));
+    assert_null(strstr(out, "run: stage"));
     free(out);
     assert_int_equal(run(cfg, "--set reflectance.method=direct", &out), 0);
     assert_non_null(strstr(out, "skipped stage observe"));
@@ -251,8 +259,97 @@ static void test_run_options(void **state)
     free(out);
 }
 
+/* Every help and version form exits 0 and prints to stdout; a stage runs as `rhoscan STAGE`. */
+static void test_help_version_and_stage_commands(void **state)
+{
+    (void)state;
+    static const char *const forms[] = {"--help", "-h", "help", "help mesh", "run --help", "run -h",
+                                        "mesh --help", "render -h", "--version", "-V", "version", "run --version",
+                                        "irradiance --version"};
+    char cmd[4096], *out = NULL;
+    for (size_t k = 0; k < sizeof forms / sizeof *forms; k++) {
+        snprintf(cmd, sizeof cmd, "'%s' %s 2>/dev/null", prog("rhoscan"), forms[k]);
+        int rc = rs_test_run(cmd, &out);
+        if (rc != 0 || !strstr(out, strstr(forms[k], "ersion") || !strcmp(forms[k], "-V") ? "rhoscan 0" : "usage:"))
+            fail_msg("rhoscan %s: exit %d, printed '%.200s'", forms[k], rc, out);
+        free(out);
+    }
+    snprintf(cmd, sizeof cmd, "'%s' --help", prog("rhoscan"));
+    assert_int_equal(rs_test_run(cmd, &out), 0);
+    assert_non_null(strstr(out, "rhoscan STAGE [OPTIONS] CONFIG"));
+    assert_non_null(strstr(out, "given with --set, to the current folder"));
+    assert_non_null(strstr(out, "--print-config"));
+    free(out);
+    snprintf(cmd, sizeof cmd, "'%s' frobnicate x.ini", prog("rhoscan"));
+    assert_int_equal(rs_test_run(cmd, &out), 1);
+    assert_non_null(strstr(out, "unknown command 'frobnicate'"));
+    free(out);
+
+    const char *dir = rs_test_tmpdir("cli");
+    write_scene(dir, 128, 64, 0);
+    const char *cfg = write_config(dir, NULL);
+    snprintf(cmd, sizeof cmd, "'%s' ingest '%s'", prog("rhoscan"), cfg);
+    assert_int_equal(rs_test_run(cmd, &out), 0);
+    free(out);
+    assert_int_equal(access(rs_test_path(dir, "work/ingest.json"), F_OK), 0);
+    assert_int_not_equal(access(rs_test_path(dir, "work/mesh.json"), F_OK), 0);   /* that stage alone */
+    rs_test_rmtree(dir);
+}
+
+/* --print-config on run: every section in effect, each value with where it came from; it runs
+ * nothing. metrics.json (read with cJSON) carries the same, and the --set overrides. */
+static void test_effective_config(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("cli");
+    write_scene(dir, 128, 64, 0);
+    const char *cfg = write_config(dir, NULL);
+    char *out = NULL;
+    assert_int_equal(run(cfg, "--print-config --set irradiance.seed=5 2>/dev/null", &out), 0);
+    assert_non_null(strstr(out, "[irradiance]\nsamples = 64   ; file\n"));
+    assert_non_null(strstr(out, "seed = 5   ; --set\n"));
+    assert_non_null(strstr(out, "method = interreflection   ; default\n"));
+    free(out);
+    assert_int_not_equal(access(rs_test_path(dir, "work"), F_OK), 0);
+    assert_int_equal(run(cfg, "--set=irradiance.seed=5", &out), 0);
+    free(out);
+    const struct cJSON *m = rs_test_json_file(rs_test_path(dir, "work/metrics.json"));
+    assert_string_equal(rs_test_json_str(m, "effective_config/irradiance/samples/from"), "file");
+    assert_string_equal(rs_test_json_str(m, "effective_config/reflectance/method/value"), "interreflection");
+    assert_string_equal(rs_test_json_str(m, "effective_config/irradiance/seed/from"), "--set");
+    const struct cJSON *set = rs_test_json_find(m, "set");
+    assert_true(cJSON_IsArray(set) && cJSON_GetArraySize(set) == 1);
+    assert_string_equal(cJSON_GetArrayItem(set, 0)->valuestring, "irradiance.seed=5");
+    rs_test_rmtree(dir);
+}
+
+/* A stage whose work-folder input is missing says which stage writes it and what to run; a
+ * failed first run leaves no work folder behind. */
+static void test_missing_inputs(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("cli");
+    write_scene(dir, 128, 64, 0);
+    const char *cfg = write_config(dir, NULL);
+    char cmd[4096], *out = NULL;
+    snprintf(cmd, sizeof cmd, "'%s' render '%s'", prog("rhoscan"), cfg);
+    assert_int_equal(rs_test_run(cmd, &out), 1);
+    assert_non_null(strstr(out, "albedo.ply: cannot open"));
+    assert_non_null(strstr(out, "the reflectance stage writes albedo.ply: run `rhoscan run"));
+    free(out);
+    assert_int_not_equal(access(rs_test_path(dir, "work"), F_OK), 0);
+    const char *bad = rs_fx_write_scene_ini(dir, "0 -4 1.5", 64, 16, "[ingest]\nscan = missing.ptx\n");
+    rs_test_write(bad, "[pipeline]\nworkdir = fresh\n[ingest]\nscan = missing.ptx\n[mesh]\nfacet_size = 0.3\n");
+    assert_int_equal(run(bad, NULL, &out), 1);
+    assert_non_null(strstr(out, "missing.ptx: cannot open"));
+    free(out);
+    assert_int_not_equal(access(rs_test_path(dir, "fresh"), F_OK), 0);
+    rs_test_rmtree(dir);
+}
+
 RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_misspelt_key), cmocka_unit_test(test_bad_value_and_rotation),
              cmocka_unit_test(test_missing_file), cmocka_unit_test(test_truncated_ptx),
              cmocka_unit_test(test_truncated_ply), cmocka_unit_test(test_pano_not_2_to_1),
              cmocka_unit_test(test_nonfinite_pixels), cmocka_unit_test(test_reruns), cmocka_unit_test(test_options),
-             cmocka_unit_test(test_run_options))
+             cmocka_unit_test(test_run_options), cmocka_unit_test(test_help_version_and_stage_commands),
+             cmocka_unit_test(test_effective_config), cmocka_unit_test(test_missing_inputs))

@@ -48,13 +48,9 @@ static int run(const char *dir, const char *region, char **out)
 /* The number after "key": in the JSON text (the first occurrence after "grey_card"). */
 static double json_num(const char *json, const char *key)
 {
-    const char *card = strstr(json, "\"grey_card\"");
-    assert_non_null(card);
-    char pat[128];
-    snprintf(pat, sizeof pat, "\"%s\":", key);
-    const char *p = strstr(card, pat);
-    assert_non_null(p);
-    return strtod(p + strlen(pat), NULL);
+    char path[128];
+    snprintf(path, sizeof path, "grey_card/%s", key);
+    return rs_test_json_num(rs_test_json_text(json), path);
 }
 
 static const char *read_json(const char *dir)

@@ -205,10 +205,9 @@ static rs_config *config(const char *dir, const char *text)
 /* A number from a report (the json module has no getter: look it up in the text). */
 static double metric(const rs_report *rep, const char *key)
 {
-    char *text = rs_json_text(rep->metrics), pat[128];
-    snprintf(pat, sizeof pat, "\"%s\": ", key);
-    char *at = strstr(text, pat);
-    double v = at ? strtod(at + strlen(pat), NULL) : NAN;
+    char *text = rs_json_text(rep->metrics);
+    const struct cJSON *at = rs_test_json_find(rs_test_json_text(text), key);
+    double v = at ? rs_test_json_num(at, "") : NAN;
     free(text);
     return v;
 }

@@ -158,7 +158,7 @@ static void put_stats(rs_json *parent, const char *key, const ev *e, const uint8
             sb += e->sgn[f] * e->area[f];
         }
     if (n == 0 || !(w > 0)) {
-        rs_json_set_raw(parent, key, "null");
+        rs_json_set_parsed(parent, key, "null");
         return;
     }
     g_sort_key = e->rel;
