@@ -247,6 +247,13 @@ static int solve(const refl_in *in, refl_out *out)
     return 0;
 }
 
+/* A diffuse surface reflects at most what reaches it: an albedo above 1 says the light was
+ * underestimated there (a wrong sky, exposure or pose), not that the wall is that bright. */
+static int above_one(const refl_out *out, size_t f)
+{
+    return out->rho[3 * f] > 1 || out->rho[3 * f + 1] > 1 || out->rho[3 * f + 2] > 1;
+}
+
 static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in *in, const refl_out *out, rs_err *err)
 {
     size_t nf = in->nf;
@@ -288,6 +295,8 @@ static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in
     if (!rs_ply_add_scalar(faces, "observed", RS_PLY_UINT8, tmp)) goto oom;
     for (size_t i = 0; i < nf; i++) tmp[i] = out->estimable[i];
     if (!rs_ply_add_scalar(faces, "estimable", RS_PLY_UINT8, tmp)) goto oom;
+    for (size_t i = 0; i < nf; i++) tmp[i] = out->estimable[i] && above_one(out, i);
+    if (!rs_ply_add_scalar(faces, "albedo_above_one", RS_PLY_UINT8, tmp)) goto oom;
     static const char *const rgbnames[3] = {"red", "green", "blue"};
     for (int ch = 0; ch < 3; ch++) {
         for (size_t i = 0; i < nf; i++) {
@@ -303,6 +312,8 @@ static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in
                        out->fill_class[0][2], out->fill_class[1][0], out->fill_class[1][1], out->fill_class[1][2],
                        out->fill_class[2][0], out->fill_class[2][1], out->fill_class[2][2]);
     rs_ply_add_comment(ply, "rhoscan_fill_albedo %.9g %.9g %.9g", out->fill[0], out->fill[1], out->fill[2]);
+    rs_ply_add_comment(ply, "red green blue: the albedo clipped to [0, 1] and sRGB-encoded, 8 bit, for viewers; "
+                            "albedo_r/g/b and every other float property are linear");
     rs_ply_add_comment(ply,
                        "albedo_sigma_rel: standard (1 sigma) relative uncertainty of the albedo = sqrt(%.4g^2 + "
                        "radiance_sigma_rel^2 + (irradiance_sky_sigma^2 + irradiance_mc_sigma^2) / (E_sky + G)^2); "
@@ -466,6 +477,7 @@ typedef struct {
     int paper;                            /* the paper's kernel was built: */
     double paper_pairs;                   /*   segment tests run */
     size_t observed, estimable, diverged; /* facets; diverged: paper rows past pi */
+    size_t above_one;                     /* estimable facets with a channel's albedo above 1 */
 } refl_counts;
 
 /* Each observed facet's pool of plane neighbours (pool.h). */
@@ -559,6 +571,7 @@ static void count_facets(const refl_in *in, const refl_out *out, refl_counts *n)
         n->estimable += out->estimable[f];
         if (in->method == RS_REFL_PAPER && in->observed[f] && !out->estimable[f] && paper_row_sum(in, f) > M_PI)
             n->diverged++;
+        n->above_one += out->estimable[f] && above_one(out, f);
     }
 }
 
@@ -574,6 +587,12 @@ static void report_reflectance(rs_report *rep, const refl_in *in, const refl_out
     rs_json_set_int(rep->metrics, "observed", (long long)n->observed);
     rs_json_set_int(rep->metrics, "estimable", (long long)n->estimable);
     rs_json_set_int(rep->metrics, "paper_rows_diverged", (long long)n->diverged);
+    rs_json_set_int(rep->metrics, "albedo_above_one", (long long)n->above_one);
+    if (n->above_one)
+        rs_log_warn("reflectance: %zu estimable facets have an albedo above 1, impossible for a diffuse surface: "
+                    "the light there is underestimated (check the sky, the exposure and the pose); albedo.ply flags "
+                    "them (albedo_above_one = 1)",
+                    n->above_one);
     rs_json_set_int(rep->metrics, "fill_iterations", out->iterations);
     rs_json *fill = rs_json_set_arr(rep->metrics, "fill_albedo");
     for (int ch = 0; ch < 3; ch++) rs_json_push_num(fill, out->fill[ch]);

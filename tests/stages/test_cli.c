@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
+#include "common/faceprop.h"
 #include "common/image.h"
 #include "tests/fixtures.h"
 #include "tests/meshgen.h"
@@ -312,7 +313,31 @@ static void test_effective_config(void **state)
     free(out);
     assert_int_not_equal(access(rs_test_path(dir, "work"), F_OK), 0);
     assert_int_equal(run(cfg, "--set=irradiance.seed=5", &out), 0);
+    /* A uniform 0.5 everywhere makes the walls brighter than their sky allows: flagged, counted,
+     * warned about; the 8-bit colours' encoding is stated in albedo.ply's header. */
+    double above = rs_test_json_number(rs_test_path(dir, "work/reflectance.json"), "albedo_above_one");
+    assert_true(above > 0);
+    assert_non_null(strstr(out, "have an albedo above 1, impossible for a diffuse surface"));
     free(out);
+    rs_err err;
+    rs_ply *ply = rs_ply_read(rs_test_path(dir, "work/albedo.ply"), &err);
+    assert_non_null(ply);
+    size_t nf = rs_ply_find_element(ply, "face")->count, flagged = 0;
+    double *flag = malloc(nf * sizeof *flag), *alb = malloc(3 * nf * sizeof *alb), *est = malloc(nf * sizeof *est);
+    assert_int_equal(rs_faceprop_get(ply, "albedo.ply", "albedo_above_one", nf, flag, &err), 0);
+    assert_int_equal(rs_faceprop_get(ply, "albedo.ply", "estimable", nf, est, &err), 0);
+    assert_int_equal(rs_faceprop_get_rgb(ply, "albedo.ply", "albedo", nf, alb, &err), 0);
+    for (size_t i = 0; i < nf; i++) {
+        int over = est[i] > 0 && (alb[3 * i] > 1 || alb[3 * i + 1] > 1 || alb[3 * i + 2] > 1);
+        assert_int_equal(flag[i] > 0, over);
+        flagged += over;
+    }
+    assert_int_equal(flagged, (size_t)above);
+    free(flag);
+    free(alb);
+    free(est);
+    rs_ply_free(ply);
+    assert_non_null(strstr(rs_test_read_text(rs_test_path(dir, "work/albedo.ply")), "sRGB-encoded, 8 bit"));
     const struct cJSON *m = rs_test_json_file(rs_test_path(dir, "work/metrics.json"));
     assert_string_equal(rs_test_json_str(m, "effective_config/irradiance/samples/from"), "file");
     assert_string_equal(rs_test_json_str(m, "effective_config/reflectance/method/value"), "interreflection");
