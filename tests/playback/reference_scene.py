@@ -89,7 +89,9 @@ def main():
     ap.add_argument('--digests', help='compare every output of both runs with these digests (digests.py)')
     ap.add_argument('--record-digests', action='store_true', help='write --digests instead')
     ARGS = ap.parse_args()
-    scene_dir = os.path.join(ARGS.shared, 'reference', ARGS.scene)
+    # Normalised: the records name files by the path the config gives, and the digests must not
+    # depend on how the shared folder was reached (CMake's default is SOURCE/../shared).
+    scene_dir = os.path.normpath(os.path.abspath(os.path.join(ARGS.shared, 'reference', ARGS.scene)))
     if not ARGS.shared or not os.path.isdir(scene_dir):
         skip_or_fail('reference scene %s is missing' % scene_dir)
     tmp = ARGS.keep or tempfile.mkdtemp(prefix='rhoscan-ref-')
