@@ -46,11 +46,16 @@ size_t rs_cloud_unorganized(const rs_cloud *c);
  * not needed. Done in double before any float geometry (PCL, Embree, mesh.ply). */
 int rs_cloud_recentre(rs_cloud *c, double limit_m);
 
+/* Coordinates read from text and PCD clouds beyond this (m) are refused: no scan reaches that far,
+ * and the float geometry after recentring could not hold it. */
+#define RS_CLOUD_MAX_M 1e9
+
 /* Reads an XYZ/CSV text cloud: one point per line, numbers separated by white space, commas
  * or semicolons; lines starting with # or // and a first line that is not numeric (a header)
  * are skipped. columns names each column in order: x y z intensity r g b (or red green blue),
  * nx ny nz and "-" (ignored); NULL means "x y z". Colours above 1 anywhere are 0..255, else
- * 0..1. Errors name the file, line and column. Gives an unorganized cloud. */
+ * 0..1 (above 255 is an error); coordinates up to RS_CLOUD_MAX_M, intensities within the float
+ * range. Errors name the file, line and column. Gives an unorganized cloud. */
 rs_cloud *rs_cloud_read_text(const char *path, const char *columns, rs_err *err);
 
 /* Leica PTX with one or more scans (DESIGN.md section 3): the 4x4 matrix (row-vector form,

@@ -3,6 +3,7 @@
 #include "common/cloud.h"
 
 #include <ctype.h>
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -129,16 +130,29 @@ rs_cloud *rs_cloud_read_text(const char *path, const char *columns, rs_err *err)
         }
         size_t i = c->npoints++;
         for (int k = 0; k < ncols; k++) {
+            if ((kind[k] == COL_X || kind[k] == COL_Y || kind[k] == COL_Z) && !(fabs(v[k]) <= RS_CLOUD_MAX_M)) {
+                rs_err_set(err, RS_ERR_INPUT, path, line, "column %d: coordinate %g; expected -%g to %g (m)", k + 1,
+                           v[k], RS_CLOUD_MAX_M, RS_CLOUD_MAX_M);
+                goto fail;
+            }
             switch (kind[k]) {
             case COL_X: c->xyz[3 * i] = v[k]; break;
             case COL_Y: c->xyz[3 * i + 1] = v[k]; break;
             case COL_Z: c->xyz[3 * i + 2] = v[k]; break;
-            case COL_I: c->intensity[i] = (float)v[k]; break;
+            case COL_I:
+                if (!(fabs(v[k]) <= FLT_MAX)) { /* stored as float */
+                    rs_err_set(err, RS_ERR_INPUT, path, line,
+                               "column %d: intensity %g; expected a number within the float range", k + 1, v[k]);
+                    goto fail;
+                }
+                c->intensity[i] = (float)v[k];
+                break;
             case COL_R:
             case COL_G:
             case COL_B:
-                if (v[k] < 0) {
-                    rs_err_set(err, RS_ERR_INPUT, path, line, "column %d: colour %g; expected >= 0", k + 1, v[k]);
+                if (v[k] < 0 || v[k] > 255) {
+                    rs_err_set(err, RS_ERR_INPUT, path, line, "column %d: colour %g; expected 0 to 255 (or 0 to 1)",
+                               k + 1, v[k]);
                     goto fail;
                 }
                 rgbf[3 * i + kind[k] - COL_R] = (float)v[k];
