@@ -104,24 +104,27 @@ int rs_pairs_parse(const char *data, size_t size, const char *path, int width, i
         while (ce > s && (ce[-1] == ' ' || ce[-1] == '\t' || ce[-1] == '\r')) ce--;
         if (s == ce) continue;
         double v[5];
-        /* Five numbers and separators fit in 255 characters; a longer line is not a pair. */
-        int got = (size_t)(ce - s) < sizeof line
-            ? (snprintf(line, sizeof line, "%.*s", (int)(ce - s), s), pair_numbers(line, v))
-            : -1;
+        /* The line NUL-terminated: on the stack, or on the heap when long (padded with blanks). */
+        size_t len = (size_t)(ce - s);
+        char *text = len < sizeof line ? line : malloc(len + 1);
+        if (!text) {
+            rs_err_set(err, RS_ERR_SYSTEM, path, lineno, "out of memory");
+            goto out;
+        }
+        memcpy(text, s, len);
+        text[len] = 0;
+        int got = pair_numbers(text, v);
+        if (text != line) free(text);
         if (got != 5) {
             rs_err_set(err, RS_ERR_INPUT, path, lineno, "\"%.*s\": expected `column row X Y Z` (five numbers)",
                        (int)(ce - s) > 80 ? 80 : (int)(ce - s), s);
             goto out;
         }
+        static const char *const field[5] = {"the column", "the row", "X", "Y", "Z"};
         for (int k = 0; k < 5; k++)
             if (!isfinite(v[k])) {
-                rs_err_set(err, RS_ERR_INPUT, path, lineno, "\"%s\": %s is %g: expected finite numbers", line,
-                           k == 0       ? "the column"
-                               : k == 1 ? "the row"
-                               : k == 2 ? "X"
-                               : k == 3 ? "Y"
-                                        : "Z",
-                           v[k]);
+                rs_err_set(err, RS_ERR_INPUT, path, lineno, "\"%.*s\": %s is %g: expected finite numbers",
+                           (int)len > 80 ? 80 : (int)len, s, field[k], v[k]);
                 goto out;
             }
         /* Pixel c covers c - 0.5 .. c + 0.5 (DESIGN.md section 8). */
