@@ -3,6 +3,7 @@
 #include "calib/colmap.h"
 
 #include <errno.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -65,7 +66,7 @@ int rs_ctext_more(const rs_ctext *c)
     return c->p[strspn(c->p, " \t")] != 0;
 }
 
-int rs_ctext_token(rs_ctext *c, char *tok, size_t n)
+size_t rs_ctext_token(rs_ctext *c, char *tok, size_t n)
 {
     while (*c->p == ' ' || *c->p == '\t') c->p++;
     if (!*c->p) return 0;
@@ -73,7 +74,31 @@ int rs_ctext_token(rs_ctext *c, char *tok, size_t n)
     snprintf(tok, n, "%.*s", (int)(k < n ? k : n - 1), c->p);
     c->p += k;
     c->field++;
-    return 1;
+    return k;
+}
+
+int rs_ctext_name(rs_ctext *c, const char *what, char *tok, size_t n, rs_err *err)
+{
+    size_t k = rs_ctext_token(c, tok, n);
+    if (!k) return rs_ctext_missing(c, what, err);
+    if (k >= n)
+        return rs_err_set(err, RS_ERR_INPUT, c->path, c->line,
+                          "field %d (%s) = \"%.40s...\" has %zu characters: expected "
+                          "at most %zu",
+                          c->field, what, tok, k, n - 1);
+    return 0;
+}
+
+/* A number field longer than the buffer would be read cut ("1.0000...05" as 1): refused. */
+static int number_token(rs_ctext *c, const char *what, char *tok, size_t n, rs_err *err)
+{
+    size_t k = rs_ctext_token(c, tok, n);
+    if (!k) return rs_ctext_missing(c, what, err);
+    if (k >= n)
+        return rs_err_set(err, RS_ERR_INPUT, c->path, c->line,
+                          "field %d (%s) = \"%.40s...\" has %zu characters: expected a number of at most %zu", c->field,
+                          what, tok, k, n - 1);
+    return 0;
 }
 
 int rs_ctext_missing(rs_ctext *c, const char *what, rs_err *err)
@@ -85,7 +110,7 @@ int rs_ctext_missing(rs_ctext *c, const char *what, rs_err *err)
 int rs_ctext_long(rs_ctext *c, const char *what, long *v, rs_err *err)
 {
     char tok[128], *end;
-    if (!rs_ctext_token(c, tok, sizeof tok)) return rs_ctext_missing(c, what, err);
+    if (number_token(c, what, tok, sizeof tok, err) != 0) return -1;
     errno = 0;
     *v = strtol(tok, &end, 10);
     if (end == tok || *end || errno)
@@ -97,7 +122,7 @@ int rs_ctext_long(rs_ctext *c, const char *what, long *v, rs_err *err)
 int rs_ctext_real(rs_ctext *c, const char *what, double *v, rs_err *err)
 {
     char tok[128], *end;
-    if (!rs_ctext_token(c, tok, sizeof tok)) return rs_ctext_missing(c, what, err);
+    if (number_token(c, what, tok, sizeof tok, err) != 0) return -1;
     *v = strtod(tok, &end);
     if (end == tok || *end || !isfinite(*v))
         return rs_err_set(err, RS_ERR_INPUT, c->path, c->line, "field %d (%s) = \"%s\": expected a finite number",
@@ -134,6 +159,19 @@ int rs_ctext_open(rs_ctext *c, const char *path, rs_err *err)
 
 /* --- the three files --- */
 
+/* Focal lengths (the first one or two parameters, px) must be positive; the models with one
+ * focal length are the SIMPLE_ and RADIAL ones. */
+static int check_camera_params(rs_ctext *c, const rs_colmap_camera *cam, rs_err *err)
+{
+    int nfocal = strncmp(cam->model, "SIMPLE_", 7) == 0 || strncmp(cam->model, "RADIAL", 6) == 0 ? 1 : 2;
+    for (int k = 0; k < nfocal; k++)
+        if (!(cam->params[k] > 0))
+            return rs_err_set(err, RS_ERR_INPUT, c->path, c->line,
+                              "field %d (parameter %d of %s, a focal length) = %g: expected a focal length > 0 (px)",
+                              5 + k, k + 1, cam->model, cam->params[k]);
+    return 0;
+}
+
 static int read_cameras(const char *path, rs_colmap_model *m, rs_err *err)
 {
     rs_ctext c;
@@ -152,11 +190,14 @@ static int read_cameras(const char *path, rs_colmap_model *m, rs_err *err)
         }
         rs_colmap_camera *cam = &m->cameras[m->ncameras];
         memset(cam, 0, sizeof *cam);
-        long w, h;
+        long w = 0, h = 0;
         if (rs_ctext_long(&c, "CAMERA_ID", &cam->id, err) != 0)
             rc = -1;
-        else if (!rs_ctext_token(&c, cam->model, sizeof cam->model))
-            rc = rs_ctext_missing(&c, "MODEL", err);
+        else if (cam->id < 0 || cam->id > UINT32_MAX)
+            rc = rs_err_set(err, RS_ERR_INPUT, path, c.line, "field 1 (CAMERA_ID) = %ld: expected 0 to 4294967295",
+                            cam->id);
+        else if (rs_ctext_name(&c, "MODEL", cam->model, sizeof cam->model, err) != 0)
+            rc = -1;
         else if ((cam->nparams = rs_colmap_model_params(cam->model)) < 0)
             rc = rs_err_set(err, RS_ERR_INPUT, path, c.line,
                             "field 2 (MODEL) = \"%s\": expected one of COLMAP's "
@@ -176,6 +217,7 @@ static int read_cameras(const char *path, rs_colmap_model *m, rs_err *err)
             rc = rs_ctext_real(&c, what, &cam->params[k], err);
         }
         if (rc == 0) rc = rs_ctext_end(&c, "the camera's parameters", err);
+        if (rc == 0) rc = check_camera_params(&c, cam, err);
         for (int k = 0; rc == 0 && k < m->ncameras; k++)
             if (m->cameras[k].id == cam->id)
                 rc = rs_err_set(err, RS_ERR_INPUT, path, c.line, "CAMERA_ID %ld is listed twice: expected unique ids",
@@ -244,6 +286,11 @@ static int read_points(const char *path, rs_colmap_model *m, rs_err *err)
             rc = -1;
             break;
         }
+        if (pt->id < 0)
+            rc = rs_err_set(err, RS_ERR_INPUT, path, c.line, "field 1 (POINT3D_ID) = %ld: expected an id >= 0", pt->id);
+        else if (!(pt->error_px >= 0))
+            rc = rs_err_set(err, RS_ERR_INPUT, path, c.line,
+                            "field 8 (ERROR) = %g: expected a mean reprojection error >= 0 (px)", pt->error_px);
         for (int k = 0; k < 3 && rc == 0; k++) {
             if (rgb[k] < 0 || rgb[k] > 255)
                 rc = rs_err_set(err, RS_ERR_INPUT, path, c.line, "field %d (%c) = %ld: expected a colour 0..255", 5 + k,
@@ -284,7 +331,10 @@ static int image_header(rs_ctext *c, const rs_colmap_model *m, rs_colmap_image *
     if (rs_ctext_real(c, "TX", &im->t.x, err) != 0 || rs_ctext_real(c, "TY", &im->t.y, err) != 0 ||
         rs_ctext_real(c, "TZ", &im->t.z, err) != 0 || rs_ctext_long(c, "CAMERA_ID", &im->camera_id, err) != 0)
         return -1;
-    if (!rs_ctext_token(c, im->name, sizeof im->name)) return rs_ctext_missing(c, "NAME", err);
+    if (im->id < 0 || im->id > UINT32_MAX || im->camera_id < 0 || im->camera_id > UINT32_MAX)
+        return rs_err_set(err, RS_ERR_INPUT, c->path, c->line,
+                          "IMAGE_ID %ld, CAMERA_ID %ld: expected ids from 0 to 4294967295", im->id, im->camera_id);
+    if (rs_ctext_name(c, "NAME", im->name, sizeof im->name, err) != 0) return -1;
     if (rs_ctext_end(c, "NAME", err) != 0) return -1;
     double qq = im->q[0] * im->q[0] + im->q[1] * im->q[1] + im->q[2] * im->q[2] + im->q[3] * im->q[3];
     /* COLMAP writes unit quaternions to 17 digits; a far-off norm means a broken or hand-made file. */

@@ -50,8 +50,9 @@ int rs_colmap_views_read(const char *path, rs_colmap_view **views, int *count, r
         rs_colmap_view *v = &(*views)[*count];
         memset(v, 0, sizeof *v);
         v->line = c.line;
-        rs_ctext_token(&c, v->name, sizeof v->name);
-        if (!rs_ctext_token(&c, v->panorama, sizeof v->panorama)) rc = rs_ctext_missing(&c, "PANORAMA (a label)", err);
+        if (rs_ctext_name(&c, "NAME", v->name, sizeof v->name, err) != 0 ||
+            rs_ctext_name(&c, "PANORAMA (a label)", v->panorama, sizeof v->panorama, err) != 0)
+            rc = -1;
         for (int k = 0; rc == 0 && k < 9; k++) rc = rs_ctext_real(&c, rn[k], &v->r_local_cam[k], err);
         if (rc == 0 && rs_ctext_more(&c)) {
             if (rs_ctext_real(&c, "TX", &v->t_local_cam.x, err) != 0 ||
@@ -115,8 +116,9 @@ int rs_colmap_controls_read(const char *path, rs_colmap_control **cps, int *coun
                             kind);
             break;
         }
-        if (!rs_ctext_token(&c, p->name, sizeof p->name)) {
-            rc = rs_ctext_missing(&c, p->kind == RS_COLMAP_CP_POINT ? "a POINT3D_ID" : "a name", err);
+        if (rs_ctext_name(&c, p->kind == RS_COLMAP_CP_POINT ? "a POINT3D_ID" : "a name", p->name, sizeof p->name,
+                          err) != 0) {
+            rc = -1;
             break;
         }
         if (p->kind == RS_COLMAP_CP_POINT) {

@@ -22,8 +22,11 @@ int rs_ctext_next_line(rs_ctext *c);
 int rs_ctext_blank(const rs_ctext *c);
 /* 1 when fields remain on the line. */
 int rs_ctext_more(const rs_ctext *c);
-/* The next field into tok; 0 when the line has no more. */
-int rs_ctext_token(rs_ctext *c, char *tok, size_t n);
+/* The next field into tok (cut to n - 1 characters); returns its whole length, 0 when the line
+ * has no more. */
+size_t rs_ctext_token(rs_ctext *c, char *tok, size_t n);
+/* The next field as a name of at most n - 1 characters; missing or longer is an error naming `what`. */
+int rs_ctext_name(rs_ctext *c, const char *what, char *tok, size_t n, rs_err *err);
 /* Parse the next field; a missing or malformed field is an error naming `what`. */
 int rs_ctext_long(rs_ctext *c, const char *what, long *v, rs_err *err);
 int rs_ctext_real(rs_ctext *c, const char *what, double *v, rs_err *err);

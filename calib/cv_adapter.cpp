@@ -2,6 +2,9 @@
 // try/catch: an exception crossing into C code would be undefined behaviour.
 #include "calib/cv_adapter.h"
 
+#include <cerrno>
+#include <climits>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -69,16 +72,114 @@ int read_matrix(const cv::FileNode &cam, const char *key, int index, double *out
     return d.cols;
 }
 
+// A scalar as the file wrote it, for messages.
+std::string as_written(const cv::FileNode &node)
+{
+    char buf[64];
+    if (node.isInt()) return std::to_string(static_cast<int>(node));
+    if (node.isReal()) {
+        std::snprintf(buf, sizeof buf, "%.17g", static_cast<double>(node));
+        return buf;
+    }
+    if (node.isString()) return "\"" + std::string(node).substr(0, 40) + "\"";
+    return "(not a scalar)";
+}
+
+// A scalar size field as written: *has 0 when absent, 1 for a number, 2 for anything else.
+double read_size(const cv::FileNode &cam, const char *key, int *has)
+{
+    cv::FileNode node = cam[key];
+    *has = node.empty() ? 0 : node.isInt() || node.isReal() ? 1 : 2;
+    if (node.isInt()) return static_cast<double>(static_cast<int>(node));
+    if (node.isReal()) return static_cast<double>(node);
+    return std::nan("");
+}
+
+// OpenCV's YAML parser reads an integer with strtol and keeps it in an int, so 4294967297 becomes
+// 1 without a word. The text is scanned first: an integer token that does not fit 32 bits is
+// returned with its line and the key it belongs to (the line's, or the last one above it).
+bool find_wide_integer(const char *path, long *line, std::string *key, std::string *token)
+{
+    FILE *f = std::fopen(path, "rb");
+    if (!f) return false;
+    std::string text;
+    char buf[65536];
+    for (size_t n; (n = std::fread(buf, 1, sizeof buf, f)) > 0;) text.append(buf, n);
+    std::fclose(f);
+    std::string last_key;
+    long lineno = 0;
+    for (size_t at = 0; at <= text.size();) {
+        size_t nl = text.find('\n', at);
+        if (nl == std::string::npos) nl = text.size();
+        std::string l = text.substr(at, nl - at);
+        at = nl + 1;
+        lineno++;
+        if (!l.empty() && l[0] == '%') continue;   // the %YAML directive
+        bool quoted = false;
+        size_t colon = std::string::npos;
+        for (size_t k = 0; k < l.size(); k++) {
+            if (l[k] == '"') quoted = !quoted;
+            if (!quoted && l[k] == '#' && (k == 0 || l[k - 1] == ' ' || l[k - 1] == '\t')) {
+                l.resize(k);
+                break;
+            }
+            if (!quoted && l[k] == ':' && colon == std::string::npos) colon = k;
+        }
+        if (colon != std::string::npos) {
+            size_t b = l.find_first_not_of(" \t-");
+            last_key = b < colon ? l.substr(b, colon - b) : "";
+            while (!last_key.empty() && (last_key.back() == ' ' || last_key.back() == '\t')) last_key.pop_back();
+        }
+        quoted = false;
+        for (size_t k = colon == std::string::npos ? 0 : colon + 1; k < l.size();) {
+            if (l[k] == '"') quoted = !quoted;
+            if (quoted || std::strchr(" \t,[]{}:", l[k])) {
+                k++;
+                continue;
+            }
+            size_t e = l.find_first_of(" \t,[]{}:\"", k);
+            if (e == std::string::npos) e = l.size();
+            std::string tok = l.substr(k, e - k);
+            k = e;
+            size_t d = tok[0] == '-' || tok[0] == '+' ? 1 : 0;
+            bool hex = tok.size() > d + 2 && tok[d] == '0' && (tok[d + 1] == 'x' || tok[d + 1] == 'X');
+            if (d >= tok.size() ||
+                tok.find_first_not_of(hex ? "0123456789abcdefABCDEF" : "0123456789", hex ? d + 2 : d) !=
+                    std::string::npos)
+                continue;   // not an integer: a real, a word, a tag
+            errno = 0;
+            long long v = std::strtoll(tok.c_str(), nullptr, 0);
+            if (errno == ERANGE || v < INT_MIN || v > INT_MAX) {
+                *line = lineno;
+                *key = last_key;
+                *token = tok.substr(0, 40);
+                return true;
+            }
+        }
+    }
+    return false;
+}
+
 }   // namespace
 
-extern "C" int rs_cv_rig_read(const char *path, rs_cv_camera **cams, int *count, int *declared_count, char *msg,
-                              size_t msg_size)
+extern "C" int rs_cv_rig_read(const char *path, rs_cv_camera **cams, int *count, int *declared_count, long *line,
+                              char *msg, size_t msg_size)
 {
     *cams = nullptr;
     *count = 0;
     *declared_count = -1;
+    *line = 0;
     rs_cv_camera *out = nullptr;
     try {
+        std::string key, token;
+        if (find_wide_integer(path, line, &key, &token)) {
+            set_msg(msg, msg_size,
+                    key + " = " + token +
+                        ": the integer does not fit in 32 bits (OpenCV would read it wrapped); expected " +
+                        (key == "image_width" || key == "image_height" ? "an integer from 1 to 65536 (px)"
+                                                                       : "an integer from -2147483648 to 2147483647"));
+            return -1;
+        }
         cv::FileStorage fs(path, cv::FileStorage::READ);
         if (!fs.isOpened()) {
             set_msg(msg, msg_size,
@@ -88,7 +189,10 @@ extern "C" int rs_cv_rig_read(const char *path, rs_cv_camera **cams, int *count,
         }
         cv::FileNode cc = fs["camera_count"];
         if (!cc.empty()) {
-            if (!cc.isInt()) throw field_error{"camera_count is not an integer"};
+            // A count too large for an int is read by OpenCV as a real; a negative one is no count.
+            if (!cc.isInt() || static_cast<int>(cc) < 0)
+                throw field_error{"camera_count = " + as_written(cc) +
+                                  ": expected an integer from 0 to 2147483647, the number of cameras listed"};
             *declared_count = static_cast<int>(cc);
         }
         cv::FileNode seq = fs["cameras"];
@@ -106,10 +210,8 @@ extern "C" int rs_cv_rig_read(const char *path, rs_cv_camera **cams, int *count,
             std::snprintf(c->name, sizeof c->name, "%s", name.c_str());
             std::string model = cam["model"].empty() ? "pinhole" : std::string(cam["model"]);
             std::snprintf(c->model, sizeof c->model, "%s", model.c_str());
-            if (!cam["image_width"].empty() && cam["image_width"].isInt())
-                c->width = static_cast<int>(cam["image_width"]);
-            if (!cam["image_height"].empty() && cam["image_height"].isInt())
-                c->height = static_cast<int>(cam["image_height"]);
+            c->width = read_size(cam, "image_width", &c->has_width);
+            c->height = read_size(cam, "image_height", &c->has_height);
             c->has_matrix = read_matrix(cam, "camera_matrix", i, c->camera_matrix, 9) == 9;
             if (!cam["camera_matrix"].empty() && !c->has_matrix)
                 throw field_error{"camera " + std::to_string(i) + ": camera_matrix must be 3 x 3"};

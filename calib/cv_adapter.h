@@ -13,8 +13,11 @@ extern "C" {
 /* One camera of a rig file as written (docs/DESIGN.md, section Rig file); validation is the caller's. */
 typedef struct rs_cv_camera {
     char name[64];
-    char model[32];    /* "pinhole", "fisheye", or what the file says */
-    int width, height; /* 0 when missing */
+    char model[32]; /* "pinhole", "fisheye", or what the file says */
+    /* image_width and image_height as written (any number, so that a value too large for an int
+     * can be named); has_width: 0 missing, 1 a number, 2 present but not a number. */
+    double width, height;
+    int has_width, has_height;
     int has_matrix, has_rotation, has_translation;
     double camera_matrix[9]; /* row-major */
     double distortion[8];
@@ -24,9 +27,12 @@ typedef struct rs_cv_camera {
 } rs_cv_camera;
 
 /* Reads a FileStorage YAML rig file: camera_count and the cameras sequence. *cams is allocated
- * (free with rs_cv_free); *declared_count is camera_count (-1 when missing). On error msg tells
- * which field of which camera was wrong and what was expected. */
-int rs_cv_rig_read(const char *path, rs_cv_camera **cams, int *count, int *declared_count, char *msg, size_t msg_size);
+ * (free with rs_cv_free); *declared_count is camera_count (-1 when missing; a camera_count that
+ * is not an integer from 0 to 2^31 - 1 is an error here, and so is any integer of the file that
+ * does not fit 32 bits, which OpenCV would wrap). On error msg tells which field of which camera
+ * was wrong and what was expected, and *line its line when known (else 0). */
+int rs_cv_rig_read(const char *path, rs_cv_camera **cams, int *count, int *declared_count, long *line, char *msg,
+                   size_t msg_size);
 
 /* Reads any image OpenCV decodes (TIFF among others) as float RGB or grey, row 0 on top.
  * Integer images are scaled to [0, 1] (8-bit by 255, 16-bit by 65535) and *integer_bits set to

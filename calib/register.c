@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "calib/calib_math.h"
+#include "common/fileio.h"
 #include "common/linsolve.h"
 
 rs_v3 rs_pair_bearing(double col, double row, int width, int height)
@@ -14,34 +15,116 @@ rs_v3 rs_pair_bearing(double col, double row, int width, int height)
     return rs_pano_uv_to_dir((col + 0.5) / width, (row + 0.5) / height);
 }
 
+/* More correspondences than this is not a hand-made or exported pairs file (and the count is
+ * kept in an int). */
+#define MAX_PAIRS 1000000
+
+/* One line's numbers into v[5]; returns how many were found (6 when more than five), -1 when a
+ * token is not a number. */
+static int pair_numbers(const char *s, double v[5])
+{
+    int n = 0;
+    for (const char *q = s; *q;) {
+        while (*q == ' ' || *q == '\t' || *q == ',') q++;
+        if (!*q) break;
+        char *end;
+        double x = strtod(q, &end);
+        if (end == q || (*end && !strchr(" \t,", *end))) return -1;
+        if (n < 5) v[n] = x;
+        n += n < 6;
+        q = end;
+    }
+    return n;
+}
+
+static int cmp_pair(const void *a, const void *b)
+{
+    const rs_pair *p = *(const rs_pair *const *)a, *q = *(const rs_pair *const *)b;
+    double x[5] = {p->col, p->row, p->world.x, p->world.y, p->world.z};
+    double y[5] = {q->col, q->row, q->world.x, q->world.y, q->world.z};
+    for (int k = 0; k < 5; k++)
+        if (x[k] != y[k]) return x[k] < y[k] ? -1 : 1;
+    return (p->line > q->line) - (p->line < q->line);
+}
+
+/* The same correspondence listed twice weighs twice in the fit: an editing slip, refused. */
+static int refuse_duplicates(const char *path, const rs_pair *p, int n, rs_err *err)
+{
+    const rs_pair **order = malloc((size_t)n * sizeof *order);
+    if (!order) return rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
+    for (int i = 0; i < n; i++) order[i] = &p[i];
+    qsort(order, (size_t)n, sizeof *order, cmp_pair);
+    int rc = 0;
+    for (int i = 1; i < n && rc == 0; i++) {
+        const rs_pair *a = order[i - 1], *b = order[i];
+        if (a->col == b->col && a->row == b->row && a->world.x == b->world.x && a->world.y == b->world.y &&
+            a->world.z == b->world.z)
+            rc = rs_err_set(err, RS_ERR_INPUT, path, b->line,
+                            "the correspondence (%g, %g) <-> (%g, %g, %g) is listed twice (also on line %ld): "
+                            "expected each pair once",
+                            b->col, b->row, b->world.x, b->world.y, b->world.z, a->line);
+    }
+    free(order);
+    return rc;
+}
+
 int rs_pairs_read(const char *path, int width, int height, rs_pair **pairs, int *count, rs_err *err)
+{
+    char *text = NULL;
+    size_t size = 0;
+    *pairs = NULL;
+    *count = 0;
+    FILE *f = fopen(path, "rb");
+    if (!f) return rs_err_errno(err, path, "cannot open the pairs file");
+    fclose(f);
+    if (rs_read_file(path, &text, &size, err) != 0) return -1;
+    int rc = rs_pairs_parse(text, size, path, width, height, pairs, count, err);
+    free(text);
+    return rc;
+}
+
+int rs_pairs_parse(const char *data, size_t size, const char *path, int width, int height, rs_pair **pairs, int *count,
+                   rs_err *err)
 {
     *pairs = NULL;
     *count = 0;
-    FILE *f = fopen(path, "r");
-    if (!f) return rs_err_errno(err, path, "cannot open the pairs file");
+    if (memchr(data, 0, size))
+        return rs_err_set(err, RS_ERR_INPUT, path, 0, "contains a NUL byte: expected a text file");
     int n = 0, cap = 0, rc = -1;
     rs_pair *p = NULL;
-    char line[1024];
     long lineno = 0;
-    while (fgets(line, sizeof line, f)) {
+    char line[256];
+    for (const char *s0 = data, *end = data + size; s0 < end;) {
+        const char *nl = memchr(s0, '\n', (size_t)(end - s0)), *le = nl ? nl : end;
+        const char *hash = memchr(s0, '#', (size_t)(le - s0));
+        const char *s = s0, *ce = hash ? hash : le;
+        s0 = nl ? nl + 1 : end;
         lineno++;
-        char *hash = strchr(line, '#');
-        if (hash) *hash = 0;
-        line[strcspn(line, "\r\n")] = 0;
-        char *s = line;
-        while (*s == ' ' || *s == '\t') s++;
-        if (!*s) continue;
+        while (s < ce && (*s == ' ' || *s == '\t' || *s == '\r')) s++;
+        while (ce > s && (ce[-1] == ' ' || ce[-1] == '\t' || ce[-1] == '\r')) ce--;
+        if (s == ce) continue;
         double v[5];
-        char extra[2];
-        int got = sscanf(s, "%lf %lf %lf %lf %lf %1s", &v[0], &v[1], &v[2], &v[3], &v[4], extra);
-        if (got != 5) {
-            rs_err_set(err, RS_ERR_INPUT, path, lineno, "\"%s\": expected `column row X Y Z` (five numbers)", s);
+        /* The line NUL-terminated: on the stack, or on the heap when long (padded with blanks). */
+        size_t len = (size_t)(ce - s);
+        char *text = len < sizeof line ? line : malloc(len + 1);
+        if (!text) {
+            rs_err_set(err, RS_ERR_SYSTEM, path, lineno, "out of memory");
             goto out;
         }
+        memcpy(text, s, len);
+        text[len] = 0;
+        int got = pair_numbers(text, v);
+        if (text != line) free(text);
+        if (got != 5) {
+            rs_err_set(err, RS_ERR_INPUT, path, lineno, "\"%.*s\": expected `column row X Y Z` (five numbers)",
+                       (int)(ce - s) > 80 ? 80 : (int)(ce - s), s);
+            goto out;
+        }
+        static const char *const field[5] = {"the column", "the row", "X", "Y", "Z"};
         for (int k = 0; k < 5; k++)
             if (!isfinite(v[k])) {
-                rs_err_set(err, RS_ERR_INPUT, path, lineno, "\"%s\": expected finite numbers", s);
+                rs_err_set(err, RS_ERR_INPUT, path, lineno, "\"%.*s\": %s is %g: expected finite numbers",
+                           (int)len > 80 ? 80 : (int)len, s, field[k], v[k]);
                 goto out;
             }
         /* Pixel c covers c - 0.5 .. c + 0.5 (docs/DESIGN.md, section Pairs file). */
@@ -50,6 +133,10 @@ int rs_pairs_read(const char *path, int width, int height, rs_pair **pairs, int 
                        "pixel (%g, %g) lies outside the %d x %d panorama: expected column in [-0.5, %g) "
                        "and row in [-0.5, %g]",
                        v[0], v[1], width, height, width - 0.5, height - 0.5);
+            goto out;
+        }
+        if (n == MAX_PAIRS) {
+            rs_err_set(err, RS_ERR_INPUT, path, lineno, "more than %d correspondences: expected fewer", MAX_PAIRS);
             goto out;
         }
         if (n == cap) {
@@ -63,23 +150,19 @@ int rs_pairs_read(const char *path, int width, int height, rs_pair **pairs, int 
         }
         p[n++] = (rs_pair){v[0], v[1], rs_v3_make(v[2], v[3], v[4]), lineno};
     }
-    if (ferror(f)) {
-        rs_err_errno(err, path, "cannot read the pairs file");
-        goto out;
-    }
     if (n < 4) {
         rs_err_set(err, RS_ERR_INPUT, path, 0,
                    "%d correspondence%s: expected at least 4 lines `column row X Y Z` to solve a pose", n,
                    n == 1 ? "" : "s");
         goto out;
     }
+    if (refuse_duplicates(path, p, n, err) != 0) goto out;
     *pairs = p;
     *count = n;
     p = NULL;
     rc = 0;
 out:
     free(p);
-    fclose(f);
     return rc;
 }
 

@@ -14,10 +14,14 @@ typedef struct rs_pair {
     long line;       /* line in the pairs file (0 when made in code) */
 } rs_pair;
 
-/* Reads a pairs file: `column row X Y Z` per line, `#` starts a comment. The coordinates must
- * lie on a width x height panorama. Caller frees *pairs with free(). Errors name the file, the
- * line, the text and what was expected; fewer than 4 pairs is an error. */
+/* Reads a pairs file: `column row X Y Z` per line (spaces, tabs or commas between the numbers),
+ * `#` starts a comment. The numbers must be finite and the pixel lie on a width x height
+ * panorama. Caller frees *pairs with free(). Errors name the file, the line, the text and what
+ * was expected; fewer than 4 pairs, more than 10^6, and a pair listed twice are errors. */
 int rs_pairs_read(const char *path, int width, int height, rs_pair **pairs, int *count, rs_err *err);
+/* The same from size bytes of text (a NUL byte is an error); path names it in errors. */
+int rs_pairs_parse(const char *data, size_t size, const char *path, int width, int height, rs_pair **pairs, int *count,
+                   rs_err *err);
 
 /* Unit bearing (panorama local frame) of a pixel position with pixel centres at integers. */
 rs_v3 rs_pair_bearing(double col, double row, int width, int height);

@@ -2,6 +2,7 @@
  * calibrated from a well-exposed scene) is more trustworthy than one fitted to every capture. */
 #include "calib/response.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include "common/fileio.h"
@@ -11,6 +12,19 @@ int rs_response_read(const char *path, float *out, rs_err *err)
     char *text = NULL;
     size_t size = 0;
     if (rs_read_file(path, &text, &size, err) != 0) return -1;
+    int rc = rs_response_parse(text, size, path, out, err);
+    free(text);
+    return rc;
+}
+
+int rs_response_parse(const char *data, size_t size, const char *path, float *out, rs_err *err)
+{
+    if (memchr(data, 0, size))
+        return rs_err_set(err, RS_ERR_INPUT, path, 0, "contains a NUL byte: expected a text file of 256 lines");
+    char *text = malloc(size + 1);
+    if (!text) return rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
+    memcpy(text, data, size);
+    text[size] = 0;
     int code = 0, rc = -1;
     long line = 0;
     for (char *p = text; *p;) {
@@ -28,9 +42,10 @@ int rs_response_read(const char *path, float *out, rs_err *err)
             if (!*q) break;
             char *end;
             double x = strtod(q, &end);
-            if (end == q || n == 4) {
+            /* A number ends at a separator: "1.5x" is not a number followed by a comment. */
+            if (end == q || n == 4 || (*end && !strchr(" \t,\r", *end)) || !isfinite(x)) {
                 rs_err_set(err, RS_ERR_INPUT, path, line,
-                           "\"%s\": expected 1 or 3 numbers (linear exposure of "
+                           "\"%.80s\": expected 1 or 3 finite numbers (linear exposure of "
                            "code %d for all channels, or for R G B)",
                            s, code);
                 goto out;
@@ -39,8 +54,8 @@ int rs_response_read(const char *path, float *out, rs_err *err)
             q = end;
         }
         if (n != 1 && n != 3) {
-            rs_err_set(err, RS_ERR_INPUT, path, line, "\"%s\" has %d numbers: expected 1 (all channels) or 3 (R G B)",
-                       s, n);
+            rs_err_set(err, RS_ERR_INPUT, path, line,
+                       "\"%.80s\" has %d numbers: expected 1 (all channels) or 3 (R G B)", s, n);
             goto out;
         }
         if (code == 256) {
@@ -49,11 +64,12 @@ int rs_response_read(const char *path, float *out, rs_err *err)
         }
         for (int ch = 0; ch < 3; ch++) {
             double x = v[n == 1 ? 0 : ch];
-            if (!(x > 0) || x > 1e30) {
+            /* In float (what the merge takes) and > 0 there: the merge takes its logarithm. */
+            if (!(x >= RS_RESPONSE_MIN && x <= RS_RESPONSE_MAX)) {
                 rs_err_set(err, RS_ERR_INPUT, path, line,
-                           "code %d: %g: expected a linear exposure > 0 (the merge "
+                           "code %d: %g: expected a linear exposure from %g to %g (the merge "
                            "takes its logarithm)",
-                           code, x);
+                           code, x, RS_RESPONSE_MIN, RS_RESPONSE_MAX);
                 goto out;
             }
             if (code > 0 && x < out[3 * (code - 1) + ch]) {

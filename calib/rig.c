@@ -6,7 +6,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "calib/cv_adapter.h"
 
 /* Radial derivative of the distorted radius: pinhole d/dr [r (1 + k1 r^2 + k2 r^4 + k3 r^6)],
  * fisheye d/dtheta [theta (1 + k1 theta^2 + ... + k4 theta^8)]. */
@@ -44,36 +43,94 @@ static int rotation_ok(const double r[9])
     return fabs(det - 1) < 1e-4;
 }
 
+/* Documented ranges of a rig file's values (rig.h). */
+#define RIG_MAX_SIDE_PX    65536
+#define RIG_MAX_FOCAL_PX   1e7
+#define RIG_MAX_DISTORTION 1000.0
+#define RIG_MAX_OFFSET_M   100.0
+
+static int all_finite(const double *v, int n)
+{
+    for (int i = 0; i < n; i++)
+        if (!isfinite(v[i])) return 0;
+    return 1;
+}
+
+/* image_width or image_height: an integer from 1 to RIG_MAX_SIDE_PX, checked before any size
+ * is computed from it. */
+static int check_side(const char *path, int i, const rs_cv_camera *in, const char *key, double v, int has, rs_err *err)
+{
+    if (!has)
+        return rs_err_set(err, RS_ERR_INPUT, path, 0, "camera %d (%s): %s is missing: expected the image size in px", i,
+                          in->name, key);
+    if (has != 1 || !(v >= 1 && v <= RIG_MAX_SIDE_PX && v == floor(v)))
+        return rs_err_set(err, RS_ERR_INPUT, path, 0,
+                          "camera %d (%s): %s = %s%.17g: expected an integer from 1 to %d (px)", i, in->name, key,
+                          has != 1 ? "(not a number) " : "", v, RIG_MAX_SIDE_PX);
+    return 0;
+}
+
+static int check_matrix(const char *path, int i, const rs_cv_camera *in, rs_err *err)
+{
+#define BAD(...) rs_err_set(err, RS_ERR_INPUT, path, 0, __VA_ARGS__)
+    const double *k = in->camera_matrix;
+    if (!in->has_matrix) return BAD("camera %d (%s): camera_matrix is missing (3 x 3)", i, in->name);
+    for (int j = 0; j < 9; j++)
+        if (!isfinite(k[j]))
+            return BAD("camera %d (%s): camera_matrix entry %d (row %d, column %d) is %g: expected finite numbers", i,
+                       in->name, j, j / 3 + 1, j % 3 + 1, k[j]);
+    if (!(k[0] > 0 && k[4] > 0) || k[1] != 0 || k[3] != 0 || k[6] != 0 || k[7] != 0 || k[8] != 1)
+        return BAD("camera %d (%s): camera_matrix [%g %g %g; %g %g %g; %g %g %g]: expected "
+                   "[fx 0 cx; 0 fy cy; 0 0 1] with fx, fy > 0",
+                   i, in->name, k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7], k[8]);
+    if (k[0] > RIG_MAX_FOCAL_PX || k[4] > RIG_MAX_FOCAL_PX)
+        return BAD("camera %d (%s): camera_matrix fx = %g, fy = %g: expected focal lengths up to %g px", i, in->name,
+                   k[0], k[4], RIG_MAX_FOCAL_PX);
+    if (!(k[2] >= 0 && k[2] <= in->width && k[5] >= 0 && k[5] <= in->height))
+        return BAD("camera %d (%s): camera_matrix principal point (cx, cy) = (%g, %g): expected it inside the "
+                   "%.0f x %.0f image (0 <= cx <= image_width, 0 <= cy <= image_height, px)",
+                   i, in->name, k[2], k[5], in->width, in->height);
+    return 0;
+#undef BAD
+}
+
 static int check_camera(const char *path, int i, const rs_cv_camera *in, rs_rig_camera *c, rs_err *err)
 {
     memset(c, 0, sizeof *c);
     snprintf(c->name, sizeof c->name, "%s", in->name);
 #define BAD(...) rs_err_set(err, RS_ERR_INPUT, path, 0, __VA_ARGS__)
-    if (in->width <= 0 || in->height <= 0)
-        return BAD("camera %d (%s): image_width and image_height must be positive integers", i, in->name);
+    if (check_side(path, i, in, "image_width", in->width, in->has_width, err) != 0 ||
+        check_side(path, i, in, "image_height", in->height, in->has_height, err) != 0)
+        return -1;
     if (strcmp(in->model, "pinhole") == 0)
         c->model = RS_LENS_PINHOLE;
     else if (strcmp(in->model, "fisheye") == 0)
         c->model = RS_LENS_FISHEYE;
     else
         return BAD("camera %d (%s): model \"%s\": expected pinhole or fisheye", i, in->name, in->model);
-    if (!in->has_matrix) return BAD("camera %d (%s): camera_matrix is missing (3 x 3)", i, in->name);
+    if (check_matrix(path, i, in, err) != 0) return -1;
     const double *k = in->camera_matrix;
-    if (!(k[0] > 0 && k[4] > 0) || k[1] != 0 || k[3] != 0 || k[6] != 0 || k[7] != 0 || k[8] != 1)
-        return BAD("camera %d (%s): camera_matrix [%g %g %g; %g %g %g; %g %g %g]: expected "
-                   "[fx 0 cx; 0 fy cy; 0 0 1] with fx, fy > 0",
-                   i, in->name, k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7], k[8]);
     int want = c->model == RS_LENS_PINHOLE ? 5 : 4;
     if (in->distortion_count != want && !(c->model == RS_LENS_PINHOLE && in->distortion_count == 4))
         return BAD("camera %d (%s): distortion_coefficients has %d entries: expected %s", i, in->name,
                    in->distortion_count, want == 5 ? "5 (k1 k2 p1 p2 k3)" : "4 (k1 k2 k3 k4)");
+    for (int j = 0; j < in->distortion_count; j++)
+        if (!(fabs(in->distortion[j]) <= RIG_MAX_DISTORTION))
+            return BAD("camera %d (%s): distortion_coefficients entry %d is %g: expected a finite number from %g to %g",
+                       i, in->name, j, in->distortion[j], -RIG_MAX_DISTORTION, RIG_MAX_DISTORTION);
     if (!in->has_rotation) return BAD("camera %d (%s): R_rig_cam is missing (3 x 3)", i, in->name);
+    if (!all_finite(in->r_rig_cam, 9))
+        return BAD("camera %d (%s): R_rig_cam holds a value that is not finite: expected a rotation", i, in->name);
     if (!rotation_ok(in->r_rig_cam))
         return BAD("camera %d (%s): R_rig_cam is not a rotation (orthonormal, det +1)", i, in->name);
     if (!in->has_translation) return BAD("camera %d (%s): t_rig_cam is missing (3 x 1, metres)", i, in->name);
-#undef BAD
-    c->width = in->width;
-    c->height = in->height;
+    for (int j = 0; j < 3; j++)
+        if (!(fabs(in->t_rig_cam[j]) <= RIG_MAX_OFFSET_M))
+            return BAD("camera %d (%s): t_rig_cam entry %d is %g: expected a finite offset from the rig centre of at "
+                       "most %g m",
+                       i, in->name, j, in->t_rig_cam[j], RIG_MAX_OFFSET_M);
+    c->width = (int)in->width;
+    c->height = (int)in->height;
     c->fx = k[0];
     c->fy = k[4];
     c->cx = k[2];
@@ -82,6 +139,30 @@ static int check_camera(const char *path, int i, const rs_cv_camera *in, rs_rig_
     memcpy(c->r_rig_cam, in->r_rig_cam, sizeof c->r_rig_cam);
     c->t_rig_cam = rs_v3_make(in->t_rig_cam[0], in->t_rig_cam[1], in->t_rig_cam[2]);
     c->max_field = usable_field(c);
+    if (!(c->max_field > 0))
+        return BAD("camera %d (%s): distortion_coefficients fold the image back at its centre: expected a lens "
+                   "model that is one-to-one near the axis",
+                   i, in->name);
+#undef BAD
+    return 0;
+}
+
+int rs_rig_check(const char *path, const rs_cv_camera *cams, int n, int declared, rs_rig *rig, rs_err *err)
+{
+    memset(rig, 0, sizeof *rig);
+    if (n <= 0)
+        return rs_err_set(err, RS_ERR_INPUT, path, 0,
+                          "the rig lists no cameras: expected at least one under `cameras`");
+    if (declared >= 0 && declared != n)
+        return rs_err_set(err, RS_ERR_INPUT, path, 0, "camera_count is %d but %d cameras are listed", declared, n);
+    rig->cams = calloc((size_t)n, sizeof *rig->cams);
+    if (!rig->cams) return rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
+    rig->count = n;
+    for (int i = 0; i < n; i++)
+        if (check_camera(path, i, &cams[i], &rig->cams[i], err) != 0) {
+            rs_rig_release(rig);
+            return -1;
+        }
     return 0;
 }
 
@@ -93,30 +174,12 @@ int rs_rig_load(const char *path, rs_rig *rig, rs_err *err)
     fclose(f);
     rs_cv_camera *cams = NULL;
     int n = 0, declared = -1;
+    long line = 0;
     char msg[512];
-    if (rs_cv_rig_read(path, &cams, &n, &declared, msg, sizeof msg) != 0)
-        return rs_err_set(err, RS_ERR_INPUT, path, 0, "%s", msg);
-    int rc = -1;
-    if (n == 0) {
-        rs_err_set(err, RS_ERR_INPUT, path, 0, "the rig lists no cameras: expected at least one under `cameras`");
-        goto out;
-    }
-    if (declared >= 0 && declared != n) {
-        rs_err_set(err, RS_ERR_INPUT, path, 0, "camera_count is %d but %d cameras are listed", declared, n);
-        goto out;
-    }
-    rig->cams = calloc((size_t)n, sizeof *rig->cams);
-    if (!rig->cams) {
-        rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
-        goto out;
-    }
-    rig->count = n;
-    for (int i = 0; i < n; i++)
-        if (check_camera(path, i, &cams[i], &rig->cams[i], err) != 0) goto out;
-    rc = 0;
-out:
+    if (rs_cv_rig_read(path, &cams, &n, &declared, &line, msg, sizeof msg) != 0)
+        return rs_err_set(err, RS_ERR_INPUT, path, line, "%s", msg);
+    int rc = rs_rig_check(path, cams, n, declared, rig, err);
     rs_cv_free(cams);
-    if (rc != 0) rs_rig_release(rig);
     return rc;
 }
 

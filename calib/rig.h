@@ -4,6 +4,7 @@
 #ifndef RS_RIG_H
 #define RS_RIG_H
 
+#include "calib/cv_adapter.h"
 #include "common/err.h"
 #include "common/vec.h"
 
@@ -27,10 +28,17 @@ typedef struct rs_rig {
 } rs_rig;
 
 /* Reads and checks a rig file (through OpenCV's FileStorage). Errors name the file, the camera
- * and the field: missing sizes or matrices, a camera matrix that is not [fx 0 cx; 0 fy cy; 0 0 1],
- * a rotation that is not orthonormal with det +1, an unknown model, a distortion vector of the
- * wrong length, camera_count different from the cameras listed. Release with rs_rig_release. */
+ * and the field, what was found and what was expected: image_width and image_height not integers
+ * from 1 to 65536; a camera matrix that is not [fx 0 cx; 0 fy cy; 0 0 1] of finite numbers with
+ * 0 < fx, fy <= 1e7 px and the principal point inside the image (0 <= cx <= width, 0 <= cy <=
+ * height); an unknown model; a distortion vector of the wrong length or with an entry that is not
+ * finite or beyond +/-1000, or one that folds the image back at its centre; a rotation that is
+ * not finite, orthonormal with det +1; a translation not finite or beyond 100 m; a camera_count
+ * different from the cameras listed. Release with rs_rig_release. */
 int rs_rig_load(const char *path, rs_rig *rig, rs_err *err);
+/* The checks of rs_rig_load on cameras already parsed (n of them; declared: camera_count, -1 when
+ * the file has none); path names the file in errors. */
+int rs_rig_check(const char *path, const rs_cv_camera *cams, int n, int declared, rs_rig *rig, rs_err *err);
 void rs_rig_release(rs_rig *rig);
 
 /* Pixel (x, y) of a direction in the camera frame (x right, y down, z forward; need not be unit).

@@ -50,4 +50,8 @@ int rs_cloud_resize(rs_cloud *c, size_t total, int want_intensity, int want_rgb,
  * not needed. Done in double before any float geometry (PCL, Embree, mesh.ply). */
 int rs_cloud_recentre(rs_cloud *c, double limit_m);
 
+/* Coordinates read from text and PCD clouds beyond this (m) are refused: no scan reaches that far,
+ * and the float geometry after recentring could not hold it. */
+#define RS_CLOUD_MAX_M 1e9
+
 #endif

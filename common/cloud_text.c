@@ -3,6 +3,7 @@
 #include "common/cloud_text.h"
 
 #include <ctype.h>
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -57,6 +58,45 @@ static int parse_columns(const char *spec, int *kind, const char *name, rs_err *
 static int is_sep(char ch)
 {
     return ch == ' ' || ch == '\t' || ch == ',' || ch == ';' || ch == '\r';
+}
+
+/* Point i of c from one line's numbers v, each checked against its column's range. */
+static int store_point(rs_cloud *c, size_t i, const int *kind, int ncols, const double *v, float *rgbf, float *rgb_max,
+                       const char *path, long line, rs_err *err)
+{
+    for (int k = 0; k < ncols; k++) {
+        if ((kind[k] == COL_X || kind[k] == COL_Y || kind[k] == COL_Z) && !(fabs(v[k]) <= RS_CLOUD_MAX_M)) {
+            rs_err_set(err, RS_ERR_INPUT, path, line, "column %d: coordinate %g; expected -%g to %g (m)", k + 1, v[k],
+                       RS_CLOUD_MAX_M, RS_CLOUD_MAX_M);
+            return -1;
+        }
+        switch (kind[k]) {
+        case COL_X: c->xyz[3 * i] = v[k]; break;
+        case COL_Y: c->xyz[3 * i + 1] = v[k]; break;
+        case COL_Z: c->xyz[3 * i + 2] = v[k]; break;
+        case COL_I:
+            if (!(fabs(v[k]) <= FLT_MAX)) { /* stored as float */
+                rs_err_set(err, RS_ERR_INPUT, path, line,
+                           "column %d: intensity %g; expected a number within the float range", k + 1, v[k]);
+                return -1;
+            }
+            c->intensity[i] = (float)v[k];
+            break;
+        case COL_R:
+        case COL_G:
+        case COL_B:
+            if (v[k] < 0 || v[k] > 255) {
+                rs_err_set(err, RS_ERR_INPUT, path, line, "column %d: colour %g; expected 0 to 255 (or 0 to 1)", k + 1,
+                           v[k]);
+                return -1;
+            }
+            rgbf[3 * i + kind[k] - COL_R] = (float)v[k];
+            *rgb_max = fmaxf(*rgb_max, (float)v[k]);
+            break;
+        default: break;
+        }
+    }
+    return 0;
 }
 
 rs_cloud *rs_cloud_read_text(const char *path, const char *columns, rs_err *err)
@@ -128,25 +168,7 @@ rs_cloud *rs_cloud_read_text(const char *path, const char *columns, rs_err *err)
             goto fail;
         }
         size_t i = c->npoints++;
-        for (int k = 0; k < ncols; k++) {
-            switch (kind[k]) {
-            case COL_X: c->xyz[3 * i] = v[k]; break;
-            case COL_Y: c->xyz[3 * i + 1] = v[k]; break;
-            case COL_Z: c->xyz[3 * i + 2] = v[k]; break;
-            case COL_I: c->intensity[i] = (float)v[k]; break;
-            case COL_R:
-            case COL_G:
-            case COL_B:
-                if (v[k] < 0) {
-                    rs_err_set(err, RS_ERR_INPUT, path, line, "column %d: colour %g; expected >= 0", k + 1, v[k]);
-                    goto fail;
-                }
-                rgbf[3 * i + kind[k] - COL_R] = (float)v[k];
-                rgb_max = fmaxf(rgb_max, (float)v[k]);
-                break;
-            default: break;
-            }
-        }
+        if (store_point(c, i, kind, ncols, v, rgbf, &rgb_max, path, line, err) != 0) goto fail;
         c->valid[i] = 1;
     }
     if (c->npoints == 0) {

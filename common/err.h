@@ -15,7 +15,7 @@ typedef enum {
 
 typedef struct rs_err {
     rs_err_kind kind;
-    char file[512]; /* the file concerned, "" if none */
+    char file[512]; /* the file concerned, "" if none (a longer path shortened, its name kept) */
     long line;      /* 1-based line in that file, 0 if none */
     char msg[1024]; /* what was found and what was expected */
 } rs_err;
@@ -29,7 +29,12 @@ int rs_err_set(rs_err *err, rs_err_kind kind, const char *file, long line, const
  * unreadable path (ENOENT, EACCES, EISDIR, ENOTDIR), RS_ERR_SYSTEM otherwise. */
 int rs_err_errno(rs_err *err, const char *file, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 
-/* "file:line: msg" (parts that are empty are left out) into buf. */
+/* Sets err->file alone (when the file is known only after the error was made). A path longer
+ * than the field keeps its start and its end, the file's name whole: "/data/proj...dir/name.ply". */
+void rs_err_set_file(rs_err *err, const char *file);
+
+/* "file:line: msg" (parts that are empty are left out) into buf; when buf is too small the path
+ * is shortened first (its file name kept), then the message cut. */
 void rs_err_format(const rs_err *err, char *buf, size_t size);
 
 void rs_err_clear(rs_err *err);

@@ -26,6 +26,15 @@ static int fault_should_fail(void)
     return fail;
 }
 
+/* An output that cannot be written is the system's trouble (exit 2, README), whatever errno
+ * says: EACCES on a read-only work folder is not a bad input. */
+static int output_failed(rs_err *err, const char *path, const char *what)
+{
+    rs_err_errno(err, path, "%s", what);
+    if (err) err->kind = RS_ERR_SYSTEM;
+    return -1;
+}
+
 int rs_atomic_open(rs_atomic_file *f, const char *path, rs_err *err)
 {
     memset(f, 0, sizeof *f);
@@ -33,7 +42,7 @@ int rs_atomic_open(rs_atomic_file *f, const char *path, rs_err *err)
     snprintf(f->path, sizeof f->path, "%s", path);
     snprintf(f->tmp_path, sizeof f->tmp_path, "%s.tmp.%ld", path, (long)getpid());
     f->fp = fopen(f->tmp_path, "wb");
-    if (!f->fp) return rs_err_errno(err, path, "cannot create a temporary file beside the output");
+    if (!f->fp) return output_failed(err, path, "cannot create a temporary file beside the output");
     return 0;
 }
 
@@ -47,7 +56,7 @@ int rs_atomic_write(rs_atomic_file *f, const void *data, size_t n, rs_err *err)
     }
     if (n && fwrite(data, 1, n, f->fp) != n) {
         f->failed = 1;
-        return rs_err_errno(err, f->path, "write failed; previous output kept");
+        return output_failed(err, f->path, "write failed; previous output kept");
     }
     return 0;
 }
@@ -68,12 +77,12 @@ int rs_atomic_commit(rs_atomic_file *f, rs_err *err)
     f->fp = NULL;
     if (bad) {
         errno = saved;
-        rs_err_errno(err, f->path, "write failed; previous output kept");
+        output_failed(err, f->path, "write failed; previous output kept");
         unlink(f->tmp_path);
         return -1;
     }
     if (rename(f->tmp_path, f->path) != 0) {
-        rs_err_errno(err, f->path, "cannot rename the temporary file over the output");
+        output_failed(err, f->path, "cannot rename the temporary file over the output");
         unlink(f->tmp_path);
         return -1;
     }
@@ -190,6 +199,16 @@ int rs_file_exists(const char *path)
     return stat(path, &st) == 0;
 }
 
+/* A file in the way (ENOTDIR) or a missing parent is the config's mistake (exit 1); a folder that
+ * may not be written (EACCES, EROFS) or a full disk is an output that cannot be written (exit 2). */
+static int mkdir_failed(rs_err *err, const char *path)
+{
+    int e = errno;
+    rs_err_errno(err, path, "cannot create folder");
+    if (err && e != ENOTDIR && e != ENOENT && e != ENAMETOOLONG) err->kind = RS_ERR_SYSTEM;
+    return -1;
+}
+
 int rs_mkdir_p(const char *path, rs_err *err)
 {
     char buf[4096];
@@ -198,10 +217,10 @@ int rs_mkdir_p(const char *path, rs_err *err)
     for (char *p = buf + 1; *p; p++) {
         if (*p != '/') continue;
         *p = 0;
-        if (mkdir(buf, 0777) != 0 && errno != EEXIST) return rs_err_errno(err, buf, "cannot create folder");
+        if (mkdir(buf, 0777) != 0 && errno != EEXIST) return mkdir_failed(err, buf);
         *p = '/';
     }
-    if (mkdir(buf, 0777) != 0 && errno != EEXIST) return rs_err_errno(err, buf, "cannot create folder");
+    if (mkdir(buf, 0777) != 0 && errno != EEXIST) return mkdir_failed(err, buf);
     struct stat st;
     if (stat(buf, &st) != 0 || !S_ISDIR(st.st_mode))
         return rs_err_set(err, RS_ERR_INPUT, buf, 0, "exists but is not a folder");

@@ -17,6 +17,8 @@ typedef struct rs_atomic_file {
     int failed;
 } rs_atomic_file;
 
+/* Failures to create, write or rename an output are RS_ERR_SYSTEM (exit 2) with the target's path
+ * and strerror, whatever the errno (EACCES on a read-only folder too). */
 int rs_atomic_open(rs_atomic_file *f, const char *path, rs_err *err);
 /* Writes n bytes; returns 0 or -1 (ENOSPC and friends reported with the target path). */
 int rs_atomic_write(rs_atomic_file *f, const void *data, size_t n, rs_err *err);
@@ -38,7 +40,8 @@ uint64_t rs_hash_bytes(const void *data, size_t n, uint64_t seed);
 int rs_hash_file(const char *path, uint64_t *hash, rs_err *err);
 
 int rs_file_exists(const char *path);
-/* Creates a folder and its parents (mkdir -p). */
+/* Creates a folder and its parents (mkdir -p). A file in the way is RS_ERR_INPUT; a folder that
+ * may not be written (EACCES, EROFS) or a full disk RS_ERR_SYSTEM. */
 int rs_mkdir_p(const char *path, rs_err *err);
 /* dir/name into out (size n); returns out. */
 char *rs_path_join(char *out, size_t n, const char *dir, const char *name);

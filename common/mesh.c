@@ -8,6 +8,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "common/log.h"
+
 rs_mesh *rs_mesh_new(size_t nverts, size_t nfaces)
 {
     if (nverts > SIZE_MAX / (3 * sizeof(float)) || nfaces > SIZE_MAX / (3 * sizeof(uint32_t))) return NULL;
@@ -217,4 +219,114 @@ fail:
     free(mark);
     free(len);
     return NULL;
+}
+
+/* Half an ulp of a float at x, bounded above: what rounding a decimal value to x can move it. */
+static double rounding(double x)
+{
+    return fabs(x) * 0x1p-24 + 0x1p-149;
+}
+
+int rs_mesh_face_collinear(const rs_mesh *m, size_t f)
+{
+    const uint32_t *t = m->tris + 3 * f;
+    const float *a = m->verts + 3 * (size_t)t[0], *b = m->verts + 3 * (size_t)t[1], *c = m->verts + 3 * (size_t)t[2];
+    double u[3], v[3], du[3], dv[3];
+    for (int j = 0; j < 3; j++) {
+        u[j] = (double)b[j] - a[j];
+        v[j] = (double)c[j] - a[j];
+        du[j] = rounding(a[j]) + rounding(b[j]);
+        dv[j] = rounding(a[j]) + rounding(c[j]);
+    }
+    /* Each component of u x v against the first-order change the corners' rounding can make in
+     * it; within twice that everywhere, the corners may have been on one line before rounding. */
+    for (int i = 0; i < 3; i++) {
+        int j = (i + 1) % 3, k = (i + 2) % 3;
+        double n = u[j] * v[k] - u[k] * v[j];
+        double dn = du[j] * fabs(v[k]) + fabs(u[j]) * dv[k] + du[k] * fabs(v[j]) + fabs(u[k]) * dv[j];
+        if (fabs(n) > 2 * dn) return 0;
+    }
+    return 1;
+}
+
+/* Face f's corners from its lowest one (x, then y, then z), winding kept: the key of its place. */
+static void face_key(const rs_mesh *m, size_t f, float key[9])
+{
+    const uint32_t *t = m->tris + 3 * f;
+    int r = 0;
+    for (int k = 1; k < 3; k++) {
+        const float *p = m->verts + 3 * (size_t)t[k], *q = m->verts + 3 * (size_t)t[r];
+        if (p[0] < q[0] || (p[0] == q[0] && (p[1] < q[1] || (p[1] == q[1] && p[2] < q[2])))) r = k;
+    }
+    for (int k = 0; k < 3; k++)
+        for (int j = 0; j < 3; j++) key[3 * k + j] = m->verts[3 * (size_t)t[(r + k) % 3] + j] + 0.0f; /* -0 -> +0 */
+}
+
+static uint64_t key_hash(const float key[9])
+{
+    uint64_t h = 0xcbf29ce484222325ULL;
+    for (int k = 0; k < 9; k++) {
+        uint32_t bits;
+        memcpy(&bits, &key[k], sizeof bits);
+        h = (h ^ bits) * 0x100000001b3ULL;
+        h ^= h >> 29;
+    }
+    return h;
+}
+
+static long mark_coincident(const rs_mesh *m, uint8_t *drop, rs_progress *progress)
+{
+    size_t cap = 16;
+    while (cap < 2 * m->nfaces) cap *= 2;
+    uint32_t *slot = malloc(cap * sizeof *slot);
+    if (!slot) return -1;
+    for (size_t k = 0; k < cap; k++) slot[k] = UINT32_MAX;
+    long marked = 0;
+    for (size_t f = 0; f < m->nfaces; f++) {
+        if (drop[f]) continue;
+        float key[9], other[9];
+        face_key(m, f, key);
+        /* Open addressing, first come first kept: the same input gives the same faces. */
+        for (size_t k = key_hash(key) & (cap - 1);; k = (k + 1) & (cap - 1)) {
+            if (slot[k] == UINT32_MAX) {
+                slot[k] = (uint32_t)f;
+                break;
+            }
+            face_key(m, slot[k], other);
+            if (memcmp(key, other, sizeof key) == 0) {
+                drop[f] = 1;
+                marked++;
+                break;
+            }
+        }
+        if (progress && (f + 1) % 65536 == 0) rs_progress_add(progress, 65536);
+    }
+    if (progress) rs_progress_add(progress, m->nfaces % 65536);
+    free(slot);
+    return marked;
+}
+
+int rs_mesh_mark_degenerate(const rs_mesh *m, double min_area, uint8_t *drop, rs_mesh_degenerate *count,
+                            rs_progress *progress)
+{
+    memset(count, 0, sizeof *count);
+    if (m->nfaces >= UINT32_MAX) return -1;
+    for (size_t f = 0; f < m->nfaces; f++) {
+        double area;
+        rs_mesh_face(m, f, NULL, NULL, &area);
+        const uint32_t *t = m->tris + 3 * f;
+        if (!(area > min_area) || t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) {
+            drop[f] = 1;
+            count->zero_area++;
+        } else if (rs_mesh_face_collinear(m, f)) {
+            drop[f] = 1;
+            count->collinear++;
+        }
+        if (progress && (f + 1) % 65536 == 0) rs_progress_add(progress, 65536);
+    }
+    if (progress) rs_progress_add(progress, m->nfaces % 65536);
+    long dup = mark_coincident(m, drop, progress);
+    if (dup < 0) return -1;
+    count->coincident = (size_t)dup;
+    return 0;
 }

@@ -8,6 +8,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "common/err.h"
+#include "common/log.h"
 #include "common/ply.h"
 #include "common/vec.h"
 
@@ -37,6 +38,26 @@ static inline rs_v3 rs_mesh_vert(const rs_mesh *m, uint32_t v)
 {
     return rs_v3_from_f(m->verts + 3 * (size_t)v);
 }
+
+/* 1 when face f's corners may be on one line: each component of the cross product of its edges
+ * is within twice what rounding the corners to float can change it by (a collinear triangle
+ * written in decimal and read into float keeps a tiny area that is only rounding). A sliver
+ * whose thin side is resolved by its coordinates is not collinear. */
+int rs_mesh_face_collinear(const rs_mesh *m, size_t f);
+
+typedef struct rs_mesh_degenerate {
+    size_t zero_area;  /* a repeated corner, or an area of at most min_area */
+    size_t collinear;  /* rs_mesh_face_collinear */
+    size_t coincident; /* the corners of an earlier kept face, in the same winding */
+} rs_mesh_degenerate;
+
+/* Sets drop[f] = 1 (drop: nfaces bytes, zeroed by the caller) for every face with nothing to
+ * measure on: zero area, collinear corners, or coincident with an earlier face (every ray meets
+ * coincident copies together: two million of them made tracing take hours). Counts each kind in
+ * *count. progress (may be NULL) advances by 2 x nfaces. Returns -1 when out of memory or when
+ * there are 2^32 - 1 faces or more. */
+int rs_mesh_mark_degenerate(const rs_mesh *m, double min_area, uint8_t *drop, rs_mesh_degenerate *count,
+                            rs_progress *progress);
 
 /* Diagonal of the bounding box (m): scales ray offsets and tolerances. */
 double rs_mesh_extent(const rs_mesh *m);

@@ -2,7 +2,9 @@
 // translation unit (it takes ~10 s and 0.8 GB to compile); every entry catches all exceptions.
 #include "common/pcl_bridge.h"
 
+#include <cfloat>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -149,6 +151,22 @@ double field_value(const uint8_t *p, uint8_t type)
     }
 }
 
+// Bytes of one value of a PCL field type (0 for an unknown type).
+size_t field_size(uint8_t type)
+{
+    switch (type) {
+    case pcl::PCLPointField::INT8:
+    case pcl::PCLPointField::UINT8: return 1;
+    case pcl::PCLPointField::INT16:
+    case pcl::PCLPointField::UINT16: return 2;
+    case pcl::PCLPointField::INT32:
+    case pcl::PCLPointField::UINT32:
+    case pcl::PCLPointField::FLOAT32: return 4;
+    case pcl::PCLPointField::FLOAT64: return 8;
+    default: return 0;
+    }
+}
+
 const pcl::PCLPointField *find_field(const pcl::PCLPointCloud2 &c, const char *name)
 {
     for (const auto &f : c.fields)
@@ -174,7 +192,23 @@ rs_cloud *read_pcd(const char *path, rs_err *err)
     const pcl::PCLPointField *fi = find_field(blob, "intensity");
     const pcl::PCLPointField *frgb = find_field(blob, "rgb");
     if (!frgb) frgb = find_field(blob, "rgba");
+    // Every field read must lie inside a point's record: PCL does not check the offsets.
+    for (const pcl::PCLPointField *f : {fx, fy, fz, fi, frgb}) {
+        size_t bytes = !f ? 0 : f == frgb ? 4 : field_size(f->datatype);
+        if (f && (bytes == 0 || (size_t)f->offset + bytes > blob.point_step)) {
+            rs_err_set(err, RS_ERR_INPUT, path, 0,
+                       "field %s (offset %u, %zu bytes) does not fit in a point of %u bytes; expected FIELDS, SIZE, "
+                       "TYPE and COUNT that agree",
+                       f->name.c_str(), f->offset, bytes, blob.point_step);
+            return nullptr;
+        }
+    }
     size_t n = (size_t)blob.width * blob.height;
+    if (blob.point_step && n > SIZE_MAX / blob.point_step) {
+        rs_err_set(err, RS_ERR_INPUT, path, 0, "WIDTH x HEIGHT = %u x %u points of %u bytes overflow", blob.width,
+                   blob.height, blob.point_step);
+        return nullptr;
+    }
     if (blob.data.size() < n * blob.point_step) {
         rs_err_set(err, RS_ERR_INPUT, path, 0, "%zu points of %u bytes but only %zu bytes of data", n, blob.point_step,
                    blob.data.size());
@@ -195,14 +229,26 @@ rs_cloud *read_pcd(const char *path, rs_err *err)
         const uint8_t *p = blob.data.data() + i * blob.point_step;
         double x = field_value(p + fx->offset, fx->datatype), y = field_value(p + fy->offset, fy->datatype),
                z = field_value(p + fz->offset, fz->datatype);
-        if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) continue;   // PCL's "no return"
+        if (std::isnan(x) || std::isnan(y) || std::isnan(z)) continue;   // PCL's "no return"
+        if (!(std::fabs(x) <= RS_CLOUD_MAX_M && std::fabs(y) <= RS_CLOUD_MAX_M && std::fabs(z) <= RS_CLOUD_MAX_M)) {
+            rs_cloud_free(c);
+            rs_err_set(err, RS_ERR_INPUT, path, 0, "point %zu: coordinates (%g, %g, %g); expected -%g to %g (m)", i, x,
+                       y, z, RS_CLOUD_MAX_M, RS_CLOUD_MAX_M);
+            return nullptr;
+        }
         c->xyz[3 * k] = x;
         c->xyz[3 * k + 1] = y;
         c->xyz[3 * k + 2] = z;
         c->valid[k] = 1;
         if (fi) {
             double v = field_value(p + fi->offset, fi->datatype);
-            c->intensity[k] = std::isfinite(v) ? (float)v : 0.0f;
+            if (!(std::fabs(v) <= FLT_MAX)) {   // stored as float
+                rs_cloud_free(c);
+                rs_err_set(err, RS_ERR_INPUT, path, 0,
+                           "point %zu: intensity %g; expected a finite number within the float range", i, v);
+                return nullptr;
+            }
+            c->intensity[k] = (float)v;
         }
         if (frgb) {
             // PCL packs colour as 0x00RRGGBB in the bits of a float (rgb) or a uint32 (rgba).

@@ -56,12 +56,13 @@ static int build_distributions(rs_skyenv *env)
     if (!env->cdf || !env->sun_cdf) return -1;
     env->total_power = build_cdf(env, env->cdf, 0);
     env->sun_power = build_cdf(env, env->sun_cdf, 1);
-    if (!(env->total_power > 0)) {
+    /* A non-finite total (an infinite pixel) would make every sample walk the whole map. */
+    if (!(env->total_power > 0 && isfinite(env->total_power))) {
         free(env->cdf);
         env->cdf = NULL;
         env->total_power = 0;
     }
-    if (!(env->sun_power > 0)) {
+    if (!(env->sun_power > 0 && isfinite(env->sun_power))) {
         free(env->sun_cdf);
         env->sun_cdf = NULL;
         env->sun_power = 0;

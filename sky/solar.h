@@ -7,15 +7,17 @@
 #include "common/vec.h"
 
 /* Julian day (UT) of an ISO 8601 date and time "YYYY-MM-DDTHH:MM[:SS[.s]][Z|+HH:MM|-HH:MM]"
- * (a space may replace the T; no zone means UTC). Returns 0, or -1 with err naming the text
- * and the expected form. */
+ * (a space may replace the T; no zone means UTC; +HHMM and +HH are read too). The date must exist
+ * in the Gregorian calendar (no 30 February), hours 00-23, minutes 00-59, seconds 00-60.999
+ * (digits only: no NaN), the offset at most 14 hours. Returns 0, or -1 with err naming the text,
+ * the field at fault and what was expected. */
 int rs_solar_parse_datetime(const char *text, double *julian_day, rs_err *err);
 
 /* Apparent sun position (with the standard atmospheric refraction of the NOAA calculator) at
  * julian_day (UT) seen from latitude_deg (north positive), longitude_deg (east positive):
  * azimuth clockwise from geographic north and elevation above the horizon, degrees.
  * Accuracy about 0.01 degrees for years 1800-2100 (NOAA); the refraction term is a standard
- * atmosphere's. */
+ * atmosphere's. NaN for both when an input is not finite. */
 void rs_solar_position(double julian_day, double latitude_deg, double longitude_deg, double *azimuth_deg,
                        double *elevation_deg);
 

@@ -59,7 +59,7 @@ static int register_capture(const rs_config *cfg, int width, int height, rs_repo
     double t0 = rs_now();
     if (rs_register_solve(bearing, world, n, &opts, &res, resid, inlier, err) != 0) {
         /* The solver knows no file: name the pairs file the message is about. */
-        snprintf(err->file, sizeof err->file, "%.*s", (int)sizeof err->file - 1, pairs_path);
+        rs_err_set_file(err, pairs_path);
         goto out;
     }
     rs_report_time(rep, "registration", rs_now() - t0);
@@ -144,12 +144,22 @@ static rs_image *read_frame(const char *path, rs_err *err)
     return img;
 }
 
+/* The longest exposure time accepted (s): an hour; anything longer is a typo or a unit slip. */
+#define MAX_EXPOSURE_S 3600.0
+
 /* [rig] exposure_times_s: the exposure times of each camera's brackets, in seconds. */
 static int exposure_times(const rs_config *cfg, double *times, int max, rs_err *err)
 {
     const char *text = rs_config_string(cfg, "rig", "exposure_times_s");
     int n = 0;
-    if (!text) return 0;
+    if (!text) {
+        /* A response curve only serves to merge brackets: set alone it would be ignored. */
+        if (rs_config_has(cfg, "rig", "response_file"))
+            return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                              "[rig] response_file is set without [rig] exposure_times_s: expected the brackets' "
+                              "exposure times (s) with it, or no response_file");
+        return 0;
+    }
     for (const char *p = text; *p;) {
         char *end;
         double t = strtod(p, &end);
@@ -161,7 +171,12 @@ static int exposure_times(const rs_config *cfg, double *times, int max, rs_err *
                               "by spaces",
                               text);
         }
-        if (!(t > 0) || n == max)
+        if (!(t > 0 && t <= MAX_EXPOSURE_S))
+            return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                              "[rig] exposure_times_s = \"%s\": time %d is %g: expected a finite time > 0 and at most "
+                              "%g s",
+                              text, n + 1, t, MAX_EXPOSURE_S);
+        if (n == max)
             return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
                               "[rig] exposure_times_s = \"%s\": expected 2 to %d times > 0 (s)", text, max);
         times[n++] = t;

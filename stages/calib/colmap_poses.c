@@ -70,7 +70,7 @@ static int align(const rs_config *cfg, const rs_colmap_model *m, const rs_colmap
     if (rs_colmap_controls_locate(m, views, nviews, cps, n, path, model_xyz, err) != 0) goto out;
     for (int i = 0; i < n; i++) world[i] = cps[i].world;
     if (rs_colmap_umeyama(n, model_xyz, world, sim, resid, err) != 0) {
-        snprintf(err->file, sizeof err->file, "%.*s", (int)sizeof err->file - 1, path);
+        rs_err_set_file(err, path);
         goto out;
     }
     rs_json_set_str(cj, "control_points_file", path);
@@ -146,7 +146,7 @@ int rs_calib_colmap_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         const char *label = rs_config_string(cfg, posed[i], "colmap_panorama");
         rs_colmap_pano pp;
         if (rs_colmap_pano_pose(&m, views, nviews, label, &sim, &pp, err) != 0) {
-            snprintf(err->file, sizeof err->file, "%.*s", (int)sizeof err->file - 1, vpath);
+            rs_err_set_file(err, vpath);
             goto out;
         }
         if (rs_calib_pose_write(out, posed[i], &pp.pose, err) != 0) goto out;

@@ -17,7 +17,7 @@ static int keyed_error(const rs_config *cfg, rs_err *err)
     char msg[sizeof err->msg];
     snprintf(msg, sizeof msg, "%s", err->msg);
     snprintf(err->msg, sizeof err->msg, "[capture] refine_edges = true: %.*s", (int)sizeof err->msg - 40, msg);
-    if (!err->file[0]) snprintf(err->file, sizeof err->file, "%.*s", (int)sizeof err->file - 1, rs_config_file(cfg));
+    if (!err->file[0]) rs_err_set_file(err, rs_config_file(cfg));
     return -1;
 }
 
@@ -81,7 +81,7 @@ int rs_calib_edge_pose_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     opts.max_width = (int)rs_config_int(cfg, "calib", "edge_max_width");
     rs_edge_refine_result res;
     if (rs_edge_refine(scene, pano, &start, &opts, &res, err) != 0) {
-        if (!err->file[0]) snprintf(err->file, sizeof err->file, "%.*s", (int)sizeof err->file - 1, pano_path);
+        if (!err->file[0]) rs_err_set_file(err, pano_path);
         keyed_error(cfg, err);
         goto out;
     }

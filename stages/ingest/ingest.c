@@ -4,6 +4,7 @@
  * Exports rs_ingest_run. */
 #include "stages/stages.h"
 
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -35,6 +36,98 @@ static float *loose_points(const rs_cloud *c, size_t *n, size_t **index)
     }
     *n = k;
     return xyz;
+}
+
+/* Exact copies of an unorganized point (merged exports, a stuck sensor) dropped, the first kept:
+ * PCL's kd-tree cannot split coincident points, and 200000 of them kept the outlier removal busy
+ * for 214 s (a search over all of them per point). */
+static int drop_coincident(rs_cloud *c, rs_report *rep, size_t *distinct, rs_err *err)
+{
+    size_t first = c->npoints - rs_cloud_unorganized(c), n = c->npoints - first, cap = 16, dropped = 0;
+    while (cap < 2 * n) cap *= 2;
+    size_t *slot = malloc(cap * sizeof *slot);
+    if (!slot) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+    for (size_t k = 0; k < cap; k++) slot[k] = SIZE_MAX;
+    for (size_t i = first; i < c->npoints; i++) {
+        if (!c->valid[i]) continue;
+        const double *p = c->xyz + 3 * i;
+        uint64_t h = 0xcbf29ce484222325ULL;
+        for (int j = 0; j < 3; j++) {
+            double x = p[j] + 0.0; /* -0 -> +0 */
+            uint64_t bits;
+            memcpy(&bits, &x, sizeof bits);
+            h = (h ^ bits) * 0x100000001b3ULL;
+            h ^= h >> 31;
+        }
+        for (size_t k = h & (cap - 1);; k = (k + 1) & (cap - 1)) {
+            if (slot[k] == SIZE_MAX) {
+                slot[k] = i;
+                break;
+            }
+            const double *q = c->xyz + 3 * slot[k];
+            if (p[0] == q[0] && p[1] == q[1] && p[2] == q[2]) {
+                c->valid[i] = 0;
+                dropped++;
+                break;
+            }
+        }
+    }
+    free(slot);
+    rs_json_set_int(rep->metrics, "coincident_removed", (long long)dropped);
+    if (dropped)
+        rs_log_warn("%zu of %zu unorganized points repeat the coordinates of another point: dropped", dropped, n);
+    *distinct = 0;
+    for (size_t i = first; i < c->npoints; i++) *distinct += c->valid[i] != 0;
+    return 0;
+}
+
+/* Across a line, unorganized points spread less than this share of their length have no surface. */
+#define MIN_SPREAD 1e-5
+
+/* 1 when the valid unorganized points lie on one line: their covariance has rank 1, i.e. the sum
+ * of its 2 x 2 principal minors (about lambda1 lambda2) is below MIN_SPREAD^2 trace^2. */
+static int collinear_points(const rs_cloud *c)
+{
+    size_t first = c->npoints - rs_cloud_unorganized(c), n = 0;
+    double mean[3] = {0, 0, 0}, cov[6] = {0};
+    for (size_t i = first; i < c->npoints; i++)
+        if (c->valid[i]) {
+            n++;
+            for (int j = 0; j < 3; j++) mean[j] += (c->xyz[3 * i + j] - mean[j]) / (double)n;
+        }
+    for (size_t i = first; i < c->npoints; i++)
+        if (c->valid[i]) {
+            double d[3] = {c->xyz[3 * i] - mean[0], c->xyz[3 * i + 1] - mean[1], c->xyz[3 * i + 2] - mean[2]};
+            double p[6] = {d[0] * d[0], d[1] * d[1], d[2] * d[2], d[0] * d[1], d[0] * d[2], d[1] * d[2]};
+            for (int j = 0; j < 6; j++) cov[j] += p[j];
+        }
+    double trace = cov[0] + cov[1] + cov[2];
+    double minors =
+        cov[0] * cov[1] - cov[3] * cov[3] + cov[0] * cov[2] - cov[4] * cov[4] + cov[1] * cov[2] - cov[5] * cov[5];
+    return !(minors > MIN_SPREAD * MIN_SPREAD * trace * trace);
+}
+
+/* The unorganized points must be able to carry a surface: three distinct points, not on a line. */
+static int check_unorganized(const rs_config *cfg, rs_cloud *c, rs_report *rep, rs_err *err)
+{
+    size_t distinct = 0;
+    if (drop_coincident(c, rep, &distinct, err) != 0) return -1;
+    char scan[4096];
+    const char *file = rs_config_file(cfg);
+    if (rs_config_path_count(cfg, "ingest", "scan") == 1 &&
+        rs_config_path_at(cfg, "ingest", "scan", 0, scan, sizeof scan))
+        file = scan;
+    if (distinct < 3)
+        return rs_err_set(err, RS_ERR_INPUT, file, 0,
+                          "[ingest] scan: the %zu unorganized points are at %zu distinct position%s: expected a scan "
+                          "of a surface (at least 3 distinct points, not on one line)",
+                          rs_cloud_unorganized(c), distinct, distinct == 1 ? "" : "s");
+    if (collinear_points(c))
+        return rs_err_set(err, RS_ERR_INPUT, file, 0,
+                          "[ingest] scan: the %zu unorganized points lie on one line (across it they spread less "
+                          "than %g of its length): expected a scan of a surface",
+                          distinct, MIN_SPREAD);
+    return 0;
 }
 
 /* Statistical outlier removal, then voxel downsampling, of the unorganized points. Scan grids
@@ -162,6 +255,14 @@ int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         if (!c) goto out;
         size_t valid = 0;
         for (size_t k = 0; k < c->npoints; k++) valid += c->valid[k] != 0;
+        if (valid == 0) { /* every file must bring something: an empty one is a wrong path or export */
+            rs_err_set(err, RS_ERR_INPUT, path, 0,
+                       "[ingest] scan: no point with a return among its %zu (all 0 0 0 or none); expected a scan of "
+                       "the scene",
+                       c->npoints);
+            rs_cloud_free(c);
+            goto out;
+        }
         rs_log_info("%s (%s): %zu points, %zu with a return, %d scan grid(s)", path, kind, c->npoints, valid,
                     c->nscans);
         rs_json *f = rs_json_push_obj(files);
@@ -197,7 +298,8 @@ int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err)
                    all->npoints);
         goto out;
     }
-    if (rs_cloud_unorganized(all) > 0 && clean(cfg, all, rep, err) != 0) goto out;
+    if (rs_cloud_unorganized(all) > 0 && (check_unorganized(cfg, all, rep, err) != 0 || clean(cfg, all, rep, err) != 0))
+        goto out;
     size_t valid = 0;
     for (size_t k = 0; k < all->npoints; k++) valid += all->valid[k] != 0;
     rs_json_set_int(rep->metrics, "points_written", (long long)valid);

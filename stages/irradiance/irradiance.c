@@ -59,7 +59,7 @@ static int sky_fill_options(const rs_config *cfg, rs_irradiance_opts *opts, rs_e
                           "and longitude_deg: expected the site's position for the solar position");
     double jd, az, el;
     if (rs_solar_parse_datetime(when, &jd, err) != 0) {
-        snprintf(err->file, sizeof err->file, "%s", rs_config_file(cfg));
+        rs_err_set_file(err, rs_config_file(cfg));
         return -1;
     }
     rs_solar_position(jd, rs_config_real(cfg, "sky", "latitude_deg"), rs_config_real(cfg, "sky", "longitude_deg"), &az,

@@ -131,7 +131,10 @@ out:
     return rc;
 }
 
-/* [mesh] input_mesh: checked, cleaned of zero-area faces and unused vertices, written as it is. */
+/* Input meshes from this many faces show the progress of their checks. */
+#define INPUT_PROGRESS_FACES 1000000
+
+/* [mesh] input_mesh: checked, cleaned of degenerate faces and unused vertices, written as it is. */
 static int run_input_mesh(const rs_config *cfg, const char *in_path, rs_report *rep, rs_err *err)
 {
     double t0 = rs_now();
@@ -141,26 +144,31 @@ static int run_input_mesh(const rs_config *cfg, const char *in_path, rs_report *
     /* Zero area at float precision: below (1e-6 of the model's size)^2. */
     double extent = rs_mesh_extent(m), min_area = 1e-12 * extent * extent;
     size_t kept = 0;
+    rs_mesh_degenerate deg;
     uint32_t *remap = malloc((m->nverts ? m->nverts : 1) * sizeof *remap);
-    if (!remap) {
-        rs_err_set(err, RS_ERR_SYSTEM, in_path, 0, "out of memory");
+    uint8_t *drop = calloc(m->nfaces ? m->nfaces : 1, 1);
+    rs_progress *prog = m->nfaces >= INPUT_PROGRESS_FACES
+        ? rs_progress_start("mesh: checking the input mesh's faces", 2 * m->nfaces)
+        : NULL;
+    int marked = remap && drop ? rs_mesh_mark_degenerate(m, min_area, drop, &deg, prog) : -1;
+    if (prog) rs_progress_end(prog);
+    if (marked != 0) {
+        rs_err_set(err, RS_ERR_SYSTEM, in_path, 0, "out of memory checking %zu faces", m->nfaces);
         goto out;
     }
     for (size_t v = 0; v < m->nverts; v++) remap[v] = UINT32_MAX;
     for (size_t f = 0; f < m->nfaces; f++) {
-        double area;
-        rs_mesh_face(m, f, NULL, NULL, &area);
         const uint32_t *t = m->tris + 3 * f;
-        if (!(area > min_area) || t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) continue;
+        if (drop[f]) continue;
         memmove(m->tris + 3 * kept++, t, 3 * sizeof *t);
         for (int j = 0; j < 3; j++) remap[t[j]] = 0;
     }
-    size_t dropped = m->nfaces - kept, nv = 0;
+    size_t dropped = deg.zero_area, nv = 0;
     if (kept == 0) {
         rs_err_set(err, RS_ERR_INPUT, in_path, 0,
-                   "[mesh] input_mesh: none of its %zu faces has a non-zero area; "
-                   "expected a triangle mesh",
-                   m->nfaces);
+                   "[mesh] input_mesh: none of its %zu faces is a usable triangle (%zu of zero area, %zu with "
+                   "collinear corners); expected a triangle mesh with some area",
+                   m->nfaces, deg.zero_area, deg.collinear);
         goto out;
     }
     for (size_t v = 0; v < m->nverts; v++)
@@ -174,9 +182,17 @@ static int run_input_mesh(const rs_config *cfg, const char *in_path, rs_report *
         if (remap[v] != UINT32_MAX) memcpy(out->verts + 3 * (size_t)remap[v], m->verts + 3 * v, 3 * sizeof(float));
     for (size_t k = 0; k < 3 * kept; k++) out->tris[k] = remap[m->tris[k]];
     if (dropped) rs_log_warn("%s: dropped %zu zero-area faces of %zu", in_path, dropped, m->nfaces);
+    if (deg.collinear)
+        rs_log_warn("%s: dropped %zu faces of %zu whose corners are collinear (to float precision)", in_path,
+                    deg.collinear, m->nfaces);
+    if (deg.coincident)
+        rs_log_warn("%s: dropped %zu faces of %zu that repeat the corners of another face (coincident duplicates)",
+                    in_path, deg.coincident, m->nfaces);
     rs_json_set_str(rep->metrics, "source", "input_mesh");
     rs_json_set_int(rep->metrics, "faces_in", (long long)m->nfaces);
     rs_json_set_int(rep->metrics, "dropped_zero_area", (long long)dropped);
+    rs_json_set_int(rep->metrics, "dropped_collinear", (long long)deg.collinear);
+    rs_json_set_int(rep->metrics, "dropped_coincident", (long long)deg.coincident);
     rs_json_set_int(rep->metrics, "dropped_unused_vertices", (long long)(m->nverts - nv));
     report_mesh(rep, out);
     rs_report_time(rep, "read", rs_now() - t0);
@@ -191,6 +207,7 @@ static int run_input_mesh(const rs_config *cfg, const char *in_path, rs_report *
     rc = 0;
 out:
     free(remap);
+    free(drop);
     rs_mesh_free(m);
     rs_mesh_free(out);
     return rc;
@@ -550,7 +567,7 @@ static int denoise_mesh(const mesh_opts *o, rs_mesh *m, rs_report *rep, rs_err *
     double t0 = rs_now();
     rs_denoise_stats ds;
     if (rs_denoise_apply(m, &o->denoise_opts, &ds, err) != 0) {
-        if (!err->file[0]) snprintf(err->file, sizeof err->file, "%.*s", (int)sizeof err->file - 1, o->config_file);
+        if (!err->file[0]) rs_err_set_file(err, o->config_file);
         return -1;
     }
     rs_report_time(rep, "denoise", rs_now() - t0);
@@ -657,7 +674,7 @@ static int run_scan(const rs_config *cfg, const mesh_opts *o, rs_report *rep, rs
     const char *source = "scan grids";
     grid = build_surface(o, c, &nadir_done, &stride, &source, rep, err);
     if (!grid) {
-        if (!err->file[0]) snprintf(err->file, sizeof err->file, "%.*s", (int)sizeof err->file - 1, path);
+        if (!err->file[0]) rs_err_set_file(err, path);
         goto out;
     }
     facet_size fs;

@@ -3,6 +3,7 @@
  * the card's albedo; their ratio is how far the object and sky exposures disagree. */
 #include "stages/reflectance/greycard.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -17,18 +18,46 @@ static double lum3(const double *v)
     return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
 }
 
+/* Larger than any panorama: a value beyond it is a typo, and never overflows an int. */
+#define MAX_INDEX 1048576
+
+/* x0 y0 x1 y1: four decimal integers from 0 to MAX_INDEX (sscanf's %d would wrap 4294967396 to 100). */
+static int parse_region(const rs_config *cfg, const char *text, int *x0, int *y0, int *x1, int *y1, rs_err *err)
+{
+    int *v[4] = {x0, y0, x1, y1}, n = 0;
+    const char *p = text;
+    for (; n < 4; n++) {
+        while (*p == ' ' || *p == '\t') p++;
+        char *end;
+        errno = 0;
+        long x = strtol(p, &end, 10);
+        if (end == p || (*end && *end != ' ' && *end != '\t') || errno == ERANGE || x < 0 || x > MAX_INDEX) break;
+        *v[n] = (int)x;
+        p = end;
+    }
+    while (*p == ' ' || *p == '\t') p++;
+    char why[64];
+    if (n < 4)
+        snprintf(why, sizeof why, "value %d is not an integer from 0 to %d", n + 1, MAX_INDEX);
+    else if (*p)
+        snprintf(why, sizeof why, "more than 4 values");
+    else if (*x1 <= *x0 || *y1 <= *y0)
+        snprintf(why, sizeof why, "the region is empty");
+    else
+        return 0;
+    return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                      "[calib] grey_card_region = \"%.80s\": %s; expected 4 pixel indices x0 y0 x1 y1 from 0 to %d "
+                      "with x0 < x1, y0 < y1 (columns x0..x1-1, rows y0..y1-1)",
+                      text, why, MAX_INDEX);
+}
+
 int rs_greycard_report(const rs_config *cfg, size_t nf, const double *esky, const double *g, const double *rho,
                        const uint8_t *estimable, rs_json *metrics, rs_err *err)
 {
     const char *text = rs_config_string(cfg, "calib", "grey_card_region");
     if (!text) return 0;
-    int x0, y0, x1, y1, used = 0;
-    if (sscanf(text, "%d %d %d %d %n", &x0, &y0, &x1, &y1, &used) != 4 || text[used] || x1 <= x0 || y1 <= y0 ||
-        x0 < 0 || y0 < 0)
-        return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
-                          "[calib] grey_card_region = \"%s\": expected "
-                          "4 pixel indices x0 y0 x1 y1 >= 0 with x0 < x1, y0 < y1 (columns x0..x1-1, rows y0..y1-1)",
-                          text);
+    int x0, y0, x1, y1;
+    if (parse_region(cfg, text, &x0, &y0, &x1, &y1, err) != 0) return -1;
     double albedo = rs_config_real(cfg, "calib", "grey_card_albedo");
     rs_capture cap = {0};
     rs_image *ids = NULL;
