@@ -142,8 +142,9 @@ int rs_run_pipeline(const rs_stage_def *stages, const rs_config *cfg, const rs_r
     return rc;
 }
 
-/* `rhoscan run`'s options after the word run into opts, sets and *config; 0, or the exit code
- * after saying what was wrong. */
+/* `rhoscan run`'s options after the word run into opts, sets and *config: 0; -1 when --help or
+ * --version was printed (the program then exits 0); else the exit code after saying what was
+ * wrong. */
 static int read_run_options(const rs_stage_def *stages, int argc, char **argv, rs_run_opts *opts, const char **sets,
                             const char **config, int *print_config)
 {
