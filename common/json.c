@@ -44,7 +44,7 @@ static rs_json *set_item(rs_json *obj_handle, const char *key, cJSON *item)
         return NULL;
     }
     int ok = cJSON_GetObjectItemCaseSensitive(obj, key) ? cJSON_ReplaceItemInObjectCaseSensitive(obj, key, item)
-                                                          : cJSON_AddItemToObject(obj, key, item);
+                                                        : cJSON_AddItemToObject(obj, key, item);
     if (!ok) {
         cJSON_Delete(item);
         return NULL;
@@ -64,7 +64,7 @@ static rs_json *push_item(rs_json *arr, cJSON *item)
 
 static cJSON *number(double v)
 {
-    return isfinite(v) ? cJSON_CreateNumber(v) : cJSON_CreateNull();   /* JSON has no NaN */
+    return isfinite(v) ? cJSON_CreateNumber(v) : cJSON_CreateNull(); /* JSON has no NaN */
 }
 
 rs_json *rs_json_set_num(rs_json *obj, const char *key, double v)
@@ -122,7 +122,7 @@ char *rs_json_text(const rs_json *j)
     char *text = cJSON_Print(CJ(j));
     if (!text) return NULL;
     size_t n = strlen(text);
-    char *out = malloc(n + 2);   /* the caller frees with free(), not cJSON_free */
+    char *out = malloc(n + 2); /* the caller frees with free(), not cJSON_free */
     if (out) {
         memcpy(out, text, n);
         out[n] = '\n';

@@ -10,8 +10,18 @@
 #include "pipeline/options.h"
 #include "pipeline/version.h"
 
-enum { RUN_FROM, RUN_ONLY, RUN_FORCE, RUN_SET, RUN_PRINT_CONFIG, RUN_QUIET, RUN_VERBOSE, RUN_HELP, RUN_VERSION,
-       RUN_OPTIONS };
+enum {
+    RUN_FROM,
+    RUN_ONLY,
+    RUN_FORCE,
+    RUN_SET,
+    RUN_PRINT_CONFIG,
+    RUN_QUIET,
+    RUN_VERBOSE,
+    RUN_HELP,
+    RUN_VERSION,
+    RUN_OPTIONS
+};
 static const rs_option run_options[] = {
     [RUN_FROM] = {"from", "STAGE", "run STAGE and every later stage, whether or not they changed"},
     [RUN_ONLY] = {"only", "STAGE", "run STAGE alone"},
@@ -192,7 +202,7 @@ static int run_command(const rs_stage_def *stages, int argc, char **argv)
     int rc = read_run_options(stages, argc, argv, &opts, sets, &config, &print_config);
     if (rc != 0) {
         free(sets);
-        return rc < 0 ? 0 : rc;   /* -1: help or version printed */
+        return rc < 0 ? 0 : rc; /* -1: help or version printed */
     }
     rs_config *cfg = rs_program_config(config, sets, &rc);
     free(sets);
@@ -227,7 +237,7 @@ int rs_driver_main(const rs_stage_def *stages, int argc, char **argv)
     const char *command = argv[1];
     if (is_any(command, "help", "--help", "-h")) {
         const rs_stage_def *d = argc > 2 ? rs_stage_lookup(stages, argv[2]) : NULL;
-        if (d) {   /* rhoscan help STAGE: the stage's own --help */
+        if (d) { /* rhoscan help STAGE: the stage's own --help */
             char *help_argv[] = {argv[2], "--help", NULL};
             return rs_stage_main(d, 2, help_argv);
         }
@@ -240,7 +250,7 @@ int rs_driver_main(const rs_stage_def *stages, int argc, char **argv)
     }
     if (strcmp(command, "run") == 0) return run_command(stages, argc, argv);
     const rs_stage_def *d = rs_stage_lookup(stages, command);
-    if (d) return rs_stage_main_of(d, stages, argc - 1, argv + 1);   /* git-style: rhoscan mesh CONFIG */
+    if (d) return rs_stage_main_of(d, stages, argc - 1, argv + 1); /* git-style: rhoscan mesh CONFIG */
     fprintf(stderr, "rhoscan: unknown command '%s'\n", command);
     usage(stages, stderr);
     return 1;

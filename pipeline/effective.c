@@ -41,7 +41,7 @@ static void each_section(const rs_config *cfg, const char *words, void (*fn)(voi
         for (int i = 0; i < nseen; i++) dup |= strcmp(seen[i], k->section) == 0;
         if (dup || nseen == 64) continue;
         seen[nseen++] = k->section;
-        if (words) {   /* only the sections named */
+        if (words) { /* only the sections named */
             size_t n = strlen(k->section);
             const char *w = words;
             int named = 0;

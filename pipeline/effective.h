@@ -9,7 +9,7 @@
 #include "common/json.h"
 
 /* Printed at the end of every --help: the one rule users trip over. */
-#define RS_PATHS_NOTE                                                                                        \
+#define RS_PATHS_NOTE                                                                                      \
     "Relative paths in CONFIG are relative to CONFIG's folder; given with --set, to the current folder.\n" \
     "configs/KEYS.md lists every key with its default.\n"
 

@@ -130,7 +130,7 @@ const char *rs_test_read_text(const char *path)
     return buf;
 }
 
-static cJSON *json_held;   /* the last document parsed: one at a time, freed by the next */
+static cJSON *json_held; /* the last document parsed: one at a time, freed by the next */
 
 const cJSON *rs_test_json_text(const char *text)
 {

@@ -312,8 +312,9 @@ static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in
                        out->fill_class[0][2], out->fill_class[1][0], out->fill_class[1][1], out->fill_class[1][2],
                        out->fill_class[2][0], out->fill_class[2][1], out->fill_class[2][2]);
     rs_ply_add_comment(ply, "rhoscan_fill_albedo %.9g %.9g %.9g", out->fill[0], out->fill[1], out->fill[2]);
-    rs_ply_add_comment(ply, "red green blue: the albedo clipped to [0, 1] and sRGB-encoded, 8 bit, for viewers; "
-                            "albedo_r/g/b and every other float property are linear");
+    rs_ply_add_comment(ply,
+                       "red green blue: the albedo clipped to [0, 1] and sRGB-encoded, 8 bit, for viewers; "
+                       "albedo_r/g/b and every other float property are linear");
     rs_ply_add_comment(ply,
                        "albedo_sigma_rel: standard (1 sigma) relative uncertainty of the albedo = sqrt(%.4g^2 + "
                        "radiance_sigma_rel^2 + (irradiance_sky_sigma^2 + irradiance_mc_sigma^2) / (E_sky + G)^2); "

@@ -264,9 +264,9 @@ static void test_run_options(void **state)
 static void test_help_version_and_stage_commands(void **state)
 {
     (void)state;
-    static const char *const forms[] = {"--help", "-h", "help", "help mesh", "run --help", "run -h",
-                                        "mesh --help", "render -h", "--version", "-V", "version", "run --version",
-                                        "irradiance --version"};
+    static const char *const forms[] = {
+        "--help",    "-h", "help",    "help mesh",     "run --help",          "run -h", "mesh --help", "render -h",
+        "--version", "-V", "version", "run --version", "irradiance --version"};
     char cmd[4096], *out = NULL;
     for (size_t k = 0; k < sizeof forms / sizeof *forms; k++) {
         snprintf(cmd, sizeof cmd, "'%s' %s 2>/dev/null", prog("rhoscan"), forms[k]);
@@ -293,7 +293,7 @@ static void test_help_version_and_stage_commands(void **state)
     assert_int_equal(rs_test_run(cmd, &out), 0);
     free(out);
     assert_int_equal(access(rs_test_path(dir, "work/ingest.json"), F_OK), 0);
-    assert_int_not_equal(access(rs_test_path(dir, "work/mesh.json"), F_OK), 0);   /* that stage alone */
+    assert_int_not_equal(access(rs_test_path(dir, "work/mesh.json"), F_OK), 0); /* that stage alone */
     rs_test_rmtree(dir);
 }
 
