@@ -44,6 +44,26 @@ static int integer(const char *s, long lo, long hi, long *v)
     return end != s && !*end && errno == 0 && *v >= lo && *v <= hi;
 }
 
+/* The header's keywords in the order the format prescribes. PCL sizes its buffer when it reads
+ * POINTS, from the point size known then: a header in another order makes it write past it. */
+static const char *const order[] = {"VERSION", "FIELDS",    "SIZE",   "TYPE", "COUNT", "WIDTH",
+                                    "HEIGHT",  "VIEWPOINT", "POINTS", "DATA", NULL};
+
+/* Each keyword once, in order; *last: the rank of the previous one (-1 before the first). */
+static int check_order(const char *key, int *last, const char *name, long line, rs_err *err)
+{
+    int rank = 0;
+    while (order[rank] && strcmp(order[rank], key) != 0) rank++;
+    if (!order[rank]) return 0; /* an unknown keyword: header_line says so */
+    if (rank <= *last)
+        return rs_err_set(err, RS_ERR_INPUT, name, line,
+                          "%s after %s: expected the header lines once each, in the order VERSION FIELDS SIZE TYPE "
+                          "COUNT WIDTH HEIGHT VIEWPOINT POINTS DATA",
+                          key, order[*last]);
+    *last = rank;
+    return 0;
+}
+
 /* One header line's keyword and values into h. */
 static int header_line(pcd_header *h, char **tok, int n, const char *name, long line, rs_err *err)
 {
@@ -103,6 +123,7 @@ static int read_header(const char *data, size_t size, const char *name, pcd_head
     h->width = h->height = h->points = -1;
     h->ncount = -1;
     long line = 0;
+    int last = -1;
     for (size_t at = 0; at < size && !h->data[0];) {
         const char *nl = memchr(data + at, '\n', size - at);
         size_t len = nl ? (size_t)(nl - (data + at)) : size - at;
@@ -126,7 +147,7 @@ static int read_header(const char *data, size_t size, const char *name, pcd_head
                                      : "a line of blanks in the header: expected header lines up to DATA");
         int n = tokens(buf, tok, MAX_LINE_TOK - 1);
         if (n == 0) continue; /* not reached: a line of blanks was refused above */
-        if (header_line(h, tok, n, name, line, err) != 0) return -1;
+        if (check_order(tok[0], &last, name, line, err) != 0 || header_line(h, tok, n, name, line, err) != 0) return -1;
         h->data_at = at;
     }
     /* PCL goes on reading header lines after DATA until one is not (empty lines skipped, blanks

@@ -10,7 +10,9 @@ extern "C" { /* read from common/pcl_bridge.cpp */
 #include <stddef.h>
 #include "common/err.h"
 
-/* Checks size bytes of a PCD file (name names it in errors): FIELDS, SIZE, TYPE and COUNT agree
+/* Checks size bytes of a PCD file (name names it in errors): the header lines once each in the
+ * format's order (VERSION FIELDS SIZE TYPE COUNT WIDTH HEIGHT VIEWPOINT POINTS DATA; VERSION,
+ * COUNT and VIEWPOINT may be left out), FIELDS, SIZE, TYPE and COUNT agree
  * (one value each per field, at most 256 fields; SIZE 1, 2, 4 or 8; TYPE I, U or F, F of size 4
  * or 8; COUNT 1 to 10^6), WIDTH x HEIGHT = POINTS (integers, at most 2^31 - 1), DATA ascii,
  * binary or binary_compressed, and binary data at least POINTS x the point's bytes (compressed:

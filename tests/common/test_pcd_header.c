@@ -57,6 +57,8 @@ static void test_headers(void **state)
     expect_refused_n(compressed, sizeof compressed - 1, "binary_compressed data of 16 bytes (12 uncompressed)");
     expect_refused(HEAD "WIDTH 1\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0\nPOINTS 1\nDATA ascii\n", "VIEWPOINT");
     expect_refused("VERSION 0.7\nFIELDS x y # z\n", "a '#' inside a header line");
+    expect_refused("FIELDS x y z\nPOINTS 1\nSIZE 4 4 4\n", "SIZE after POINTS");
+    expect_refused(HEAD "WIDTH 1\nWIDTH 1\n", "WIDTH after WIDTH");
     expect_refused(HEAD "WIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\nCOLUMNS a\n", "\"COLUMNS\" after the DATA line");
 }
 
