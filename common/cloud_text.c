@@ -60,6 +60,22 @@ static int is_sep(char ch)
     return ch == ' ' || ch == '\t' || ch == ',' || ch == ';' || ch == '\r';
 }
 
+/* A value of column k in its documented range (cloud.h): coordinates up to RS_CLOUD_MAX_M,
+ * intensities within float (they are stored as float), colours 0 to 255. */
+static int check_value(int kind, int k, double v, const char *path, long line, rs_err *err)
+{
+    if ((kind == COL_X || kind == COL_Y || kind == COL_Z) && !(fabs(v) <= RS_CLOUD_MAX_M))
+        return rs_err_set(err, RS_ERR_INPUT, path, line, "column %d: coordinate %g; expected -%g to %g (m)", k + 1, v,
+                          RS_CLOUD_MAX_M, RS_CLOUD_MAX_M);
+    if (kind == COL_I && !(fabs(v) <= FLT_MAX))
+        return rs_err_set(err, RS_ERR_INPUT, path, line,
+                          "column %d: intensity %g; expected a number within the float range", k + 1, v);
+    if ((kind == COL_R || kind == COL_G || kind == COL_B) && !(v >= 0 && v <= 255))
+        return rs_err_set(err, RS_ERR_INPUT, path, line, "column %d: colour %g; expected 0 to 255 (or 0 to 1)", k + 1,
+                          v);
+    return 0;
+}
+
 rs_cloud *rs_cloud_read_text(const char *path, const char *columns, rs_err *err)
 {
     int kind[MAX_COLS];
@@ -130,31 +146,15 @@ rs_cloud *rs_cloud_read_text(const char *path, const char *columns, rs_err *err)
         }
         size_t i = c->npoints++;
         for (int k = 0; k < ncols; k++) {
-            if ((kind[k] == COL_X || kind[k] == COL_Y || kind[k] == COL_Z) && !(fabs(v[k]) <= RS_CLOUD_MAX_M)) {
-                rs_err_set(err, RS_ERR_INPUT, path, line, "column %d: coordinate %g; expected -%g to %g (m)", k + 1,
-                           v[k], RS_CLOUD_MAX_M, RS_CLOUD_MAX_M);
-                goto fail;
-            }
+            if (check_value(kind[k], k, v[k], path, line, err) != 0) goto fail;
             switch (kind[k]) {
             case COL_X: c->xyz[3 * i] = v[k]; break;
             case COL_Y: c->xyz[3 * i + 1] = v[k]; break;
             case COL_Z: c->xyz[3 * i + 2] = v[k]; break;
-            case COL_I:
-                if (!(fabs(v[k]) <= FLT_MAX)) { /* stored as float */
-                    rs_err_set(err, RS_ERR_INPUT, path, line,
-                               "column %d: intensity %g; expected a number within the float range", k + 1, v[k]);
-                    goto fail;
-                }
-                c->intensity[i] = (float)v[k];
-                break;
+            case COL_I: c->intensity[i] = (float)v[k]; break;
             case COL_R:
             case COL_G:
             case COL_B:
-                if (v[k] < 0 || v[k] > 255) {
-                    rs_err_set(err, RS_ERR_INPUT, path, line, "column %d: colour %g; expected 0 to 255 (or 0 to 1)",
-                               k + 1, v[k]);
-                    goto fail;
-                }
                 rgbf[3 * i + kind[k] - COL_R] = (float)v[k];
                 rgb_max = fmaxf(rgb_max, (float)v[k]);
                 break;
