@@ -312,7 +312,7 @@ static int read_points(const char *path, rs_colmap_model *m, rs_err *err)
     }
     free(c.text);
     if (rc != 0) return -1;
-    qsort(m->points, (size_t)m->npoints, sizeof *m->points, cmp_point);
+    if (m->npoints > 1) qsort(m->points, (size_t)m->npoints, sizeof *m->points, cmp_point); /* NULL when empty */
     for (int i = 1; i < m->npoints; i++)
         if (m->points[i].id == m->points[i - 1].id)
             return rs_err_set(err, RS_ERR_INPUT, path, m->points[i].line,

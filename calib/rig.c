@@ -45,6 +45,7 @@ static int rotation_ok(const double r[9])
 
 /* Documented ranges of a rig file's values (rig.h). */
 #define RIG_MAX_SIDE_PX    65536
+#define RIG_MIN_FOCAL_PX   1.0 /* fewer pixels per radian than one is no camera */
 #define RIG_MAX_FOCAL_PX   1e7
 #define RIG_MAX_DISTORTION 1000.0
 #define RIG_MAX_OFFSET_M   100.0
@@ -83,9 +84,9 @@ static int check_matrix(const char *path, int i, const rs_cv_camera *in, rs_err 
         return BAD("camera %d (%s): camera_matrix [%g %g %g; %g %g %g; %g %g %g]: expected "
                    "[fx 0 cx; 0 fy cy; 0 0 1] with fx, fy > 0",
                    i, in->name, k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7], k[8]);
-    if (k[0] > RIG_MAX_FOCAL_PX || k[4] > RIG_MAX_FOCAL_PX)
-        return BAD("camera %d (%s): camera_matrix fx = %g, fy = %g: expected focal lengths up to %g px", i, in->name,
-                   k[0], k[4], RIG_MAX_FOCAL_PX);
+    if (k[0] < RIG_MIN_FOCAL_PX || k[4] < RIG_MIN_FOCAL_PX || k[0] > RIG_MAX_FOCAL_PX || k[4] > RIG_MAX_FOCAL_PX)
+        return BAD("camera %d (%s): camera_matrix fx = %g, fy = %g: expected focal lengths from %g to %g px", i,
+                   in->name, k[0], k[4], RIG_MIN_FOCAL_PX, RIG_MAX_FOCAL_PX);
     if (!(k[2] >= 0 && k[2] <= in->width && k[5] >= 0 && k[5] <= in->height))
         return BAD("camera %d (%s): camera_matrix principal point (cx, cy) = (%g, %g): expected it inside the "
                    "%.0f x %.0f image (0 <= cx <= image_width, 0 <= cy <= image_height, px)",
@@ -265,7 +266,8 @@ int rs_rig_unproject(const rs_rig_camera *c, double x, double y, rs_v3 *d_cam)
         }
         double px, py;
         distort(c, a, b, 0, &px, &py);
-        if (fabs(px - xd) + fabs(py - yd) > 1e-9 || sqrt(a * a + b * b) >= c->max_field) return 0;
+        /* Written so that a NaN from a diverged Newton step fails too. */
+        if (!(fabs(px - xd) + fabs(py - yd) <= 1e-9) || !(sqrt(a * a + b * b) < c->max_field)) return 0;
         *d_cam = rs_v3_norm(rs_v3_make(a, b, 1));
         return 1;
     }

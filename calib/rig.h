@@ -30,7 +30,7 @@ typedef struct rs_rig {
 /* Reads and checks a rig file (through OpenCV's FileStorage). Errors name the file, the camera
  * and the field, what was found and what was expected: image_width and image_height not integers
  * from 1 to 65536; a camera matrix that is not [fx 0 cx; 0 fy cy; 0 0 1] of finite numbers with
- * 0 < fx, fy <= 1e7 px and the principal point inside the image (0 <= cx <= width, 0 <= cy <=
+ * 1 <= fx, fy <= 1e7 px and the principal point inside the image (0 <= cx <= width, 0 <= cy <=
  * height); an unknown model; a distortion vector of the wrong length or with an entry that is not
  * finite or beyond +/-1000, or one that folds the image back at its centre; a rotation that is
  * not finite, orthonormal with det +1; a translation not finite or beyond 100 m; a camera_count

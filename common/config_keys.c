@@ -89,11 +89,11 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"rig", "frames", RS_CFG_PATHS, NULL, 0, 0, NULL, "", "calib",
      "one image per rig camera, in the order of the rig file's cameras (EXR, HDR, PNG, JPEG, TIFF)"},
     {"rig", "exposure_times_s", RS_CFG_STRING, NULL, 0, 0, NULL, "s", "calib",
-     "exposure brackets: times of each camera's 8-bit exposures; frames then lists them camera by camera (Debevec "
-     "merge)"},
+     "exposure brackets: times of each camera's 8-bit exposures (2 to 16, each > 0 and at most 3600 s); frames then "
+     "lists them camera by camera (Debevec merge)"},
     {"rig", "response_file", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib",
-     "with exposure_times_s: camera response, 256 lines (code 0..255) of 1 or 3 linear exposures > 0, non-decreasing; "
-     "replaces CalibrateDebevec"},
+     "with exposure_times_s (required): camera response, 256 lines (code 0..255) of 1 or 3 linear exposures from 1e-30 "
+     "to 1e30, non-decreasing; replaces CalibrateDebevec"},
     {"rig", "width", RS_CFG_INT, "0", 0, 65536, NULL, "px", "calib",
      "stitched panorama width (height = width / 2); 0: from the finest camera's pixel angle"},
     {"rig", "feather_px", RS_CFG_REAL, "32", 0.5, 10000, NULL, "px", "calib",
@@ -114,7 +114,8 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"calib", "edge_max_width", RS_CFG_INT, "2048", 64, 65536, NULL, "px", "calib",
      "edge refinement: the finest level's width; the panorama is halved until it is at most this wide"},
     {"calib", "grey_card_region", RS_CFG_STRING, NULL, 0, 0, NULL, "px", "reflectance",
-     "radiometric check: x0 y0 x1 y1, the capture panorama's pixels on a grey card (columns x0..x1-1, rows y0..y1-1)"},
+     "radiometric check: x0 y0 x1 y1, the capture panorama's pixels on a grey card (columns x0..x1-1, rows y0..y1-1; "
+     "integers from 0 to 1048576, inside the panorama)"},
     {"calib", "grey_card_albedo", RS_CFG_REAL, "0.18", 0.001, 1, NULL, "", "reflectance",
      "the grey card's known albedo; reflectance.json reports pi L / (E_sky + G) over the region against it"},
 
@@ -181,7 +182,8 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"sky", "sun_elevation_deg", RS_CFG_REAL, NULL, -10, 90, NULL, "deg", "irradiance",
      "sun elevation above the horizon (with sun_azimuth_deg)"},
     {"sky", "datetime", RS_CFG_STRING, NULL, 0, 0, NULL, "", "irradiance",
-     "capture time YYYY-MM-DDTHH:MM[:SS][Z|+HH:MM]: sun from the NOAA solar position (needs latitude, longitude)"},
+     "capture time, ISO 8601 YYYY-MM-DDTHH:MM[:SS[.s]][Z|+HH:MM|-HH:MM] (a real calendar date, offset at most 14 h): "
+     "sun from the NOAA solar position (needs latitude, longitude)"},
     {"sky", "latitude_deg", RS_CFG_REAL, NULL, -90, 90, NULL, "deg", "irradiance",
      "site latitude, north positive (with datetime)"},
     {"sky", "longitude_deg", RS_CFG_REAL, NULL, -180, 180, NULL, "deg", "irradiance",

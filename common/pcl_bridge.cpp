@@ -1,6 +1,7 @@
 // pcl_bridge: the Point Cloud Library behind a C header (pcl_bridge.h). PCL stays in this one
 // translation unit (it takes ~10 s and 0.8 GB to compile); every entry catches all exceptions.
 #include "common/pcl_bridge.h"
+#include "common/pcd_header.h"
 
 #include <cfloat>
 #include <cmath>
@@ -273,6 +274,7 @@ rs_cloud *read_pcd(const char *path, rs_err *err)
 
 extern "C" rs_cloud *rs_pcl_read_pcd(const char *path, rs_err *err)
 {
+    if (rs_pcd_check_file(path, err) != 0) return nullptr;   // PCL trusts the header
     try {
         quiet();
         return read_pcd(path, err);

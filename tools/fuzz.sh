@@ -4,8 +4,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 total=${1:-300}
-readers="ply ptx config image"
-nreaders=4
+readers="ply ptx config image pairs response colmap pcd xyz rig"
+nreaders=$(echo $readers | wc -w)
 per=$(( total / nreaders )); [ "$per" -ge 1 ] || per=1
 
 cmake -S . -B build-fuzz -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \

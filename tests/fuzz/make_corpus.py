@@ -96,4 +96,56 @@ put("image", "rgb8.png", png(2, 2, 2, 8, [bytes((255, 0, 0, 0, 255, 0)), bytes((
 put("image", "grey_alpha8.png", png(3, 1, 4, 8, [bytes((0, 255, 128, 255, 255, 0))]))
 put("image", "rgba16.png", png(1, 2, 6, 16, [struct.pack(">4H", 65535, 0, 1000, 65535),
                                             struct.pack(">4H", 0, 30000, 65535, 0)]))
+# ---- pairs files: column row X Y Z, comments, commas, CR LF
+put("pairs", "pairs.txt", "# column row X Y Z\n10 20 1 2 3\n30.5 40 -1 2.5 3\n100 5 4 4 4  # a comment\n"
+    "7 8 9 10 11\n")
+put("pairs", "commas.txt", "1,2,3,4,5\r\n6,7,8,9,10\r\n11 12 13 14 15\r\n16\t17\t18\t19\t20\r\n")
+
+# ---- response curves: one column, three columns with commas
+put("response", "gamma.txt", "# gamma 2.2\n" + "".join("%.9g\n" % ((max(i, 0.25) / 255) ** 2.2) for i in range(256)))
+put("response", "rgb.txt", "".join("%g, %g, %g\n" % ((i + 1) / 256, (i + 1) / 200, (i + 1) / 300) for i in range(256)))
+
+# ---- COLMAP text: cameras, images, points3D, views, control points, NUL-separated
+cameras = "# Camera list\n1 PINHOLE 512 512 256 256 256 256\n2 SIMPLE_RADIAL 640 480 300 320 240 0.01\n"
+images = ("# Image list\n1 1 0 0 0 0 0 0 1 a.png\n10 20 1 30 40 -1\n"
+          "2 0.7071067811865476 0 0.7071067811865476 0 1 0 0 2 b.png\n50 60 2 70 80 3\n")
+points = "# 3D points\n1 0 0 5 255 0 0 0.5 1 0\n2 1 0 5 0 255 0 0.25 1 1 2 0\n3 0 1 5 0 0 255 0.1 2 1\n"
+views = "a.png pano0 1 0 0 0 1 0 0 0 1\nb.png pano0 0 0 1 0 1 0 -1 0 0 0 0 0.1\n"
+control = "image a.png 0 0 0\nimage b.png 1 0 0\npoint 3 0 1 5\npanorama pano0 0.5 0 0\n"
+put("colmap", "model", "\0".join([cameras, images, points, views, control]))
+
+# ---- PCD: ascii with intensity and packed rgb, binary, a NaN (no return) point
+pcd_head = ("# .PCD v0.7\nVERSION 0.7\nFIELDS x y z intensity rgb\nSIZE 4 4 4 4 4\nTYPE F F F F U\n"
+            "COUNT 1 1 1 1 1\nWIDTH %d\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS %d\nDATA %s\n")
+pcd_pts = [(0, 0, 0, 0.5, 0xff0000), (1, 0, 0.1, 0.25, 0x00ff00), (0, 1, 0.2, 1, 0x0000ff), (float("nan"), 0, 0, 0, 0)]
+put("pcd", "ascii.pcd", pcd_head % (4, 4, "ascii") + "".join("%g %g %g %g %d\n" % p for p in pcd_pts))
+put("pcd", "binary.pcd", (pcd_head % (4, 4, "binary")).encode() +
+    b"".join(struct.pack("<ffffI", *p) for p in pcd_pts))
+put("pcd", "double.pcd", "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\n"
+    "HEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA ascii\n500000.25 4000000.5 12\n500001 4000001 13\n")
+
+# ---- XYZ text: the first byte picks the column map (fuzz_xyz.c): x y z / + intensity / + r g b
+put("xyz", "plain.xyz", b"\x00" + b"# x y z\n0 0 0\n1 0 0.5\n0,1,0.25\n1;1;1\n")
+put("xyz", "intensity.xyz", b"\x01" + b"X Y Z I\n0 0 0 0.5\n1 0 0 0.25\n// comment\n0 1 0 1\n")
+put("xyz", "colour.xyz", b"\x02" + b"3\n0 0 0 255 0 0\n1 0 0 0 255 0\n0 1 0 0 0 255\n")
+
+
+# ---- rig values (fuzz_rig.c): a tag byte per value, 200 = 8 raw bytes of a double follow
+def rig_value(v):
+    return bytes([200]) + struct.pack("<d", v)
+
+
+def rig_camera(model, w, h, k, dist, r, t):
+    b = bytes([model, 1]) + rig_value(w) + bytes([1]) + rig_value(h) + bytes([1])
+    b += b"".join(rig_value(x) for x in k) + bytes([len(dist)]) + b"".join(rig_value(x) for x in dist)
+    b += bytes([1]) + b"".join(rig_value(x) for x in r) + bytes([1]) + b"".join(rig_value(x) for x in t)
+    return b
+
+
+ident = (1, 0, 0, 0, 1, 0, 0, 0, 1)
+put("rig", "pinhole", bytes([0, 3]) + rig_camera(0, 640, 512, (300, 0, 319.5, 0, 300, 255.5, 0, 0, 1),
+                                                 (-0.08, 0.01, 0.0005, -0.0003, 0), ident, (0.04, 0, 0.05)))
+put("rig", "two", bytes([1, 4]) + rig_camera(0, 64, 32, (40, 0, 31.5, 0, 40, 15.5, 0, 0, 1), (0, 0, 0, 0, 0),
+                                             (0, 0, 1, -1, 0, 0, 0, -1, 0), (0, 0, 0)) +
+    rig_camera(1, 640, 640, (200, 0, 319.5, 0, 200, 319.5, 0, 0, 1), (0.02, -0.004, 0.0005, 0), ident, (0, 0, 0.05)))
 print("seeds written under", root, file=sys.stderr)
