@@ -72,6 +72,24 @@ int read_matrix(const cv::FileNode &cam, const char *key, int index, double *out
     return d.cols;
 }
 
+// Up to max_entries reals from an !!opencv-matrix or a plain YAML sequence ([a, b, c]).
+int read_reals(const cv::FileNode &cam, const char *key, int index, double *out, int max_entries)
+{
+    cv::FileNode node = cam[key];
+    if (node.empty() || !node.isSeq()) return read_matrix(cam, key, index, out, max_entries);
+    int n = static_cast<int>(node.size());
+    if (n > max_entries)
+        throw field_error{"camera " + std::to_string(index) + ": " + key + " has " + std::to_string(n) +
+                          " entries, expected at most " + std::to_string(max_entries)};
+    for (int i = 0; i < n; i++) {
+        if (!node[i].isReal() && !node[i].isInt())
+            throw field_error{"camera " + std::to_string(index) + ": " + key + " entry " + std::to_string(i) +
+                              " is not a number"};
+        out[i] = static_cast<double>(node[i]);
+    }
+    return n;
+}
+
 // A scalar as the file wrote it, for messages.
 std::string as_written(const cv::FileNode &node)
 {
@@ -222,6 +240,16 @@ extern "C" int rs_cv_rig_read(const char *path, rs_cv_camera **cams, int *count,
             c->has_translation = read_matrix(cam, "t_rig_cam", i, c->t_rig_cam, 3) == 3;
             if (!cam["t_rig_cam"].empty() && !c->has_translation)
                 throw field_error{"camera " + std::to_string(i) + ": t_rig_cam must have 3 entries"};
+            cv::FileNode gain = cam["gain"];
+            c->has_gain = gain.empty() ? 0 : gain.isReal() || gain.isInt() ? 1 : 2;
+            if (c->has_gain == 1) c->gain = static_cast<double>(gain);
+            c->vignetting_count = read_reals(cam, "vignetting", i, c->vignetting, 4);
+            cv::FileNode mask = cam["valid_mask"];
+            if (!mask.empty()) {
+                if (!mask.isString())
+                    throw field_error{"camera " + std::to_string(i) + ": valid_mask must be an image file's path"};
+                std::snprintf(c->valid_mask, sizeof c->valid_mask, "%s", std::string(mask).c_str());
+            }
         }
         *cams = out;
         *count = n;

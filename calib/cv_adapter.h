@@ -24,6 +24,13 @@ typedef struct rs_cv_camera {
     int distortion_count; /* entries given (0 when missing) */
     double r_rig_cam[9];  /* camera -> rig, row-major */
     double t_rig_cam[3];  /* camera centre in the rig frame, m */
+    /* Photometry, all optional: a known gain (observed = gain x true), the vignetting polynomial's
+     * coefficients (a1 a2 a3), and a valid-pixel mask image (its path as written). */
+    int has_gain; /* 0 missing, 1 a number, 2 present but not a number */
+    double gain;
+    int vignetting_count;
+    double vignetting[4];
+    char valid_mask[1024];
 } rs_cv_camera;
 
 /* Reads a FileStorage YAML rig file: camera_count and the cameras sequence. *cams is allocated

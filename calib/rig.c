@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include "common/image.h"
 
 /* Radial derivative of the distorted radius: pinhole d/dr [r (1 + k1 r^2 + k2 r^4 + k3 r^6)],
  * fisheye d/dtheta [theta (1 + k1 theta^2 + ... + k4 theta^8)]. */
@@ -95,6 +96,47 @@ static int check_matrix(const char *path, int i, const rs_cv_camera *in, rs_err 
 #undef BAD
 }
 
+#define RIG_MIN_GAIN 1e-3
+#define RIG_MAX_GAIN 1e3
+
+double rs_rig_vignetting(const rs_rig_camera *c, double x, double y)
+{
+    double u = (x - c->cx) / c->fx, v = (y - c->cy) / c->fy, r2 = u * u + v * v;
+    return 1 + r2 * (c->vignetting[0] + r2 * (c->vignetting[1] + r2 * c->vignetting[2]));
+}
+
+/* gain and vignetting (the mask is a file: rs_rig_load reads it). c's geometry is set. */
+static int check_photometry(const char *path, int i, const rs_cv_camera *in, rs_rig_camera *c, rs_err *err)
+{
+#define BAD(...) rs_err_set(err, RS_ERR_INPUT, path, 0, __VA_ARGS__)
+    if (in->has_gain == 2) return BAD("camera %d (%s): gain is not a number: expected observed / true", i, in->name);
+    if (in->has_gain == 1 && !(in->gain >= RIG_MIN_GAIN && in->gain <= RIG_MAX_GAIN))
+        return BAD("camera %d (%s): gain = %g: expected a number from %g to %g (observed / true)", i, in->name,
+                   in->gain, RIG_MIN_GAIN, RIG_MAX_GAIN);
+    c->gain = in->has_gain == 1 ? in->gain : 0;
+    if (in->vignetting_count != 0 && in->vignetting_count != 3)
+        return BAD("camera %d (%s): vignetting has %d entries: expected 3 (a1 a2 a3 of 1 + a1 r^2 + a2 r^4 + a3 r^6)",
+                   i, in->name, in->vignetting_count);
+    for (int j = 0; j < in->vignetting_count; j++) {
+        if (!(fabs(in->vignetting[j]) <= RIG_MAX_DISTORTION))
+            return BAD("camera %d (%s): vignetting entry %d is %g: expected a finite number from %g to %g", i, in->name,
+                       j, in->vignetting[j], -RIG_MAX_DISTORTION, RIG_MAX_DISTORTION);
+        c->vignetting[j] = in->vignetting[j];
+    }
+    /* The falloff along the longest radius in the image: a polynomial that turns negative or
+     * grows past 2 there is a typo, not a lens. */
+    double rx = fmax(c->cx, c->width - c->cx), ry = fmax(c->cy, c->height - c->cy);
+    for (int k = 0; k <= 256; k++) {
+        double v = rs_rig_vignetting(c, c->cx + rx * k / 256, c->cy + ry * k / 256);
+        if (!(v >= 0.05 && v <= 2))
+            return BAD("camera %d (%s): vignetting [%g %g %g] gives a falloff of %g at %.0f %% of the way to the "
+                       "image corner: expected 0.05 to 2",
+                       i, in->name, c->vignetting[0], c->vignetting[1], c->vignetting[2], v, 100.0 * k / 256);
+    }
+#undef BAD
+    return 0;
+}
+
 static int check_camera(const char *path, int i, const rs_cv_camera *in, rs_rig_camera *c, rs_err *err)
 {
     memset(c, 0, sizeof *c);
@@ -145,7 +187,7 @@ static int check_camera(const char *path, int i, const rs_cv_camera *in, rs_rig_
                    "model that is one-to-one near the axis",
                    i, in->name);
 #undef BAD
-    return 0;
+    return check_photometry(path, i, in, c, err);
 }
 
 int rs_rig_check(const char *path, const rs_cv_camera *cams, int n, int declared, rs_rig *rig, rs_err *err)
@@ -167,6 +209,39 @@ int rs_rig_check(const char *path, const rs_cv_camera *cams, int n, int declared
     return 0;
 }
 
+/* Camera i's valid_mask, named relative to the rig file's folder: any image of the camera's
+ * size, a pixel valid where its first channel is above 0. */
+static int load_mask(const char *rig_path, int i, const char *name, rs_rig_camera *c, rs_err *err)
+{
+    char path[4096];
+    const char *slash = strrchr(rig_path, '/');
+    if (name[0] == '/' || !slash)
+        snprintf(path, sizeof path, "%s", name);
+    else
+        snprintf(path, sizeof path, "%.*s/%s", (int)(slash - rig_path), rig_path, name);
+    rs_image *img = rs_image_read(path, err);
+    if (!img) {
+        char why[sizeof err->msg];
+        snprintf(why, sizeof why, "%s", err->msg);
+        return rs_err_set(err, err->kind, rig_path, 0, "camera %d (%s): valid_mask %s: %s", i, c->name, path, why);
+    }
+    if (img->width != c->width || img->height != c->height) {
+        rs_err_set(err, RS_ERR_INPUT, rig_path, 0, "camera %d (%s): valid_mask %s is %d x %d: expected %d x %d", i,
+                   c->name, path, img->width, img->height, c->width, c->height);
+        rs_image_free(img);
+        return -1;
+    }
+    c->mask = malloc((size_t)c->width * c->height);
+    if (!c->mask) {
+        rs_image_free(img);
+        return rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
+    }
+    for (int y = 0; y < c->height; y++)
+        for (int x = 0; x < c->width; x++) c->mask[(size_t)y * c->width + x] = rs_image_px(img, x, y)[0] > 0;
+    rs_image_free(img);
+    return 0;
+}
+
 int rs_rig_load(const char *path, rs_rig *rig, rs_err *err)
 {
     memset(rig, 0, sizeof *rig);
@@ -180,12 +255,16 @@ int rs_rig_load(const char *path, rs_rig *rig, rs_err *err)
     if (rs_cv_rig_read(path, &cams, &n, &declared, &line, msg, sizeof msg) != 0)
         return rs_err_set(err, RS_ERR_INPUT, path, line, "%s", msg);
     int rc = rs_rig_check(path, cams, n, declared, rig, err);
+    for (int i = 0; rc == 0 && i < n; i++)
+        if (cams[i].valid_mask[0]) rc = load_mask(path, i, cams[i].valid_mask, &rig->cams[i], err);
+    if (rc != 0) rs_rig_release(rig);
     rs_cv_free(cams);
     return rc;
 }
 
 void rs_rig_release(rs_rig *rig)
 {
+    for (int i = 0; i < rig->count; i++) free(rig->cams[i].mask);
     free(rig->cams);
     rig->cams = NULL;
     rig->count = 0;

@@ -20,6 +20,12 @@ typedef struct rs_rig_camera {
     rs_v3 t_rig_cam;       /* camera centre in the rig frame, m */
     double max_field;      /* pinhole: largest usable tan of the angle off the axis;
                                   fisheye: largest usable angle off the axis (rad) */
+    /* Photometry (docs/DESIGN.md, section Rig file), each optional: */
+    double gain;          /* known gain, observed = gain x true; 0 when the stitcher estimates it */
+    double vignetting[3]; /* a1 a2 a3: observed = true x (1 + a1 r^2 + a2 r^4 + a3 r^6), r the distance from
+                                  the principal point in focal lengths; all 0 without */
+    unsigned char *mask;  /* width x height, row 0 on top, 0 where the pixel is not to be used (the rig's
+                                  own housing, a lens hood, a dead column); NULL: every pixel valid */
 } rs_rig_camera;
 
 typedef struct rs_rig {
@@ -34,12 +40,18 @@ typedef struct rs_rig {
  * height); an unknown model; a distortion vector of the wrong length or with an entry that is not
  * finite or beyond +/-1000, or one that folds the image back at its centre; a rotation that is
  * not finite, orthonormal with det +1; a translation not finite or beyond 100 m; a camera_count
- * different from the cameras listed. Release with rs_rig_release. */
+ * different from the cameras listed; a gain not a number from 1e-3 to 1e3; vignetting not 3
+ * finite coefficients or one that makes the falloff leave 0.05 to 2 inside the image; a
+ * valid_mask (relative to the rig file's folder) that cannot be read or is not the camera's
+ * size. Release with rs_rig_release. */
 int rs_rig_load(const char *path, rs_rig *rig, rs_err *err);
 /* The checks of rs_rig_load on cameras already parsed (n of them; declared: camera_count, -1 when
  * the file has none); path names the file in errors. */
 int rs_rig_check(const char *path, const rs_cv_camera *cams, int n, int declared, rs_rig *rig, rs_err *err);
 void rs_rig_release(rs_rig *rig);
+
+/* The vignetting falloff of camera c at pixel (x, y): observed / true (1 without vignetting). */
+double rs_rig_vignetting(const rs_rig_camera *c, double x, double y);
 
 /* Pixel (x, y) of a direction in the camera frame (x right, y down, z forward; need not be unit).
  * Returns 1 when the direction lies inside the lens model's usable field and the pixel inside

@@ -8,10 +8,9 @@
 #include <stdlib.h>
 #include <string.h>
 #include "calib/calib_math.h"
+#include "calib/gains.h"
 #include "common/linsolve.h"
 #include "common/pano.h"
-
-#define MIN_OVERLAP_PX 64 /* fewer shared pixels say too little about a gain ratio */
 
 int rs_stitch_default_width(const rs_rig *rig)
 {
@@ -118,21 +117,28 @@ static int plan_row(const rs_rig *rig, const rs_stitch_opts *o, int r, cam_px *p
     return 0;
 }
 
-/* Camera c's bilinear sample at its planned pixel and its blending weight; 0 when the camera
- * does not see the pixel or its frame holds no finite value there. */
-static int sample_camera(const cam_px *p, const rs_image *img, double feather, float rgb[3], double *weight)
+/* Camera c's bilinear sample at its planned pixel, vignetting divided out, and its blending
+ * weight; 0 when the camera does not see the pixel, its mask rules the pixel out, or its frame
+ * holds no finite value there. */
+static int sample_camera(const rs_rig_camera *cam, const cam_px *p, const rs_image *img, double feather, float rgb[3],
+                         double *weight)
 {
     if (!p->ok) return 0;
     double x = p->x, y = p->y;
     int x0 = (int)floor(x), y0 = (int)floor(y);
     int x1 = x0 + 1 < img->width ? x0 + 1 : x0, y1 = y0 + 1 < img->height ? y0 + 1 : y0;
-    double fx = x - x0, fy = y - y0;
+    if (cam->mask) { /* every tap of the bilinear sample valid */
+        const unsigned char *m = cam->mask;
+        size_t w = (size_t)cam->width;
+        if (!m[y0 * w + x0] || !m[y0 * w + x1] || !m[y1 * w + x0] || !m[y1 * w + x1]) return 0;
+    }
+    double fx = x - x0, fy = y - y0, vig = rs_rig_vignetting(cam, x, y);
     const float *p00 = rs_image_px(img, x0, y0), *p10 = rs_image_px(img, x1, y0);
     const float *p01 = rs_image_px(img, x0, y1), *p11 = rs_image_px(img, x1, y1);
     for (int ch = 0; ch < 3; ch++) {
         double v = (1 - fy) * ((1 - fx) * p00[ch] + fx * p10[ch]) + fy * ((1 - fx) * p01[ch] + fx * p11[ch]);
         if (!isfinite(v)) return 0;
-        rgb[ch] = (float)v;
+        rgb[ch] = (float)(v / vig);
     }
     double t = fmin(fmax(p->margin / feather, 0), 1);
     /* smoothstep: no kink in the blend at either end of the ramp; the floor keeps pixels that
@@ -146,42 +152,137 @@ static double luminance(const float *rgb)
     return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
 }
 
-/* Per-camera log corrections x from the overlaps: for each camera pair with enough shared
- * pixels, x_i + ln S_ij = x_j + ln S_ji in the least-squares sense (S_ij: camera i's summed
- * luminance over the pixels it shares with j), weighted by the shared pixel count, with
- * sum x_i = 0. The correction divides out gain_i = exp(-x_i). */
-static int solve_gains(int n, const double *sum, const double *count, double *gains, int *pairs)
+/* Pixels the gain estimate leaves out: the outer quarter of the feathering ramp (where the lens
+ * model, vignetting and flare are least trustworthy), pixels at or near the frame's saturation
+ * (0.99 of its largest value), and pixels where log luminance changes by more than
+ * GAIN_MAX_LOG_GRADIENT per camera pixel (roof lines against the sky, the sun's halo: a
+ * fraction of a pixel of registration error there is a large ratio error). */
+#define GAIN_EDGE_SHARE       0.25
+#define GAIN_SATURATION       0.99
+#define GAIN_MAX_LOG_GRADIENT 0.25
+
+static double log_lum_at(const rs_image *img, int x, int y)
 {
-    double *a = calloc((size_t)n * n, sizeof *a), *b = calloc((size_t)n, sizeof *b);
-    if (!a || !b) {
-        free(a);
-        free(b);
+    double l = luminance(rs_image_px(img, x, y));
+    return l > 0 ? log(l) : -INFINITY;
+}
+
+/* Whether camera c's sample at p may enter the gain estimate, and its weight there. */
+static int gain_usable(const cam_px *p, const rs_image *img, const float *rgb, double saturation, double feather,
+                       double *weight)
+{
+    if (p->margin < GAIN_EDGE_SHARE * feather) return 0;
+    if (fmaxf(rgb[0], fmaxf(rgb[1], rgb[2])) >= saturation || !(luminance(rgb) > 0)) return 0;
+    int x = (int)lround(p->x), y = (int)lround(p->y);
+    x = x < 1 ? 1 : x > img->width - 2 ? img->width - 2 : x;
+    y = y < 1 ? 1 : y > img->height - 2 ? img->height - 2 : y;
+    if (img->width >= 3 && img->height >= 3) {
+        double gx = 0.5 * (log_lum_at(img, x + 1, y) - log_lum_at(img, x - 1, y));
+        double gy = 0.5 * (log_lum_at(img, x, y + 1) - log_lum_at(img, x, y - 1));
+        if (!(fabs(gx) <= GAIN_MAX_LOG_GRADIENT && fabs(gy) <= GAIN_MAX_LOG_GRADIENT)) return 0;
+    }
+    double t = fmin(p->margin / feather, 1);
+    *weight = t * t * (3 - 2 * t);
+    return 1;
+}
+
+/* The largest finite channel value of a frame, times GAIN_SATURATION: at or above it a pixel
+ * may be clipped. */
+static double saturation_level(const rs_image *img)
+{
+    double m = 0;
+    size_t n = (size_t)img->width * img->height * img->channels;
+    for (size_t k = 0; k < n; k++)
+        if (isfinite(img->data[k])) m = fmax(m, img->data[k]);
+    return m > 0 ? GAIN_SATURATION * m : INFINITY;
+}
+
+/* One row's gain samples: pair index i * n + j with the log ratio and weight. */
+typedef struct {
+    size_t count, cap;
+    int *pair;
+    float *log_ratio, *weight;
+} row_samples;
+
+static int row_add(row_samples *r, int pair, double lr, double w)
+{
+    if (r->count == r->cap) {
+        size_t cap = r->cap ? 2 * r->cap : 1024;
+        int *pp = realloc(r->pair, cap * sizeof *pp);
+        if (pp) r->pair = pp;
+        float *lp = realloc(r->log_ratio, cap * sizeof *lp);
+        if (lp) r->log_ratio = lp;
+        float *wp = realloc(r->weight, cap * sizeof *wp);
+        if (wp) r->weight = wp;
+        if (!pp || !lp || !wp) return -1;
+        r->cap = cap;
+    }
+    r->pair[r->count] = pair;
+    r->log_ratio[r->count] = (float)lr;
+    r->weight[r->count++] = (float)w;
+    return 0;
+}
+
+/* Row r's samples: every pair of cameras that both may use a pixel. */
+static int gain_row(const rs_rig *rig, rs_image *const *frames, const rs_stitch_opts *o, const double *sat, int r,
+                    row_samples *out)
+{
+    int n = rig->count, w = o->width;
+    double unused[3] = {0, 0, 0};
+    cam_px *plan = malloc((size_t)w * n * sizeof *plan);
+    if (!plan || plan_row(rig, o, r, plan, &unused[0], &unused[1], &unused[2]) != 0) {
+        free(plan);
         return -1;
     }
-    double wsum = 0;
-    *pairs = 0;
-    for (int i = 0; i < n; i++)
-        for (int j = i + 1; j < n; j++) {
-            double w = count[i * n + j];
-            if (w < MIN_OVERLAP_PX || !(sum[i * n + j] > 0) || !(sum[j * n + i] > 0)) continue;
-            double c = log(sum[i * n + j]) - log(sum[j * n + i]);
-            a[i * n + i] += w;
-            a[j * n + j] += w;
-            a[i * n + j] -= w;
-            a[j * n + i] -= w;
-            b[i] -= w * c;
-            b[j] += w * c;
-            wsum += w;
-            (*pairs)++;
+    for (int col = 0; col < w; col++) {
+        float rgb[64][3];
+        double wt[64], unused_w;
+        int use[64];
+        for (int i = 0; i < n; i++) {
+            const cam_px *p = &plan[(size_t)col * n + i];
+            use[i] = sample_camera(&rig->cams[i], p, frames[i], o->feather_px, rgb[i], &unused_w) &&
+                gain_usable(p, frames[i], rgb[i], sat[i], o->feather_px, &wt[i]);
         }
-    double lam = wsum > 0 ? wsum / n : 1;
-    for (int i = 0; i < n; i++)
-        for (int j = 0; j < n; j++) a[i * n + j] += lam / n + (i == j ? 1e-9 * lam : 0);
-    int rc = rs_solve_dense(a, b, (size_t)n);
-    for (int i = 0; i < n; i++) gains[i] = rc == 0 ? exp(-b[i]) : 1;
-    free(a);
-    free(b);
+        for (int i = 0; i < n; i++)
+            for (int j = i + 1; j < n; j++)
+                if (use[i] && use[j] &&
+                    row_add(out, i * n + j, log(luminance(rgb[i]) / luminance(rgb[j])), wt[i] * wt[j]) != 0) {
+                    free(plan);
+                    return -1;
+                }
+    }
+    free(plan);
     return 0;
+}
+
+/* The gains: samples of every row, gathered per pair in row order (the result is the same for
+ * any thread count), then rs_gains_solve with the rig's known gains. */
+static int estimate_gains(const rs_rig *rig, rs_image *const *frames, const rs_stitch_opts *o, double *gains,
+                          rs_gain_report *report)
+{
+    int n = rig->count, h = o->width / 2, failed = 0;
+    double sat[64], known[64];
+    for (int i = 0; i < n; i++) sat[i] = saturation_level(frames[i]), known[i] = rig->cams[i].gain;
+    row_samples *rows = calloc((size_t)h, sizeof *rows);
+    rs_gain_samples *pairs = calloc((size_t)n * n, sizeof *pairs);
+    if (!rows || !pairs) failed = 1;
+#pragma omp parallel for schedule(dynamic, 8)
+    for (int r = 0; r < h; r++) {
+        if (failed) continue;
+        if (gain_row(rig, frames, o, sat, r, &rows[r]) != 0) {
+#pragma omp atomic write
+            failed = 1;
+        }
+    }
+    for (int r = 0; r < h && !failed; r++)
+        for (size_t k = 0; k < rows[r].count && !failed; k++)
+            failed = rs_gain_samples_add(&pairs[rows[r].pair[k]], rows[r].log_ratio[k], rows[r].weight[k]) != 0;
+    for (int r = 0; rows && r < h; r++) free(rows[r].pair), free(rows[r].log_ratio), free(rows[r].weight);
+    free(rows);
+    if (!failed && rs_gains_solve(n, pairs, known, gains, report) != 0) failed = 1;
+    for (int k = 0; pairs && k < n * n; k++) rs_gain_samples_free(&pairs[k]);
+    free(pairs);
+    return failed ? -1 : 0;
 }
 
 int rs_stitch(const rs_rig *rig, rs_image *const *frames, const rs_stitch_opts *opts, rs_image **pano, double *gains,
@@ -200,48 +301,14 @@ int rs_stitch(const rs_rig *rig, rs_image *const *frames, const rs_stitch_opts *
                               rig->cams[i].height, rig->cams[i].name);
     }
     rs_image *out = rs_image_new(w, h, 3);
-    /* Per-row sums (overlaps, coverage, model depth, hidden samples), reduced in row order
-     * afterwards so the result does not depend on the thread count. */
-    size_t nn = (size_t)n * n;
-    double *row_sum = opts->estimate_gain ? calloc((size_t)h * nn, sizeof *row_sum) : NULL;
-    double *row_cnt = opts->estimate_gain ? calloc((size_t)h * nn, sizeof *row_cnt) : NULL;
     double *row_stat = calloc((size_t)h * 4, sizeof *row_stat);
     int failed = 0;
-    if (!out || !row_stat || (opts->estimate_gain && (!row_sum || !row_cnt))) goto oom;
+    if (!out || !row_stat) goto oom;
     if (opts->estimate_gain) {
-#pragma omp parallel for schedule(dynamic, 8)
-        for (int r = 0; r < h; r++) {
-            float rgb[64][3];
-            int seen[64];
-            double *s = row_sum + (size_t)r * nn, *c = row_cnt + (size_t)r * nn, wt, unused[3] = {0, 0, 0};
-            cam_px *plan = malloc((size_t)w * n * sizeof *plan);
-            if (!plan || plan_row(rig, opts, r, plan, &unused[0], &unused[1], &unused[2]) != 0) {
-#pragma omp atomic write
-                failed = 1;
-                free(plan);
-                continue;
-            }
-            for (int col = 0; col < w; col++) {
-                for (int i = 0; i < n; i++)
-                    seen[i] = sample_camera(&plan[(size_t)col * n + i], frames[i], 1, rgb[i], &wt);
-                for (int i = 0; i < n; i++)
-                    for (int j = i + 1; j < n; j++)
-                        if (seen[i] && seen[j]) {
-                            s[i * n + j] += luminance(rgb[i]);
-                            s[j * n + i] += luminance(rgb[j]);
-                            c[i * n + j] += 1;
-                        }
-            }
-            free(plan);
-        }
-        if (failed) goto oom;
-        for (int r = 1; r < h; r++)
-            for (size_t k = 0; k < nn; k++) {
-                row_sum[k] += row_sum[(size_t)r * nn + k];
-                row_cnt[k] += row_cnt[(size_t)r * nn + k];
-            }
-        if (solve_gains(n, row_sum, row_cnt, gains, &stats->overlap_pairs) != 0) goto oom;
-    }
+        if (estimate_gains(rig, frames, opts, gains, &stats->gain) != 0) goto oom;
+        stats->overlap_pairs = stats->gain.npairs;
+    } else
+        for (int i = 0; i < n; i++) gains[i] = rig->cams[i].gain > 0 ? rig->cams[i].gain : 1;
 #pragma omp parallel for schedule(dynamic, 8)
     for (int r = 0; r < h; r++) {
         double *st = row_stat + (size_t)r * 4;
@@ -256,7 +323,8 @@ int rs_stitch(const rs_rig *rig, rs_image *const *frames, const rs_stitch_opts *
             double acc[3] = {0, 0, 0}, wsum = 0, wt;
             float rgb[3];
             for (int i = 0; i < n; i++) {
-                if (!sample_camera(&plan[(size_t)col * n + i], frames[i], opts->feather_px, rgb, &wt)) continue;
+                if (!sample_camera(&rig->cams[i], &plan[(size_t)col * n + i], frames[i], opts->feather_px, rgb, &wt))
+                    continue;
                 for (int ch = 0; ch < 3; ch++) acc[ch] += wt * rgb[ch] / gains[i];
                 wsum += wt;
             }
@@ -273,15 +341,12 @@ int rs_stitch(const rs_rig *rig, rs_image *const *frames, const rs_stitch_opts *
     stats->coverage = sum[0] / (4 * M_PI);
     stats->model_coverage = sum[1] / (4 * M_PI);
     stats->hidden_share = sum[3] > 0 ? sum[2] / sum[3] : 0;
-    free(row_sum);
-    free(row_cnt);
     free(row_stat);
     *pano = out;
     return 0;
 oom:
     rs_image_free(out);
-    free(row_sum);
-    free(row_cnt);
     free(row_stat);
+    rs_gain_report_free(&stats->gain);
     return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for a %d x %d panorama from %d cameras", w, h, n);
 }

@@ -8,6 +8,7 @@
 #include "common/pano.h"
 #include "calib/rig.h"
 #include "common/scene.h"
+#include "calib/gains.h"
 
 typedef struct rs_stitch_opts {
     int width;             /* panorama width (px); height = width / 2 */
@@ -28,12 +29,16 @@ typedef struct rs_stitch_stats {
     double model_coverage; /* share of the sphere whose depth came from the model (0 without) */
     double hidden_share;   /* with a model: share of the camera samples (model points and sky)
                                   dropped because the model hides them from that camera */
+    rs_gain_report gain;   /* with estimate_gain: per pair and overall; free with rs_gain_report_free */
 } rs_stitch_stats;
 
 /* Stitches frames[i] (3 channels, rig->cams[i]'s size, linear) into *pano (3 channels; NaN
- * where no camera sees). gains[i] gets camera i's estimated gain (observed = gain x true,
- * geometric mean 1 over the cameras; all 1 without estimate_gain). Deterministic for any
- * thread count. Caller frees *pano with rs_image_free. */
+ * where no camera sees), each camera's vignetting divided out and its masked pixels left out.
+ * gains[i] gets camera i's gain (observed = gain x true): the rig file's where it gives one,
+ * the others estimated robustly from the overlaps (calib/gains.h; geometric mean 1 over the
+ * cameras when none is given); without estimate_gain the given gains or 1. Deterministic for
+ * any thread count. Caller frees *pano with rs_image_free and stats->gain with
+ * rs_gain_report_free. */
 int rs_stitch(const rs_rig *rig, rs_image *const *frames, const rs_stitch_opts *opts, rs_image **pano, double *gains,
               rs_stitch_stats *stats, rs_err *err);
 

@@ -251,6 +251,43 @@ out:
 
 /* [rig]: the rig file and its frames -> the stitched panorama at out_path; with [rig] parallax,
  * the model and the rig's pose (pose_solved: the calib stage has written the capture's pose). */
+
+/* Gains an overlap cannot support: a pair's samples spread this much (log ratio) or the pairs
+ * disagreeing around the rig by this much mean bad overlaps (misregistration, flare, moving
+ * content), and the user should look before trusting the scene's brightness. */
+#define GAIN_SPREAD_WARN   0.25
+#define GAIN_RESIDUAL_WARN 0.02
+
+/* metrics.stitch: each camera's gain source, each pair's robust ratio, spread and residual. */
+static void report_gains(rs_json *st, const rs_rig *rig, const rs_gain_report *g, int estimated)
+{
+    rs_json *src = rs_json_set_obj(st, "gain_source");
+    for (int i = 0; i < rig->count; i++)
+        rs_json_set_str(src, rig->cams[i].name, rig->cams[i].gain > 0 ? "rig file" : estimated ? "overlaps" : "none");
+    if (!estimated) return;
+    rs_json_set_num(st, "gain_residual_rms", g->residual_rms);
+    rs_json *arr = rs_json_set_arr(st, "gain_pairs");
+    for (int p = 0; p < g->npairs; p++) {
+        const rs_gain_pair *q = &g->pairs[p];
+        rs_json *o = rs_json_push_obj(arr);
+        rs_json_set_str(o, "a", rig->cams[q->i].name);
+        rs_json_set_str(o, "b", rig->cams[q->j].name);
+        rs_json_set_int(o, "samples", (long long)q->samples);
+        rs_json_set_num(o, "log_ratio", q->log_ratio);
+        rs_json_set_num(o, "spread", q->spread);
+        rs_json_set_num(o, "inlier_share", q->inlier);
+        rs_json_set_num(o, "residual", q->residual);
+        if (q->spread > GAIN_SPREAD_WARN)
+            rs_log_warn("calib: cameras %s and %s disagree pixel by pixel in their overlap (spread %.2f in log "
+                        "ratio over %zu pixels): check the rig's registration and the frames for flare",
+                        rig->cams[q->i].name, rig->cams[q->j].name, q->spread, q->samples);
+    }
+    if (g->residual_rms > GAIN_RESIDUAL_WARN)
+        rs_log_warn("calib: the cameras' gain ratios disagree around the rig by %.1f %% (RMS): the estimated gains "
+                    "may be off by as much; give known gains in the rig file (gain:) if you have them",
+                    100 * g->residual_rms);
+}
+
 static int stitch_rig(const rs_config *cfg, const char *out_path, int pose_solved, rs_report *rep, rs_err *err)
 {
     char rig_path[4096], path[4096];
@@ -262,6 +299,7 @@ static int stitch_rig(const rs_config *cfg, const char *out_path, int pose_solve
     double *gains = calloc((size_t)rig.count, sizeof *gains);
     rs_image *pano = NULL;
     rs_parallax_model model = {0};
+    rs_stitch_stats stats = {0};
     if (!frames || !gains) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
         goto out;
@@ -307,7 +345,6 @@ static int stitch_rig(const rs_config *cfg, const char *out_path, int pose_solve
     if (use_model < 0) goto out;
     rs_stitch_opts opts = {width, rs_config_real(cfg, "rig", "feather_px"), rs_config_bool(cfg, "rig", "gain"),
                            model.scene, model.pose};
-    rs_stitch_stats stats;
     if (rs_stitch(&rig, frames, &opts, &pano, gains, &stats, err) != 0) goto out;
     static const char *const names[] = {"R", "G", "B"};
     if (rs_image_write_exr(pano, out_path, names, 0,
@@ -330,6 +367,7 @@ static int stitch_rig(const rs_config *cfg, const char *out_path, int pose_solve
         max_offset = fmax(max_offset, rs_v3_len(rig.cams[i].t_rig_cam));
     }
     rs_json_set_num(st, "max_camera_offset_m", max_offset);
+    report_gains(st, &rig, &stats.gain, rs_config_bool(cfg, "rig", "gain"));
     rs_json_set_bool(st, "parallax_corrected", use_model);
     if (use_model) {
         rs_json_set_num(st, "model_depth_coverage_of_sphere", stats.model_coverage);
@@ -349,6 +387,7 @@ out:
     free(frames);
     free(gains);
     rs_image_free(pano);
+    rs_gain_report_free(&stats.gain);
     rs_calib_parallax_release(&model);
     rs_rig_release(&rig);
     return rc;

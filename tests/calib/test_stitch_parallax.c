@@ -244,8 +244,12 @@ static void test_parallax_corrected(void **state)
     assert_true(st_model.hidden_share > 0 && st_model.hidden_share < 0.1);
     assert_true(p_model >= 35);
     assert_true(p_model > p_flat + 6);
+    /* The robust gains (calib/gains.h) leave out the pixels where parallax moves content (high
+     * gradients) and outvote the rest: both stitches recover the gains. */
     assert_true(e_model < 0.005);
-    assert_true(e_model < e_flat / 3);
+    assert_true(e_flat < 0.005);
+    rs_gain_report_free(&st_flat.gain);
+    rs_gain_report_free(&st_model.gain);
     rs_image_free(flat);
     rs_image_free(model);
 }
