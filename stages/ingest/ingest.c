@@ -12,6 +12,7 @@
 #include "common/cloud_format.h"
 #include "common/cloud_ply.h"
 #include "common/fileio.h"
+#include "common/las.h"
 #include "common/log.h"
 #include "common/pcl_bridge.h"
 
@@ -247,10 +248,17 @@ int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     if (!all) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
     int rc = -1;
     rs_json *files = rs_json_set_arr(rep->metrics, "files");
+    uint8_t las_keep[256];
+    const char *classes = rs_config_string(cfg, "ingest", "las_classes");
+    if (classes && rs_las_parse_classes(classes, las_keep, err) != 0) {
+        rs_err_set_file(err, rs_config_file(cfg));
+        goto out;
+    }
     for (int i = 0; i < nfiles; i++) {
         rs_config_path_at(cfg, "ingest", "scan", i, path, sizeof path);
         const char *kind;
-        rs_cloud_read_opts opts = {.columns = rs_config_string(cfg, "ingest", "columns")};
+        rs_cloud_read_opts opts = {.columns = rs_config_string(cfg, "ingest", "columns"),
+                                   .las_keep = classes ? las_keep : NULL};
         rs_cloud *c = rs_cloud_read_with(path, &opts, &kind, err);
         if (!c) goto out;
         size_t valid = 0;
