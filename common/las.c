@@ -238,8 +238,9 @@ const rs_las_info *rs_las_info_of(const rs_las *f)
     return &f->info;
 }
 
-/* Decodes n records of raw into the chunk; -1 (err set) for a coordinate beyond RS_CLOUD_MAX_M. */
-static int decode(rs_las *f, size_t n, rs_err *err)
+/* Decodes n records of raw into the chunk, the coordinates into xyz (the chunk's or the
+ * caller's); -1 (err set) for a coordinate beyond RS_CLOUD_MAX_M. */
+static int decode(rs_las *f, size_t n, double *xyz, rs_err *err)
 {
     const rs_las_info *in = &f->info;
     const unsigned rec = in->record_length, rgb = rgb_at[in->format];
@@ -256,7 +257,7 @@ static int decode(rs_las *f, size_t n, rs_err *err)
                                   (unsigned long long)(f->next + i),
                                   (unsigned long long)(in->offset_to_points + (f->next + i) * rec), "xyz"[j], v,
                                   RS_CLOUD_MAX_M);
-            c->xyz[3 * i + j] = v;
+            xyz[3 * i + j] = v;
         }
         c->intensity[i] = le16(p + 12);
         c->classification[i] = wide ? p[16] : p[15] & 0x1f;
@@ -266,7 +267,8 @@ static int decode(rs_las *f, size_t n, rs_err *err)
     return 0;
 }
 
-const rs_las_chunk *rs_las_next(rs_las *f, rs_err *err)
+/* rs_las_next with the coordinates decoded into xyz (room for a chunk), NULL: the chunk's. */
+static const rs_las_chunk *next_into(rs_las *f, double *xyz, rs_err *err)
 {
     uint64_t left = f->info.npoints - f->next;
     size_t n = left < f->capacity ? (size_t)left : f->capacity;
@@ -285,10 +287,15 @@ const rs_las_chunk *rs_las_next(rs_las *f, rs_err *err)
                    (unsigned long long)(f->info.npoints * f->info.record_length), f->info.offset_to_points);
         return NULL;
     }
-    if (decode(f, n, err) != 0) return NULL;
+    if (decode(f, n, xyz ? xyz : f->chunk.xyz, err) != 0) return NULL;
     f->next += n;
     f->chunk.n = n;
     return &f->chunk;
+}
+
+const rs_las_chunk *rs_las_next(rs_las *f, rs_err *err)
+{
+    return next_into(f, NULL, err);
 }
 
 void rs_las_close(rs_las *f)
@@ -358,7 +365,9 @@ static void put_rgb(rgb_state *s, uint8_t *rgb, size_t kept, const uint16_t *v)
     for (int j = 0; j < 3; j++) rgb[3 * kept + j] = (uint8_t)(s->wide ? v[j] >> 8 : v[j]);
 }
 
-/* The chunks of f into c (allocated for every point), the classes kept by keep. */
+/* The chunks of f into c (allocated for every point), the classes kept by keep. The coordinates
+ * are decoded straight into c (the points of a chunk from the first free slot on, then moved
+ * down over the ones not kept): the chunk holds only the small fields. */
 static int fill(rs_las *f, rs_cloud *c, const uint8_t *keep, uint64_t *hist, rgb_state *rs, rs_err *err)
 {
     const rs_las_info *in = rs_las_info_of(f);
@@ -368,13 +377,14 @@ static int fill(rs_las *f, rs_cloud *c, const uint8_t *keep, uint64_t *hist, rgb
     size_t kept = 0;
     int rc = -1;
     for (;;) {
-        const rs_las_chunk *ch = rs_las_next(f, err);
+        size_t base = kept;
+        const rs_las_chunk *ch = next_into(f, c->xyz + 3 * base, err);
         if (!ch) goto out;
         if (ch->n == 0) break;
         for (size_t i = 0; i < ch->n; i++) {
             hist[ch->classification[i]]++;
             if (keep && !keep[ch->classification[i]]) continue;
-            memcpy(c->xyz + 3 * kept, ch->xyz + 3 * i, 3 * sizeof *c->xyz);
+            if (kept != base + i) memcpy(c->xyz + 3 * kept, c->xyz + 3 * (base + i), 3 * sizeof *c->xyz);
             c->intensity[kept] = ch->intensity[i];
             if (c->rgb) put_rgb(rs, c->rgb, kept, ch->rgb + 3 * i);
             kept++;
@@ -401,7 +411,16 @@ rs_cloud *rs_las_read(const char *path, const uint8_t *keep, rs_err *err)
         rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory for %llu points", (unsigned long long)in->npoints);
         goto fail;
     }
-    if (rs_cloud_resize(c, (size_t)in->npoints, 1, in->has_rgb, err) != 0) goto fail;
+    /* Not rs_cloud_resize: it would zero the arrays, a pass over the memory that fill makes anyway. */
+    size_t n = in->npoints ? (size_t)in->npoints : 1;
+    c->xyz = malloc(n * 3 * sizeof *c->xyz);
+    c->intensity = malloc(n * sizeof *c->intensity);
+    c->valid = malloc(n);
+    c->rgb = in->has_rgb ? malloc(n * 3) : NULL;
+    if (!c->xyz || !c->intensity || !c->valid || (in->has_rgb && !c->rgb)) {
+        rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory for %llu points", (unsigned long long)in->npoints);
+        goto fail;
+    }
     if (fill(f, c, keep, hist, &rs, err) != 0) goto fail;
     if (keep && c->npoints == 0 && in->npoints > 0) {
         char classes[512];
