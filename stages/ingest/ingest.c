@@ -278,8 +278,16 @@ int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         rs_json_set_int(f, "points", (long long)c->npoints);
         rs_json_set_int(f, "valid", (long long)valid);
         rs_json_set_int(f, "scans", c->nscans);
-        int ok = rs_cloud_append(all, c, err);
-        rs_cloud_free(c);
+        int ok = 0;
+        if (all->npoints == 0 && all->nscans == 0 && !c->origin[0] && !c->origin[1] && !c->origin[2]) {
+            /* The first cloud becomes the whole one, uncopied (appending it to the empty one gives the
+             * same values): a 10^8-point LAS is 3 GB in memory. */
+            rs_cloud_free(all);
+            all = c;
+        } else {
+            ok = rs_cloud_append(all, c, err);
+            rs_cloud_free(c);
+        }
         if (ok != 0) goto out;
     }
     rs_report_time(rep, "read", rs_now() - t0);
