@@ -1,4 +1,4 @@
-/* ingest: the ingest stage. Reads the [ingest] scan files (PTX, PLY, PCD, XYZ/CSV, whichever
+/* ingest: the ingest stage. Reads the [ingest] scan files (PTX, PLY, PCD, XYZ/CSV, LAS, whichever
  * common/cloud_format.h finds each to be) into one cloud, recentres georeferenced coordinates,
  * cleans unorganized points (outlier removal, voxel downsampling, PCL) and writes cloud.ply.
  * Exports rs_ingest_run. */
