@@ -72,6 +72,7 @@ int rs_cloud_append(rs_cloud *dst, const rs_cloud *src, rs_err *err)
         dst->has_viewpoint = 1;
         for (int j = 0; j < 3; j++) dst->viewpoint[j] = src->viewpoint[j] + shift[j];
     }
+    dst->normals_up |= src->normals_up;
     dst->npoints = total;
     return 0;
 }

@@ -1,7 +1,7 @@
 /* cloud: point clouds from range scanners in memory, keeping each scan's angular grid when
  * there is one (PTX), and their basic operations. The files are the format modules':
  * common/cloud_format.h reads any cloud file (its table maps a file to its reader: PLY in
- * cloud_ply.h, PTX in ptx.h, XYZ/CSV text in cloud_text.h, PCD in pcl_bridge.h). */
+ * cloud_ply.h, PTX in ptx.h, XYZ/CSV text in cloud_text.h, PCD in pcl_bridge.h, LAS in las.h). */
 #ifndef RS_CLOUD_H
 #define RS_CLOUD_H
 
@@ -29,6 +29,8 @@ typedef struct rs_cloud {
                                   coordinates were recentred (rs_cloud_recentre) */
     int has_viewpoint;   /* the unorganized points' scanner centre is known */
     double viewpoint[3]; /* it, in the frame of xyz (normals are turned toward it) */
+    int normals_up;      /* without a viewpoint: the unorganized points' normals are turned up (+Z),
+                            as for LAS (airborne and mobile clouds carry no scanner position) */
 } rs_cloud;
 
 void rs_cloud_free(rs_cloud *c); /* NULL is fine */

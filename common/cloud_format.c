@@ -8,6 +8,7 @@
 
 #include "common/cloud_ply.h"
 #include "common/cloud_text.h"
+#include "common/las.h"
 #include "common/pcl_bridge.h"
 #include "common/ptx.h"
 
@@ -54,10 +55,11 @@ static int las_is_a(const unsigned char *p, size_t n, const char *path)
     return n >= 4 && memcmp(p, "LASF", 4) == 0;
 }
 
-/* LASzip marks a compressed file by bit 7 (some writers bit 6) of the point data format id. */
+/* LASzip marks a compressed file by bit 7 (some writers bit 6) of the point data format id; a
+ * file that clears it but keeps the "laszip encoded" VLR is refused by the LAS reader. */
 static int laz_is_a(const unsigned char *p, size_t n, const char *path)
 {
-    return las_is_a(p, n, path) && ((n > 104 && (p[104] & 0xc0)) || has_extension(path, ".laz"));
+    return las_is_a(p, n, path) && n > 104 && (p[104] & 0xc0);
 }
 
 static rs_cloud *read_ply(const char *path, const rs_cloud_read_opts *opts, rs_err *err)
@@ -75,6 +77,12 @@ static rs_cloud *read_text(const char *path, const rs_cloud_read_opts *opts, rs_
     return rs_cloud_read_text(path, opts->columns, err);
 }
 
+/* LAZ too: rs_las_open refuses it, saying how to decompress it. */
+static rs_cloud *read_las(const char *path, const rs_cloud_read_opts *opts, rs_err *err)
+{
+    return rs_las_read(path, opts->las_keep, err);
+}
+
 static rs_cloud *read_ptx(const char *path, const rs_cloud_read_opts *opts, rs_err *err)
 {
     return rs_ptx_read(path, err);
@@ -84,12 +92,9 @@ static rs_cloud *read_ptx(const char *path, const rs_cloud_read_opts *opts, rs_e
  * PCD is known by extension only, as XYZ text: its header is text that a text cloud's
  * comment lines could hold too. */
 static const cloud_format formats[] = {
-    {"PLY", ply_is_a, ".ply", read_ply, NULL},
-    {"E57", e57_is_a, ".e57", NULL, "E57 is not supported yet"},
-    {"LAZ", laz_is_a, ".laz", NULL, "LAZ (compressed LAS) is not supported"},
-    {"LAS", las_is_a, ".las", NULL, "LAS is not supported yet"},
-    {"PCD", NULL, ".pcd", read_pcd, NULL},
-    {"text", NULL, ".xyz .txt .csv .pts", read_text, NULL},
+    {"PLY", ply_is_a, ".ply", read_ply, NULL}, {"E57", e57_is_a, ".e57", NULL, "E57 is not supported yet"},
+    {"LAZ", laz_is_a, ".laz", read_las, NULL}, {"LAS", las_is_a, ".las", read_las, NULL},
+    {"PCD", NULL, ".pcd", read_pcd, NULL},     {"text", NULL, ".xyz .txt .csv .pts", read_text, NULL},
     {"PTX", NULL, ".ptx", read_ptx, NULL},
 };
 enum { NFORMATS = sizeof formats / sizeof formats[0] };

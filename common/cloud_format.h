@@ -4,19 +4,22 @@
 #ifndef RS_CLOUD_FORMAT_H
 #define RS_CLOUD_FORMAT_H
 
+#include <stdint.h>
+
 #include "common/cloud.h"
 #include "common/err.h"
 
 /* What the formats that do not describe themselves need to be read. */
 typedef struct rs_cloud_read_opts {
-    const char *columns; /* XYZ/CSV text: the column map of rs_cloud_read_text; NULL: "x y z" */
+    const char *columns;     /* XYZ/CSV text: the column map of rs_cloud_read_text; NULL: "x y z" */
+    const uint8_t *las_keep; /* LAS: 256 flags, the classes kept (rs_las_parse_classes); NULL: all */
 } rs_cloud_read_opts;
 
 /* Reads a point-cloud file with the reader its magic bytes name, else its extension:
  *   PLY  "ply" magic                        rs_cloud_read_ply (cloud_ply.h)
  *   E57  "ASTM-E57"                          refused: not supported yet
- *   LAZ  "LASF", compressed (bit 7 or 6 of the point format at byte 104) or named .laz: refused
- *   LAS  "LASF"                              refused: not supported yet
+ *   LAZ  "LASF", compressed (bit 7 or 6 of the point format at byte 104): refused by rs_las_read
+ *   LAS  "LASF"                              rs_las_read (las.h), opts->las_keep
  *   PCD  .pcd                                rs_pcl_read_pcd (pcl_bridge.h)
  *   text .xyz .txt .csv .pts                 rs_cloud_read_text (cloud_text.h), opts->columns
  *   PTX  anything else (PTX has no magic)    rs_ptx_read (ptx.h)

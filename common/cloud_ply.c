@@ -11,6 +11,7 @@
 #define SCAN_COMMENT      "rhoscan_scan"
 #define ORIGIN_COMMENT    "rhoscan_origin"
 #define VIEWPOINT_COMMENT "rhoscan_viewpoint"
+#define UP_COMMENT        "rhoscan_normals_up"
 
 int rs_cloud_write_ply(const rs_cloud *c, const char *path, rs_err *err)
 {
@@ -72,6 +73,7 @@ int rs_cloud_write_ply(const rs_cloud *c, const char *path, rs_err *err)
         rs_ply_add_comment(ply, VIEWPOINT_COMMENT " %.17g %.17g %.17g", c->viewpoint[0], c->viewpoint[1],
                            c->viewpoint[2]) != 0)
         goto nomem;
+    if (!c->has_viewpoint && c->normals_up && rs_ply_add_comment(ply, UP_COMMENT) != 0) goto nomem;
     rs_ply_element *el = rs_ply_add_element(ply, "vertex", nvalid);
     if (!el || !rs_ply_add_scalar(el, "x", RS_PLY_FLOAT64, x) || !rs_ply_add_scalar(el, "y", RS_PLY_FLOAT64, y) ||
         !rs_ply_add_scalar(el, "z", RS_PLY_FLOAT64, z))
@@ -196,6 +198,7 @@ static int read_comments(const rs_ply *ply, const ply_vertices *v, rs_cloud *c, 
     int vp = read_point_comment(ply, VIEWPOINT_COMMENT, "the scanner centre", c->viewpoint, name, err);
     if (vp < 0) return -1;
     c->has_viewpoint = vp;
+    c->normals_up = !vp && rs_ply_find_comment(ply, UP_COMMENT) != NULL;
     if (nscans > 0 && (!v->scan || !v->row || !v->col))
         return rs_err_set(err, RS_ERR_INPUT, name, 0,
                           "the file describes %d scan grid(s) but its vertices lack scan, row "

@@ -3,7 +3,8 @@
  * organized scans scan, row, col (int); each scan's grid and scanner position in a comment
  * "rhoscan_scan INDEX COLS ROWS PX PY PZ", a non-zero origin in "rhoscan_origin OX OY OZ"
  * (world = x + OX, ...; positions are in the same local frame), and the unorganized points'
- * scanner in "rhoscan_viewpoint X Y Z". Reading a PLY written by other software gives an
+ * scanner in "rhoscan_viewpoint X Y Z", or without one "rhoscan_normals_up" when their normals
+ * are to point up (LAS clouds, rs_cloud's normals_up). Reading a PLY written by other software gives an
  * unorganized cloud. */
 #ifndef RS_CLOUD_PLY_H
 #define RS_CLOUD_PLY_H

@@ -152,7 +152,7 @@ static rs_mesh *compact(const float *verts, size_t nverts, const uint32_t *tris,
 rs_mesh *rs_unorg_mesh(const rs_cloud *c, const rs_unorg_opts *o, rs_unorg_stats *st, rs_err *err)
 {
     memset(st, 0, sizeof *st);
-    if (!c->has_viewpoint) {
+    if (!c->has_viewpoint && !c->normals_up) {
         rs_err_set(err, RS_ERR_INPUT, NULL, 0,
                    "an unorganized cloud needs its scanner position to orient the surface: "
                    "expected [ingest] scanner_position = X Y Z (world frame, metres)");
@@ -178,7 +178,8 @@ rs_mesh *rs_unorg_mesh(const rs_cloud *c, const rs_unorg_opts *o, rs_unorg_stats
         if (!c->valid[i]) continue;
         for (int j = 0; j < 3; j++) {
             xyz[3 * k + j] = (float)c->xyz[3 * i + j];
-            vp[3 * k + j] = (float)c->viewpoint[j];
+            /* No viewpoint: one straight above each point, so that its normal points up. */
+            vp[3 * k + j] = c->has_viewpoint ? (float)c->viewpoint[j] : xyz[3 * k + j] + (j == 2);
         }
         k++;
     }
@@ -217,7 +218,8 @@ rs_mesh *rs_unorg_mesh(const rs_cloud *c, const rs_unorg_opts *o, rs_unorg_stats
         for (size_t f = 0; f < tmp.nfaces; f++) {
             rs_v3 cen, nf;
             rs_mesh_face(&tmp, f, &cen, &nf, NULL);
-            rs_v3 to = rs_v3_sub(rs_v3_make(c->viewpoint[0], c->viewpoint[1], c->viewpoint[2]), cen);
+            rs_v3 to = c->has_viewpoint ? rs_v3_sub(rs_v3_make(c->viewpoint[0], c->viewpoint[1], c->viewpoint[2]), cen)
+                                        : rs_v3_make(0, 0, 1);
             if (rs_v3_dot(nf, to) < 0) {
                 uint32_t t = tmp.tris[3 * f + 1];
                 tmp.tris[3 * f + 1] = tmp.tris[3 * f + 2];

@@ -27,9 +27,10 @@ typedef struct rs_unorg_stats {
     size_t points_no_normal;                /* too few neighbours for a normal */
 } rs_unorg_stats;
 
-/* Meshes the valid points of c outside its scan grids, seen from c->viewpoint (required: it
- * orients the normals, hence the triangles). Triangles wind counter-clockwise seen from the
- * scanner's side. Caller frees. */
+/* Meshes the valid points of c outside its scan grids, seen from c->viewpoint, or from above
+ * when c has none but normals_up (LAS); one of the two is required: it orients the normals,
+ * hence the triangles. Triangles wind counter-clockwise seen from the scanner's side (from
+ * above). Caller frees. */
 rs_mesh *rs_unorg_mesh(const rs_cloud *c, const rs_unorg_opts *o, rs_unorg_stats *st, rs_err *err);
 
 #endif

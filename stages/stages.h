@@ -19,7 +19,8 @@ int rs_render_run(const rs_config *cfg, rs_report *rep, rs_err *err);      /* ->
  * or not. */
 #define RS_STAGE_DEF_INGEST                                                                                         \
     {                                                                                                               \
-        "ingest", rs_ingest_run, "ingest mesh", "", "cloud.ply", "read laser scans (PTX, PLY, PCD, XYZ text) into one point cloud" \
+        "ingest", rs_ingest_run, "ingest mesh", "", "cloud.ply",                                                    \
+            "read laser scans (PTX, PLY, PCD, XYZ text, LAS) into one point cloud"                                  \
     }
 #define RS_STAGE_DEF_MESH                                                                           \
     {                                                                                               \

@@ -1,4 +1,4 @@
-/* ingest: the ingest stage. Reads the [ingest] scan files (PTX, PLY, PCD, XYZ/CSV, whichever
+/* ingest: the ingest stage. Reads the [ingest] scan files (PTX, PLY, PCD, XYZ/CSV, LAS, whichever
  * common/cloud_format.h finds each to be) into one cloud, recentres georeferenced coordinates,
  * cleans unorganized points (outlier removal, voxel downsampling, PCL) and writes cloud.ply.
  * Exports rs_ingest_run. */
@@ -12,6 +12,7 @@
 #include "common/cloud_format.h"
 #include "common/cloud_ply.h"
 #include "common/fileio.h"
+#include "common/las.h"
 #include "common/log.h"
 #include "common/pcl_bridge.h"
 
@@ -247,10 +248,17 @@ int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     if (!all) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
     int rc = -1;
     rs_json *files = rs_json_set_arr(rep->metrics, "files");
+    uint8_t las_keep[256];
+    const char *classes = rs_config_string(cfg, "ingest", "las_classes");
+    if (classes && rs_las_parse_classes(classes, las_keep, err) != 0) {
+        rs_err_set_file(err, rs_config_file(cfg));
+        goto out;
+    }
     for (int i = 0; i < nfiles; i++) {
         rs_config_path_at(cfg, "ingest", "scan", i, path, sizeof path);
         const char *kind;
-        rs_cloud_read_opts opts = {.columns = rs_config_string(cfg, "ingest", "columns")};
+        rs_cloud_read_opts opts = {.columns = rs_config_string(cfg, "ingest", "columns"),
+                                   .las_keep = classes ? las_keep : NULL};
         rs_cloud *c = rs_cloud_read_with(path, &opts, &kind, err);
         if (!c) goto out;
         size_t valid = 0;
@@ -270,8 +278,16 @@ int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         rs_json_set_int(f, "points", (long long)c->npoints);
         rs_json_set_int(f, "valid", (long long)valid);
         rs_json_set_int(f, "scans", c->nscans);
-        int ok = rs_cloud_append(all, c, err);
-        rs_cloud_free(c);
+        int ok = 0;
+        if (all->npoints == 0 && all->nscans == 0 && !c->origin[0] && !c->origin[1] && !c->origin[2]) {
+            /* The first cloud becomes the whole one, uncopied (appending it to the empty one gives the
+             * same values): a 10^8-point LAS is 3 GB in memory. */
+            rs_cloud_free(all);
+            all = c;
+        } else {
+            ok = rs_cloud_append(all, c, err);
+            rs_cloud_free(c);
+        }
         if (ok != 0) goto out;
     }
     rs_report_time(rep, "read", rs_now() - t0);

@@ -148,4 +148,38 @@ put("rig", "pinhole", bytes([0, 3]) + rig_camera(0, 640, 512, (300, 0, 319.5, 0,
 put("rig", "two", bytes([1, 4]) + rig_camera(0, 64, 32, (40, 0, 31.5, 0, 40, 15.5, 0, 0, 1), (0, 0, 0, 0, 0),
                                              (0, 0, 1, -1, 0, 0, 0, -1, 0), (0, 0, 0)) +
     rig_camera(1, 640, 640, (200, 0, 319.5, 0, 200, 319.5, 0, 0, 1), (0.02, -0.004, 0.0005, 0), ident, (0, 0, 0.05)))
+
+# ---- LAS (fuzz_las.c: the first byte picks the class filter): 1.2 format 3 with 2 padding bytes,
+# 1.4 format 8 with extra bytes and the 64-bit count, 1.3 format 1
+def las(minor, fmt, reclen, pts, pad=0, nvlr=0, vlrs=b""):
+    hsize = {0: 227, 1: 227, 2: 227, 3: 235, 4: 375}[minor]
+    h = bytearray(hsize)
+    h[0:4] = b"LASF"
+    h[24], h[25] = 1, minor
+    struct.pack_into("<HIIBHI", h, 94, hsize, hsize + len(vlrs) + pad, nvlr, fmt, reclen,
+                     0 if fmt >= 6 else len(pts))
+    struct.pack_into("<3d3d", h, 131, 0.01, 0.01, 0.01, 1000.0, 2000.0, 0.0)
+    struct.pack_into("<6d", h, 179, 1001, 1000, 2001, 2000, 1, 0)
+    if minor >= 4:
+        struct.pack_into("<Q", h, 247, len(pts))
+    body = b""
+    for i, (x, y, z, cls) in enumerate(pts):
+        rec = bytearray(reclen)
+        struct.pack_into("<iiiH", rec, 0, x, y, z, 100 * i)
+        if fmt >= 6:
+            rec[16] = cls
+        else:
+            rec[15] = cls
+        if fmt in (2, 3, 5, 7, 8, 10):
+            at = {2: 20, 3: 28, 5: 28, 7: 30, 8: 30, 10: 30}[fmt]
+            struct.pack_into("<HHH", rec, at, 60000, 300 * i, 255)
+        body += bytes(rec)
+    return bytes(h) + vlrs + bytes(pad) + body
+
+
+las_pts = [(0, 0, 0, 2), (100, 0, 50, 6), (0, 100, 100, 5), (100, 100, 20, 2)]
+vlr = struct.pack("<H16sHH32s", 0, b"LASF_Projection", 2112, 4, b"seed") + b"abcd"
+put("las", "v12_f3_pad.las", b"\x00" + las(2, 3, 34, las_pts, pad=2))
+put("las", "v14_f8_extra.las", b"\x01" + las(4, 8, 38 + 5, las_pts, nvlr=1, vlrs=vlr))
+put("las", "v13_f1.las", b"\x00" + las(3, 1, 28, las_pts))
 print("seeds written under", root, file=sys.stderr)
