@@ -20,6 +20,7 @@
  * (what is not modelled: mesh, calibration). albedo_bound80_rel = 1.2816 albedo_sigma_rel
  * bounds the error with 80 % probability (two-sided, normal error); albedo_sigma is
  * albedo_sigma_rel times the facet's mean albedo over the channels. */
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include "common/faceprop.h"
@@ -100,6 +101,7 @@ typedef struct {
     double fill[3];                        /* the mean of all estimable facets */
     double fill_class[RS_FILL_CLASSES][3]; /* what unobserved facets of each orientation take */
     int iterations;
+    const char *origin; /* rhoscan_origin "OX OY OZ", "" when none */
 } refl_out;
 
 static uint8_t fill_class_of(rs_v3 n)
@@ -312,6 +314,7 @@ static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in
                        out->fill_class[0][2], out->fill_class[1][0], out->fill_class[1][1], out->fill_class[1][2],
                        out->fill_class[2][0], out->fill_class[2][1], out->fill_class[2][2]);
     rs_ply_add_comment(ply, "rhoscan_fill_albedo %.9g %.9g %.9g", out->fill[0], out->fill[1], out->fill[2]);
+    if (out->origin && out->origin[0]) rs_ply_add_comment(ply, "rhoscan_origin %s", out->origin);
     rs_ply_add_comment(ply,
                        "red green blue: the albedo clipped to [0, 1] and sRGB-encoded, 8 bit, for viewers; "
                        "albedo_r/g/b and every other float property are linear");
@@ -382,6 +385,7 @@ typedef struct {
     uint8_t *estimable;
     /* pooled, what albedo.ply carries (pool_outputs) */
     double *esky_pooled, *G_pooled, *mc_pooled;
+    char origin[256]; /* mesh.ply's rhoscan_origin comment ("" when not georeferenced) */
 } refl_facets;
 
 static double *facet_doubles(size_t n)
@@ -615,8 +619,14 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_pool pool = {0};
     refl_facets fb = {0};
     refl_counts n = {0};
-    rs_mesh *mesh = rs_mesh_read(rs_work_path(cfg, "mesh.ply", path, sizeof path), NULL, err);
+    rs_ply *mesh_ply = NULL;
+    rs_mesh *mesh = rs_mesh_read(rs_work_path(cfg, "mesh.ply", path, sizeof path), &mesh_ply, err);
     if (!mesh) return -1;
+    /* A georeferenced model's shift (docs/DESIGN.md, section Frames) goes on into albedo.ply, the
+     * file users take away; the mesh's property tables are not kept. */
+    const char *origin = rs_ply_find_comment(mesh_ply, "rhoscan_origin");
+    snprintf(fb.origin, sizeof fb.origin, "%s", origin ? origin : "");
+    rs_ply_free(mesh_ply);
     size_t nf = mesh->nfaces;
     if (refl_facets_alloc(&fb, nf) != 0) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu facets", nf);
@@ -635,8 +645,13 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_report_time(rep, "kernel", rs_now() - t0);
 
     refl_in in = solve_inputs(&o, &fb, K, dense, &pool);
-    refl_out ro = {
-        .rho = fb.rho, .G = fb.G, .Lfill = fb.Lfill, .E = fb.E, .scratch = fb.scratch, .estimable = fb.estimable};
+    refl_out ro = {.rho = fb.rho,
+                   .G = fb.G,
+                   .Lfill = fb.Lfill,
+                   .E = fb.E,
+                   .scratch = fb.scratch,
+                   .estimable = fb.estimable,
+                   .origin = fb.origin};
     t0 = rs_now();
     if (solve(&in, &ro) != 0) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");

@@ -113,6 +113,13 @@ static int load_result(ev *e, const char *dir, rs_err *err)
         rs_faceprop_get(e->res_ply, path, "observed", nf, e->obs, err) != 0 ||
         rs_faceprop_get(e->res_ply, path, "estimable", nf, e->est, err) != 0)
         return -1;
+    /* A georeferenced run was recentred (rhoscan_origin, docs/DESIGN.md): its facets back into
+     * the truth's frame before anything is matched. */
+    const char *origin = rs_ply_find_comment(e->res_ply, "rhoscan_origin");
+    double o[3];
+    if (origin && sscanf(origin, "%lf %lf %lf", &o[0], &o[1], &o[2]) == 3)
+        for (size_t v = 0; v < e->res->nverts; v++)
+            for (int j = 0; j < 3; j++) e->res->verts[3 * v + j] = (float)(e->res->verts[3 * v + j] + o[j]);
     for (size_t f = 0; f < nf; f++) {
         rs_v3 c, n;
         rs_mesh_face(e->res, f, &c, &n, &e->area[f]);
