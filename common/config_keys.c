@@ -246,4 +246,11 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"render", "exposure", RS_CFG_REAL, NULL, 1e-12, 1e12, NULL, "", "render",
      "scale of the radiance PNG previews; default maps the 99th percentile to 1"},
 
+    {"report", "write", RS_CFG_BOOL, "true", 0, 0, NULL, "", "report",
+     "rebuild WORKDIR/report.html (and its images in WORKDIR/report/) after every stage run; rhoscan report WORKDIR "
+     "rebuilds it on demand"},
+    {"report", "truth", RS_CFG_PATH, NULL, 0, 0, NULL, "", "report",
+     "a truth PLY with per-face albedo (albedo_r/g/b) and part: the report adds the per-part error table and "
+     "the error map (not yet built: the key is accepted and reported)"},
+
     {NULL, NULL, 0, NULL, 0, 0, NULL, NULL, NULL, NULL}};
