@@ -250,7 +250,7 @@ const rs_cfg_key rs_cfg_keys[] = {
      "rebuild WORKDIR/report.html (and its images in WORKDIR/report/) after every stage run; rhoscan report WORKDIR "
      "rebuilds it on demand"},
     {"report", "truth", RS_CFG_PATH, NULL, 0, 0, NULL, "", "report",
-     "a truth PLY with per-face albedo (albedo_r/g/b) and part: the report adds the per-part error table and "
-     "the error map (not yet built: the key is accepted and reported)"},
+     "a truth PLY (float red green blue albedo and an integer part per face, as a reference scene's truth.ply): the "
+     "report adds the per-part albedo error table and the error map"},
 
     {NULL, NULL, 0, NULL, 0, 0, NULL, NULL, NULL, NULL}};

@@ -120,7 +120,7 @@ static void report_after(const rs_stage_def *stages, const rs_config *cfg)
     int n = 0;
     for (const rs_stage_def *d = stages; d->name && n < 63; d++) names[n++] = d->name;
     names[n] = NULL;
-    rs_report_after_run(cfg, names);
+    rs_stage_report(cfg, names);
 }
 
 int rs_run_pipeline(const rs_stage_def *stages, const rs_config *cfg, const rs_run_opts *opts, rs_err *err)

@@ -13,7 +13,6 @@
 #include "pipeline/report_html.h"
 #include "pipeline/report_priv.h"
 #include "pipeline/report_view.h"
-#include "pipeline/stage.h"
 #include "pipeline/version.h"
 
 cJSON *rs_report_read_json(const char *workdir, const char *name)
@@ -41,8 +40,8 @@ const char *rs_report_str(const cJSON *obj, const char *key)
 /* The value of section.key in metrics.json's effective configuration, or NULL. */
 const char *rs_report_config(const rs_report_data *d, const char *section, const char *key)
 {
-    const cJSON *s = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(d->metrics, "effective_config"),
-                                                      section);
+    const cJSON *s =
+        cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(d->metrics, "effective_config"), section);
     return rs_report_str(cJSON_GetObjectItemCaseSensitive(s, key), "value");
 }
 
@@ -92,8 +91,7 @@ static void plots_facets(rs_html *h, const rs_report_facets *f)
     if (!v) return;
     size_t n = 0;
     for (size_t i = 0; i < f->nf; i++)
-        if (f->estimable[i])
-            v[n++] = 0.2126 * f->alb[3 * i] + 0.7152 * f->alb[3 * i + 1] + 0.0722 * f->alb[3 * i + 2];
+        if (f->estimable[i]) v[n++] = 0.2126 * f->alb[3 * i] + 0.7152 * f->alb[3 * i + 1] + 0.0722 * f->alb[3 * i + 2];
     rs_svg_histogram(h, "albedo of the estimable facets", v, n, 0, 1, 40, "albedo (luminance), unitless");
     if (f->sigma) {
         n = 0;
@@ -131,8 +129,9 @@ static void plot_convergence(rs_html *h, const rs_report_data *d)
     const cJSON *r = cJSON_GetObjectItemCaseSensitive(refl, "solve_residuals");
     int n = cJSON_GetArraySize(r);
     if (!cJSON_IsArray(r) || n == 0) {
-        rs_html_put(h, "<p class=\"note\">No convergence record (reflectance has not run, or ran before it kept "
-                       "one).</p>");
+        rs_html_put(h,
+                    "<p class=\"note\">No convergence record (reflectance has not run, or ran before it kept "
+                    "one).</p>");
         return;
     }
     double *y = malloc((size_t)n * sizeof *y);
@@ -166,7 +165,7 @@ static void load_data(const rs_report_opts *o, rs_report_data *d)
     } else {
         const cJSON *it;
         cJSON_ArrayForEach(it, cJSON_GetObjectItemCaseSensitive(d->metrics, "stages")) if (d->nstages <
-                                                                                            RS_REPORT_MAX_STAGES)
+                                                                                           RS_REPORT_MAX_STAGES)
             d->stages[d->nstages++] = it->string;
     }
     for (int k = 0; k < d->nstages; k++) {
@@ -215,8 +214,9 @@ static void page_head(rs_html *h, const rs_report_data *d, const rs_report_views
     }
     double wall = rs_report_num(cJSON_GetObjectItemCaseSensitive(d->metrics, "run"), "wall_time_s");
     if (isfinite(wall)) rs_html_printf(h, ", last run %.2f s", wall);
-    rs_html_put(h, ". Units: radiance W m^-2 sr^-1, irradiance W m^-2, albedo unitless (per unit of the "
-                   "panorama's radiance scale).</p>");
+    rs_html_put(h,
+                ". Units: radiance W m^-2 sr^-1, irradiance W m^-2, albedo unitless (per unit of the "
+                "panorama's radiance scale).</p>");
 }
 
 double rs_report_cpu_seconds(void)
@@ -238,13 +238,19 @@ int rs_report_write(const rs_report_opts *o, rs_err *err)
         if (rs_report_facets_read(path, &f, err) != 0) goto out_data;
         have_f = 1;
     }
+    rs_html h = {0}, th = {0};
+    double *terr = NULL;
+    const char *truth = o->truth ? o->truth : rs_report_config(&d, "report", "truth");
+    char dir[4096];
+    if (rs_mkdir_p(rs_path_join(dir, sizeof dir, o->workdir, "report"), err) != 0) goto out;
+    if (truth && have_f && rs_report_truth(&th, o->workdir, truth, &terr, err) != 0) goto out;
     rs_report_views v;
-    if (rs_report_views_write(o->workdir, pano_path(&d, pano, sizeof pano), have_f ? &f : NULL, NULL, &v, err) != 0)
+    if (rs_report_views_write(o->workdir, pano_path(&d, pano, sizeof pano), have_f ? &f : NULL, terr, &v, err) != 0)
         goto out;
-    rs_html h = {0};
     page_head(&h, &d, &v);
     section_views(&h, &v);
     section_plots(&h, &d, have_f ? &f : NULL);
+    if (th.s) rs_html_put(&h, th.s);
     rs_report_model3d(&h, o);
     rs_report_counts(&h, &d);
     rs_report_stage_table(&h, &d);
@@ -258,24 +264,12 @@ int rs_report_write(const rs_report_opts *o, rs_err *err)
         rs_err_set(err, RS_ERR_SYSTEM, o->workdir, 0, "out of memory for report.html");
     else
         rc = rs_write_file_atomic(rs_path_join(path, sizeof path, o->workdir, "report.html"), h.s, h.len, err);
-    rs_html_release(&h);
 out:
+    rs_html_release(&h);
+    rs_html_release(&th);
+    free(terr);
     if (have_f) rs_report_facets_free(&f);
 out_data:
     free_data(&d);
     return rc;
-}
-
-void rs_report_after_run(const rs_config *cfg, const char *const *stages)
-{
-    char dir[4096];
-    rs_err err;
-    rs_err_clear(&err);
-    double t0 = rs_now(), c0 = rs_report_cpu_seconds();
-    rs_report_opts o = {dir, stages, NULL, NULL};
-    if (rs_workdir(cfg, dir, sizeof dir, &err) != 0 || rs_report_write(&o, &err) != 0) {
-        rs_log_warn("report: report.html not written: %s%s%s", err.file, err.file[0] ? ": " : "", err.msg);
-        return;
-    }
-    rs_log_info("report: %s/report.html (%.3f s, CPU %.3f s)", dir, rs_now() - t0, rs_report_cpu_seconds() - c0);
 }

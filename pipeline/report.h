@@ -8,7 +8,6 @@
 #ifndef RS_REPORT_H
 #define RS_REPORT_H
 
-#include "common/config.h"
 #include "common/err.h"
 
 typedef struct rs_report_opts {
@@ -21,9 +20,5 @@ typedef struct rs_report_opts {
 /* Writes workdir/report.html and its images. -1 with *err on a system error (cannot write) or
  * a malformed input (a truth PLY that does not read); missing inputs only leave sections out. */
 int rs_report_write(const rs_report_opts *o, rs_err *err);
-
-/* After a stage or run: rs_report_write for cfg's work folder (stages: the pipeline's names,
- * or NULL), failures logged as a warning (the run's outputs stand without the page). */
-void rs_report_after_run(const rs_config *cfg, const char *const *stages);
 
 #endif

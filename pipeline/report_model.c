@@ -62,15 +62,17 @@ void rs_report_model3d(rs_html *h, const rs_report_opts *o)
     size_t size;
     if (rs_read_file(rs_path_join(path, sizeof path, o->workdir, "albedo.glb"), &glb, &size, NULL) != 0) return;
     int scripts = copy_three(o->three_dir ? o->three_dir : THREE_DEFAULT, o->workdir) == 0;
-    rs_html_put(h, "<section id=\"model3d\"><h2>3D view of albedo.glb</h2><p class=\"note\">Drag to turn, wheel "
-                   "to zoom (three.js r111, copied into report/three/; the model is embedded in this page).</p>"
-                   "<div id=\"model3d_view\"></div><div id=\"model3d_fallback\" style=\"display:none\"><p "
-                   "class=\"note\">No 3D view: <span id=\"model3d_why\"></span>. The albedo in the camera's view "
-                   "instead:</p><img src=\"report/albedo.png\" alt=\"albedo (fallback)\" width=\"400\"></div>");
+    rs_html_put(h,
+                "<section id=\"model3d\"><h2>3D view of albedo.glb</h2><p class=\"note\">Drag to turn, wheel "
+                "to zoom (three.js r111, copied into report/three/; the model is embedded in this page).</p>"
+                "<div id=\"model3d_view\"></div><div id=\"model3d_fallback\" style=\"display:none\"><p "
+                "class=\"note\">No 3D view: <span id=\"model3d_why\"></span>. The albedo in the camera's view "
+                "instead:</p><img src=\"report/albedo.png\" alt=\"albedo (fallback)\" width=\"400\"></div>");
     if (scripts)
-        rs_html_put(h, "<script src=\"report/three/three.min.js\"></script><script "
-                       "src=\"report/three/GLTFLoader.js\"></script><script "
-                       "src=\"report/three/OrbitControls.js\"></script>");
+        rs_html_put(h,
+                    "<script src=\"report/three/three.min.js\"></script><script "
+                    "src=\"report/three/GLTFLoader.js\"></script><script "
+                    "src=\"report/three/OrbitControls.js\"></script>");
     rs_html_put(h, "<script type=\"text/plain\" id=\"model3d_glb\">data:model/gltf-binary;base64,");
     rs_html_base64(h, (const unsigned char *)glb, size);
     rs_html_put(h, "</script>");

@@ -3,6 +3,7 @@
 #define RS_REPORT_PRIV_H
 
 #include <cjson/cJSON.h>
+#include "common/err.h"
 #include "pipeline/report_html.h"
 
 #define RS_REPORT_MAX_STAGES 32
@@ -33,6 +34,11 @@ void rs_report_plot_bench(rs_html *h, const char *workdir);
 /* The 3D view section when workdir has albedo.glb (report_model.c); nothing otherwise. */
 struct rs_report_opts;
 void rs_report_model3d(rs_html *h, const struct rs_report_opts *o);
+
+/* The section comparing workdir/albedo.ply with the truth PLY truth_path into h, and
+ * report/truth_error.json; *truth_err (caller frees) the signed relative error per facet, NAN
+ * where not compared. -1 with *err when the truth or albedo.ply does not read. */
+int rs_report_truth(rs_html *h, const char *workdir, const char *truth_path, double **truth_err, rs_err *err);
 
 /* CPU seconds of the process so far (every thread). */
 double rs_report_cpu_seconds(void);

@@ -7,8 +7,8 @@
 #include "common/image.h"
 #include "pipeline/report_html.h"
 
-#define W 560
-#define H 260
+#define W  560
+#define H  260
 #define ML 64 /* margins: left, right, top, bottom */
 #define MR 16
 #define MT 28
@@ -290,8 +290,10 @@ void rs_svg_colorbar(rs_html *h, rs_colormap_fn map, double lo, double hi, const
         map(k / 16.0, c);
         rs_html_printf(h, "<stop offset=\"%.4f\" stop-color=\"#%02x%02x%02x\"/>", k / 16.0, c[0], c[1], c[2]);
     }
-    rs_html_printf(h, "</linearGradient></defs><rect x=\"8\" y=\"2\" width=\"%d\" height=\"12\" fill=\"url(#cb%d)\" "
-                      "stroke=\"#444\"/>", width - 16, id);
+    rs_html_printf(h,
+                   "</linearGradient></defs><rect x=\"8\" y=\"2\" width=\"%d\" height=\"12\" fill=\"url(#cb%d)\" "
+                   "stroke=\"#444\"/>",
+                   width - 16, id);
     for (int k = 0; k <= 4; k++) {
         char s[32];
         fmt_num(s, sizeof s, lo + (hi - lo) * k / 4);
@@ -299,7 +301,11 @@ void rs_svg_colorbar(rs_html *h, rs_colormap_fn map, double lo, double hi, const
         rs_html_printf(h,
                        "<line x1=\"%.1f\" x2=\"%.1f\" y1=\"14\" y2=\"18\" stroke=\"#444\"/>"
                        "<text x=\"%.1f\" y=\"28\" font-size=\"10\" text-anchor=\"%s\">%s</text>",
-                       x, x, x, k == 0 ? "start" : k == 4 ? "end" : "middle", s);
+                       x, x, x,
+                       k == 0       ? "start"
+                           : k == 4 ? "end"
+                                    : "middle",
+                       s);
     }
     rs_html_printf(h, "<text x=\"%d\" y=\"41\" font-size=\"10\" text-anchor=\"middle\">", width / 2);
     rs_html_esc(h, unit);

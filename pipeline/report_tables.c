@@ -54,8 +54,8 @@ static const char *run_status(const rs_report_data *d, const char *name, char *b
 {
     const cJSON *run = cJSON_GetObjectItemCaseSensitive(d->metrics, "run"), *it;
     cJSON_ArrayForEach(it, cJSON_GetObjectItemCaseSensitive(run, "ran")) if (cJSON_IsString(it) &&
-                                                                             strcmp(it->valuestring, name) == 0)
-        return "ran in the last run";
+                                                                             strcmp(it->valuestring, name) ==
+                                                                                 0) return "ran in the last run";
     cJSON_ArrayForEach(it, cJSON_GetObjectItemCaseSensitive(run, "skipped"))
     {
         const char *s = rs_report_str(it, "stage");
@@ -69,8 +69,9 @@ static const char *run_status(const rs_report_data *d, const char *name, char *b
 
 void rs_report_stage_table(rs_html *h, const rs_report_data *d)
 {
-    rs_html_put(h, "<section id=\"stages\"><h2>Stages</h2><table><tr><th>stage</th><th>status</th><th>wall s</th>"
-                   "<th>CPU s</th><th>skipped inside the stage, and why</th></tr>");
+    rs_html_put(h,
+                "<section id=\"stages\"><h2>Stages</h2><table><tr><th>stage</th><th>status</th><th>wall s</th>"
+                "<th>CPU s</th><th>skipped inside the stage, and why</th></tr>");
     for (int k = 0; k < d->nstages; k++) {
         const cJSON *j = d->stage_json[k];
         char buf[600];
@@ -158,8 +159,9 @@ void rs_report_provenance(rs_html *h, const rs_report_data *d)
                    date, sysconf(_SC_NPROCESSORS_ONLN));
     rs_html_put(h, "<tr><th>configured threads</th><td>");
     rs_html_esc(h, rs_report_config(d, "pipeline", "threads"));
-    rs_html_put(h, " (0: all)</td></tr></table><h3>Input files (checksums as the stages recorded them)</h3>"
-                   "<table><tr><th>stage</th><th>file</th><th>64-bit content hash</th></tr>");
+    rs_html_put(h,
+                " (0: all)</td></tr></table><h3>Input files (checksums as the stages recorded them)</h3>"
+                "<table><tr><th>stage</th><th>file</th><th>64-bit content hash</th></tr>");
     for (int k = 0; k < d->nstages; k++) {
         const cJSON *it;
         cJSON_ArrayForEach(it, cJSON_GetObjectItemCaseSensitive(d->stage_json[k], "inputs"))
@@ -211,7 +213,8 @@ void rs_report_plot_bench(rs_html *h, const char *workdir)
     static char names[MAXPTS][96];
     const char *labels[MAXPTS];
     int n = 0;
-    for (char *line = strchr(text, '\n'); ct >= 0 && ce >= 0 && line && line[1] && n < MAXPTS; line = strchr(line, '\n')) {
+    for (char *line = strchr(text, '\n'); ct >= 0 && ce >= 0 && line && line[1] && n < MAXPTS;
+         line = strchr(line, '\n')) {
         line++;
         char a[64], b[64], r[32], f[32];
         field(line, ct, a, sizeof a);

@@ -12,8 +12,8 @@
 #include "common/ply.h"
 #include "common/select.h"
 
-#define MAX_WIDTH 640   /* report images are at most this wide (every image the same size) */
-#define NO_VALUE 0x40   /* grey of pixels without a value (sRGB) */
+#define MAX_WIDTH  640  /* report images are at most this wide (every image the same size) */
+#define NO_VALUE   0x40 /* grey of pixels without a value (sRGB) */
 #define SIGMA_FULL 0.2  /* albedo_sigma_rel at the top of its bar: render's albedo_sigma.png scale */
 #define ERROR_FULL 0.2  /* the truth error map: +-20 %, rhoscan-eval's error image scale */
 
@@ -150,11 +150,11 @@ static void facet_values(const grid *g, const double *per_facet, int rgb, double
 /* How an RGB image is filled: from a panorama-size image or per facet, over the model only or
  * everywhere, with the filled-in sky marked. */
 typedef struct {
-    const float *px;        /* panorama-size RGB, or NULL */
-    const double *facet;    /* 3 per facet, or NULL */
-    double scale;           /* linear value x scale, clipped to [0, 1], sRGB-encoded */
-    int model_only;         /* grey off the model */
-    int mark_fill;          /* magenta over pixels whose sky was filled in (model or unusable) */
+    const float *px;     /* panorama-size RGB, or NULL */
+    const double *facet; /* 3 per facet, or NULL */
+    double scale;        /* linear value x scale, clipped to [0, 1], sRGB-encoded */
+    int model_only;      /* grey off the model */
+    int mark_fill;       /* magenta over pixels whose sky was filled in (model or unusable) */
 } rgb_src;
 
 static int rgb_image(const grid *g, const rgb_src *s, const char *name, rs_report_image *im, rs_err *err)
@@ -272,8 +272,7 @@ static int view_radiance(const grid *g, const rs_image *pano, const rs_image *sy
 }
 
 /* synth - observed (diff.exr) as signed luminance on a diverging map, symmetric range. */
-static int view_diff(const grid *g, const rs_image *diff, double *vals, double *work, rs_report_image *im,
-                     rs_err *err)
+static int view_diff(const grid *g, const rs_image *diff, double *vals, double *work, rs_report_image *im, rs_err *err)
 {
     size_t n = (size_t)g->w * g->h, m = 0, neg = 0;
     for (int y = 0; y < g->h; y++)
@@ -396,7 +395,7 @@ int rs_report_views_write(const char *workdir, const char *pano_path, const rs_r
     memset(slot, 0, sizeof slot);
     if (failed || make_grid(workdir, pano, ids, f ? f->nf : 0, &g, err) != 0) goto out;
     size_t n = (size_t)g.w * g.h;
-    vals = malloc(n * sizeof *vals);
+    vals = calloc(n, sizeof *vals);
     work = malloc(n * sizeof *work);
     if (!vals || !work) {
         rs_err_set(err, RS_ERR_SYSTEM, workdir, 0, "out of memory for the report");

@@ -25,11 +25,11 @@ void rs_report_facets_free(rs_report_facets *f);
 #define RS_REPORT_MAX_IMAGES 10
 
 typedef struct rs_report_image {
-    char file[64];   /* relative to the work folder: report/NAME.png */
+    char file[64]; /* relative to the work folder: report/NAME.png */
     char title[96];
-    char unit[96];   /* under the colour bar */
-    char tone[400];  /* how the values became colours */
-    double lo, hi;   /* the colour bar's range */
+    char unit[96];  /* under the colour bar */
+    char tone[400]; /* how the values became colours */
+    double lo, hi;  /* the colour bar's range */
     rs_colormap_fn map;
 } rs_report_image;
 

@@ -253,6 +253,23 @@ static double cpu_seconds(void)
     return clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts) == 0 ? (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec : NAN;
 }
 
+void rs_stage_report(const rs_config *cfg, const char *const *stages)
+{
+    char dir[4096];
+    rs_err err;
+    rs_err_clear(&err);
+    double t0 = rs_now(), c0 = cpu_seconds();
+    char truth[4096];
+    const char *tp =
+        rs_config_has(cfg, "report", "truth") ? rs_config_path(cfg, "report", "truth", truth, sizeof truth) : NULL;
+    rs_report_opts o = {dir, stages, tp, NULL};
+    if (rs_workdir(cfg, dir, sizeof dir, &err) != 0 || rs_report_write(&o, &err) != 0) {
+        rs_log_warn("report: report.html not written: %s%s%s", err.file, err.file[0] ? ": " : "", err.msg);
+        return;
+    }
+    rs_log_info("report: %s/report.html (%.3f s, CPU %.3f s)", dir, rs_now() - t0, cpu_seconds() - c0);
+}
+
 int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_skips *skips, rs_err *err)
 {
     char dir[4096], path[4096];
@@ -415,7 +432,7 @@ static int run_stage(const rs_stage_def *def, const rs_stage_def *table, const r
         rc = err.kind ? (int)err.kind : 3;
     } else {
         rs_skips_log(&skips);
-        if (rs_config_bool(cfg, "report", "write")) rs_report_after_run(cfg, NULL);
+        if (rs_config_bool(cfg, "report", "write")) rs_stage_report(cfg, NULL);
     }
     rs_skips_release(&skips);
     return rc;

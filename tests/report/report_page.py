@@ -64,9 +64,16 @@ def open_driver():
     return webdriver.Chrome(service=Service(driver), options=opts), profile
 
 
+REQUESTS = {}  # requestId -> (url, documentURL), over the whole session
+
+
 def check_page(drv, page, shot, want_model):
     """The problems found on page (a list; empty when it passes)."""
-    drv.get_log('performance')  # drop what came before
+    drv.get('about:blank')  # let the first tab's own start-up settle before the page
+    for entry in drv.get_log('performance'):  # before the page: Chromium's own start-up
+        msg = json.loads(entry['message'])['message']
+        if msg['method'] == 'Network.requestWillBeSent':
+            REQUESTS[msg['params']['requestId']] = (msg['params']['request']['url'], msg['params'].get('documentURL', ''))
     drv.get('file://' + page)
     problems = []
     if want_model:  # the viewer either shows the model or its fallback, once the scripts ran
@@ -84,13 +91,19 @@ def check_page(drv, page, shot, want_model):
         msg = json.loads(entry['message'])['message']
         if msg['method'] == 'Network.requestWillBeSent':
             url, doc = msg['params']['request']['url'], msg['params'].get('documentURL', '')
+            REQUESTS[msg['params']['requestId']] = (url, doc)
             # The page's own requests must stay on file: and data:; none may leave the machine
             # (Chromium's own chrome:// pages, such as the first tab's, are not the page's).
             if (doc.startswith('file:') and not url.startswith(('file:', 'data:'))) or \
                     url.startswith(('http:', 'https:', 'ws:', 'wss:', 'ftp:')):
                 problems.append('network request: %s (from %s)' % (url, doc))
         if msg['method'] == 'Network.loadingFailed':
-            problems.append('failed to load: %s' % msg['params'].get('errorText'))
+            url, doc = REQUESTS.get(msg['params']['requestId'], ('?', '?'))
+            if doc.startswith('file:') or url.startswith('file:'):  # the page's own files must all load
+                problems.append('failed to load: %s (%s)' % (url, msg['params'].get('errorText')))
+            else:
+                print('note: Chromium itself failed to load %s from %s (%s): not the page\'s' %
+                      (url, doc, msg['params'].get('errorText')))
     bad = drv.execute_script("return Array.from(document.images).filter(i=>!(i.complete&&i.naturalWidth>0))"
                              ".map(i=>i.src);")
     problems += ['image did not load: %s' % s for s in bad]
