@@ -242,9 +242,13 @@ static int report_command(const rs_stage_def *stages, int argc, char **argv)
         fprintf(stderr, "usage: rhoscan report WORKDIR   (rebuilds WORKDIR/report.html; runs no stage)\n");
         return 1;
     }
-    char probe[4096];
-    if (!rs_file_exists(rs_path_join(probe, sizeof probe, argv[2], "metrics.json"))) {
-        fprintf(stderr, "rhoscan: report: %s: no metrics.json: not a work folder of rhoscan run\n", argv[2]);
+    char probe[4096], bench[4096];
+    if (!rs_file_exists(rs_path_join(probe, sizeof probe, argv[2], "metrics.json")) &&
+        !rs_file_exists(rs_path_join(bench, sizeof bench, argv[2], "bench.csv"))) {
+        fprintf(stderr,
+                "rhoscan: report: %s: no metrics.json or bench.csv: not a work folder of rhoscan run or "
+                "rhoscan-bench\n",
+                argv[2]);
         return 1;
     }
     const char *names[64];

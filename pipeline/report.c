@@ -181,11 +181,14 @@ static void free_data(rs_report_data *d)
     cJSON_Delete(d->metrics); /* after: stage names may point into it */
 }
 
-/* The capture's panorama: the calib stage's stitched one, else [capture] panorama. */
+/* The capture's panorama as pipeline/panorama.h decides it, from metrics.json's configuration
+ * (the report runs without one): the calib stage's stitched panorama when [rig] file is set,
+ * else [capture] panorama. */
 static const char *pano_path(const rs_report_data *d, char *out, size_t n)
 {
-    rs_path_join(out, n, d->workdir, "pano_stitched.exr");
-    if (rs_file_exists(out)) return out;
+    /* RS_CALIB_PANO_FILE of pipeline/calib_files.h, not included: that module includes stage.h,
+     * whose programs call the report (a cycle) */
+    if (rs_report_config(d, "rig", "file")) return rs_path_join(out, n, d->workdir, "pano_stitched.exr");
     const char *p = rs_report_config(d, "capture", "panorama");
     if (!p) return NULL;
     snprintf(out, n, "%s", p);

@@ -76,7 +76,7 @@ void rs_report_stage_table(rs_html *h, const rs_report_data *d)
         const cJSON *j = d->stage_json[k];
         char buf[600];
         const char *st = run_status(d, d->stages[k], buf, sizeof buf);
-        if (!st) st = j ? "ran (outputs on disk; not recorded in metrics.json's last run)" : "never ran";
+        if (!st) st = j ? "ran in an earlier run" : "never ran";
         rs_html_put(h, "<tr><td>");
         rs_html_esc(h, d->stages[k]);
         rs_html_put(h, "</td><td>");

@@ -170,6 +170,36 @@ static void test_write_off_and_bad_truth(void **state)
     free(out);
 }
 
+/* A rhoscan-bench folder: run time against error with the Pareto front. Rows (time s, error):
+ * a (1, 30 %), b (2, 10 %), c (3, 20 %: dominated by b), d (4, 5 %): the front is a, b, d. */
+static void test_bench_pareto(void **state)
+{
+    const char *dir = rs_test_tmpdir("report_bench");
+    rs_test_write(rs_test_path(dir, "bench.csv"),
+                  "facets,row,t_total,albedo_err\n100,a,1,0.3\n100,b,2,0.1\n"
+                  "100,c,3,0.2\n100,d,4,0.05\n");
+    char cmd[8192], *out = NULL;
+    snprintf(cmd, sizeof cmd, "'%s/rhoscan' report '%s'", rs_test_bin_dir(), dir);
+    assert_int_equal(rs_test_run(cmd, &out), 0);
+    free(out);
+    const char *page = rs_test_read_text(rs_test_path(dir, "report.html"));
+    const char *plot = strstr(page, "bench.csv: run time against albedo error");
+    assert_non_null(plot);
+    int circles = 0;
+    for (const char *p = plot; (p = strstr(p, "<circle")); p++) circles++;
+    assert_int_equal(circles, 4);
+    /* the front: a step line through a, b and d: a, then two vertices per step down (b, d) */
+    const char *line = strstr(plot, "<polyline");
+    assert_non_null(line);
+    const char *pts = strstr(line, "points=\"") + 8, *end = strchr(pts, '"');
+    int vertices = 0;
+    for (const char *p = pts; p < end; p++) vertices += *p == ',';
+    assert_int_equal(vertices, 5);
+    assert_non_null(strstr(plot, "c at 100 facets: 3, 20")); /* the dominated row is drawn, off the front */
+    rs_test_rmtree(dir);
+}
+
 RS_TEST_MAIN(setup, teardown, cmocka_unit_test(test_base64), cmocka_unit_test(test_diverging_map),
              cmocka_unit_test(test_page_and_images), cmocka_unit_test(test_signed_difference),
-             cmocka_unit_test(test_report_command), cmocka_unit_test(test_write_off_and_bad_truth))
+             cmocka_unit_test(test_report_command), cmocka_unit_test(test_write_off_and_bad_truth),
+             cmocka_unit_test(test_bench_pareto))
