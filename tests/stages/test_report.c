@@ -13,7 +13,9 @@
 #include <unistd.h>
 
 #include "common/image.h"
+#include "common/log.h"
 #include "pipeline/report_html.h"
+#include "pipeline/stage.h"
 
 static const char *work;
 
@@ -199,7 +201,40 @@ static void test_bench_pareto(void **state)
     rs_test_rmtree(dir);
 }
 
+/* A stage that warns: the warning lands in its <stage>.json (the report's Warnings table), with
+ * the CPU time beside the wall time. */
+static int warning_stage(const rs_config *cfg, rs_report *rep, rs_err *err)
+{
+    rs_log_warn("test: something to look at (%d)", 42);
+    return 0;
+}
+
+static void test_stage_warnings_recorded(void **state)
+{
+    const char *dir = rs_test_tmpdir("report_warn");
+    const char *ini = rs_test_path(dir, "w.ini");
+    char text[4200];
+    snprintf(text, sizeof text, "[pipeline]\nworkdir = %s/work\n", dir);
+    rs_test_write(ini, text);
+    int rc = 0;
+    const char *sets[] = {NULL};
+    rs_config *cfg = rs_program_config(ini, sets, &rc);
+    assert_non_null(cfg);
+    rs_stage_def def = {"warner", warning_stage, "pipeline", "", "", "a stage that warns"};
+    rs_err err;
+    rs_err_clear(&err);
+    assert_int_equal(rs_stage_execute(&def, cfg, NULL, &err), 0);
+    const struct cJSON *j = rs_test_json_file(rs_test_path(dir, "work/warner.json"));
+    const struct cJSON *w = rs_test_json_find(j, "warnings");
+    assert_non_null(w);
+    const char *page = rs_test_read_text(rs_test_path(dir, "work/warner.json"));
+    assert_non_null(strstr(page, "test: something to look at (42)"));
+    assert_true(rs_test_json_num(j, "cpu_time_s") >= 0);
+    rs_config_free(cfg);
+    rs_test_rmtree(dir);
+}
+
 RS_TEST_MAIN(setup, teardown, cmocka_unit_test(test_base64), cmocka_unit_test(test_diverging_map),
              cmocka_unit_test(test_page_and_images), cmocka_unit_test(test_signed_difference),
              cmocka_unit_test(test_report_command), cmocka_unit_test(test_write_off_and_bad_truth),
-             cmocka_unit_test(test_bench_pareto))
+             cmocka_unit_test(test_bench_pareto), cmocka_unit_test(test_stage_warnings_recorded))
