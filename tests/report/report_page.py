@@ -94,7 +94,8 @@ def check_page(drv, page, shot, want_model):
             REQUESTS[msg['params']['requestId']] = (url, doc)
             # The page's own requests must stay on file: and data:; none may leave the machine
             # (Chromium's own chrome:// pages, such as the first tab's, are not the page's).
-            if (doc.startswith('file:') and not url.startswith(('file:', 'data:'))) or \
+            # blob: is memory (GLTFLoader hands a .glb's embedded textures to the page that way).
+            if (doc.startswith('file:') and not url.startswith(('file:', 'data:', 'blob:'))) or \
                     url.startswith(('http:', 'https:', 'ws:', 'wss:', 'ftp:')):
                 problems.append('network request: %s (from %s)' % (url, doc))
         if msg['method'] == 'Network.loadingFailed':
