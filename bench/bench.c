@@ -297,7 +297,8 @@ static rs_bench_truth *prepare(const bench_opts *o, size_t facets, const bench_r
     }
     fprintf(f,
             "; written by rhoscan-bench: %zu facets, truth with %d x the samples\n[pipeline]\nworkdir = .\n"
-            "threads = %d\n[mesh]\ninput_mesh = scene.ply\n[capture]\npanorama = pano.exr\nposition = %.6f %.6f %.6f\n",
+            "threads = %d\n[report]\nwrite = false\n[mesh]\ninput_mesh = scene.ply\n[capture]\npanorama = "
+            "pano.exr\nposition = %.6f %.6f %.6f\n",
             sc->mesh->nfaces, F, o->threads, sc->camera.x, sc->camera.y, sc->camera.z);
     fclose(f);
     goto out;

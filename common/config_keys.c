@@ -248,4 +248,11 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"render", "exposure", RS_CFG_REAL, NULL, 1e-12, 1e12, NULL, "", "render",
      "scale of the radiance PNG previews; default maps the 99th percentile to 1"},
 
+    {"report", "write", RS_CFG_BOOL, "true", 0, 0, NULL, "", "report",
+     "rebuild WORKDIR/report.html (and its images in WORKDIR/report/) after every stage run; rhoscan report WORKDIR "
+     "rebuilds it on demand"},
+    {"report", "truth", RS_CFG_PATH, NULL, 0, 0, NULL, "", "report",
+     "a truth PLY (float red green blue albedo and an integer part per face, as a reference scene's truth.ply): the "
+     "report adds the per-part albedo error table and the error map"},
+
     {NULL, NULL, 0, NULL, 0, 0, NULL, NULL, NULL, NULL}};

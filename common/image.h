@@ -78,5 +78,10 @@ int rs_image_write_exr(const rs_image *img, const char *path, const char *const 
 /* Writes an 8-bit sRGB PNG preview of linear values: clamp(scale * value) then sRGB-encode.
  * 1 channel -> grey, 3 -> RGB. Atomic. Defined in common/image_stb.c. */
 int rs_image_write_png(const rs_image *img, const char *path, float scale, rs_err *err);
+/* Writes 8-bit codes as they are (already sRGB-encoded: false-colour images), width x height x
+ * channels (1 or 3), rows top first, every row Sub-filtered (rs_image_write_png lets stb try
+ * all five filters per row: smaller files, five times the filtering). Atomic. Defined in
+ * common/image_stb.c. */
+int rs_image_write_png8(const unsigned char *px, int width, int height, int channels, const char *path, rs_err *err);
 
 #endif

@@ -365,6 +365,9 @@ static unsigned char srgb_code(const srgb_table *t, float v)
     return (unsigned char)code;
 }
 
+static int write_png8(const unsigned char *px, int width, int height, int channels, int filter, const char *path,
+                      rs_err *err);
+
 int rs_image_write_png(const rs_image *img, const char *path, float scale, rs_err *err)
 {
     if (!img || !img->data || (img->channels != 1 && img->channels != 3))
@@ -387,10 +390,26 @@ int rs_image_write_png(const rs_image *img, const char *path, float scale, rs_er
         px[i] = srgb_code(tab, v);
     }
     free(tab);
-    byte_buf b = {0};
-    int ok = stbi_write_png_to_func(byte_buf_append, &b, img->width, img->height, img->channels, px,
-                                    img->width * img->channels);
+    int status = write_png8(px, img->width, img->height, img->channels, -1, path, err);
     free(px);
+    return status;
+}
+
+/* filter: stb's PNG row filter, -1 for its choice per row (trying all five). */
+static int write_png8(const unsigned char *px, int width, int height, int channels, int filter, const char *path,
+                      rs_err *err)
+{
+    if (channels != 1 && channels != 3)
+        return rs_err_set(err, RS_ERR_INTERNAL, path, 0, "rs_image_write_png8: %d channels: expected 1 or 3", channels);
+    if (rs_image_check_size(width, height, path, err) != 0) return -1;
+    byte_buf b = {0};
+    int ok;
+#pragma omp critical(rs_png_filter) /* stb keeps the filter in a global */
+    {
+        stbi_write_force_png_filter = filter;
+        ok = stbi_write_png_to_func(byte_buf_append, &b, width, height, channels, px, width * channels);
+        stbi_write_force_png_filter = -1;
+    }
     int status;
     if (!ok || b.failed)
         status = rs_err_set(err, RS_ERR_SYSTEM, path, 0, "cannot encode the PNG (out of memory)");
@@ -398,4 +417,9 @@ int rs_image_write_png(const rs_image *img, const char *path, float scale, rs_er
         status = rs_write_file_atomic(path, b.p, b.n, err);
     free(b.p);
     return status;
+}
+
+int rs_image_write_png8(const unsigned char *px, int width, int height, int channels, const char *path, rs_err *err)
+{
+    return write_png8(px, width, height, channels, 1, path, err); /* Sub for every row: no choosing */
 }

@@ -42,12 +42,36 @@ void rs_log_info(const char *fmt, ...)
     va_end(ap);
 }
 
+/* The warnings of the process, kept for the report (the first RS_LOG_KEPT_WARNINGS of them). */
+#define RS_LOG_KEPT_WARNINGS 64
+static char *warnings[RS_LOG_KEPT_WARNINGS];
+static size_t nwarnings;
+
 void rs_log_warn(const char *fmt, ...)
 {
     va_list ap;
     va_start(ap, fmt);
     log_v(RS_LOG_WARN, "warning: ", fmt, ap);
     va_end(ap);
+    char line[2048];
+    va_start(ap, fmt);
+    vsnprintf(line, sizeof line, fmt, ap);
+    va_end(ap);
+#pragma omp critical(rs_log_warnings)
+    {
+        if (nwarnings < RS_LOG_KEPT_WARNINGS) warnings[nwarnings] = strdup(line);
+        if (nwarnings < RS_LOG_KEPT_WARNINGS && warnings[nwarnings]) nwarnings++;
+    }
+}
+
+size_t rs_log_warning_count(void)
+{
+    return nwarnings;
+}
+
+const char *rs_log_warning(size_t k)
+{
+    return k < nwarnings ? warnings[k] : "";
 }
 
 void rs_log_debug(const char *fmt, ...)

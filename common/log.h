@@ -13,6 +13,10 @@ void rs_log_set_level(rs_log_level level);
 const char *rs_log_program(void);
 void rs_log_info(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 void rs_log_warn(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+/* The warnings logged so far by this process (at any level setting), in order: how many (at
+ * most 64 are kept), and the k-th one's text without the prefix. */
+size_t rs_log_warning_count(void);
+const char *rs_log_warning(size_t k);
 void rs_log_debug(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 /* Prints "program: file:line: msg" for an error record. */
 void rs_log_error(const rs_err *err);

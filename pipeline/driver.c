@@ -8,6 +8,7 @@
 #include "common/log.h"
 #include "pipeline/effective.h"
 #include "pipeline/options.h"
+#include "pipeline/report.h"
 #include "pipeline/version.h"
 
 enum {
@@ -40,6 +41,7 @@ static void usage(const rs_stage_def *stages, FILE *out)
             "usage: rhoscan run [OPTIONS] CONFIG     run the pipeline: every stage whose inputs or config changed\n"
             "       rhoscan STAGE [OPTIONS] CONFIG   run one stage (the same as the program rhoscan-STAGE)\n"
             "       rhoscan help [STAGE]             this text, or a stage's\n"
+            "       rhoscan report WORKDIR           rebuild WORKDIR/report.html from its files (runs no stage)\n"
             "       rhoscan version                  the version and git commit (also --version)\n"
             "Options of run (before or after CONFIG; --NAME=VALUE works as --NAME VALUE):\n");
     rs_options_print(out, run_options);
@@ -111,6 +113,16 @@ static void log_done(const rs_stage_def *stages, const rs_run_opts *opts, int nr
                     nstages - nran, opts->from ? "before --from" : "up to date");
 }
 
+/* report.html for the run (pipeline/report.h), stage names from the table. */
+static void report_after(const rs_stage_def *stages, const rs_config *cfg)
+{
+    const char *names[64];
+    int n = 0;
+    for (const rs_stage_def *d = stages; d->name && n < 63; d++) names[n++] = d->name;
+    names[n] = NULL;
+    rs_stage_report(cfg, names);
+}
+
 int rs_run_pipeline(const rs_stage_def *stages, const rs_config *cfg, const rs_run_opts *opts, rs_err *err)
 {
     rs_skips skips = {0};
@@ -146,6 +158,7 @@ int rs_run_pipeline(const rs_stage_def *stages, const rs_config *cfg, const rs_r
         rs_skips_log(&skips);
         rc = rs_merge_metrics(stages, cfg, run, err);
         if (rc == 0) log_done(stages, opts, nran, rs_now() - t0);
+        if (rc == 0 && nran > 0 && rs_config_bool(cfg, "report", "write")) report_after(stages, cfg);
     }
     rs_skips_release(&skips);
     rs_json_free(run);
@@ -222,6 +235,37 @@ static int run_command(const rs_stage_def *stages, int argc, char **argv)
     return rc;
 }
 
+/* `rhoscan report WORKDIR`: the exit code. */
+static int report_command(const rs_stage_def *stages, int argc, char **argv)
+{
+    if (argc != 3 || argv[2][0] == '-') {
+        fprintf(stderr, "usage: rhoscan report WORKDIR   (rebuilds WORKDIR/report.html; runs no stage)\n");
+        return 1;
+    }
+    char probe[4096], bench[4096];
+    if (!rs_file_exists(rs_path_join(probe, sizeof probe, argv[2], "metrics.json")) &&
+        !rs_file_exists(rs_path_join(bench, sizeof bench, argv[2], "bench.csv"))) {
+        fprintf(stderr,
+                "rhoscan: report: %s: no metrics.json or bench.csv: not a work folder of rhoscan run or "
+                "rhoscan-bench\n",
+                argv[2]);
+        return 1;
+    }
+    const char *names[64];
+    int n = 0;
+    for (const rs_stage_def *d = stages; d->name && n < 63; d++) names[n++] = d->name;
+    names[n] = NULL;
+    rs_err err;
+    rs_err_clear(&err);
+    rs_report_opts o = {argv[2], names, NULL, NULL};
+    if (rs_report_write(&o, &err) != 0) {
+        rs_log_error(&err);
+        return err.kind ? (int)err.kind : 3;
+    }
+    rs_log_info("report: %s/report.html", argv[2]);
+    return 0;
+}
+
 static int is_any(const char *arg, const char *a, const char *b, const char *c)
 {
     return strcmp(arg, a) == 0 || strcmp(arg, b) == 0 || strcmp(arg, c) == 0;
@@ -249,6 +293,7 @@ int rs_driver_main(const rs_stage_def *stages, int argc, char **argv)
         return rs_stdout_check("rhoscan");
     }
     if (strcmp(command, "run") == 0) return run_command(stages, argc, argv);
+    if (strcmp(command, "report") == 0) return report_command(stages, argc, argv);
     const rs_stage_def *d = rs_stage_lookup(stages, command);
     if (d) return rs_stage_main_of(d, stages, argc - 1, argv + 1); /* git-style: rhoscan mesh CONFIG */
     fprintf(stderr, "rhoscan: unknown command '%s'\n", command);

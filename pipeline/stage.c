@@ -9,6 +9,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
 #ifdef _OPENMP
 #include <omp.h>
@@ -17,6 +18,7 @@
 #include "common/log.h"
 #include "pipeline/effective.h"
 #include "pipeline/options.h"
+#include "pipeline/report.h"
 #include "pipeline/version.h"
 
 void rs_skips_add(rs_skips *s, const char *stage, const char *what, const char *why)
@@ -244,6 +246,30 @@ static void remove_if_created(const char *dir, int existed)
     rmdir(dir);
 }
 
+/* CPU seconds of the process so far (every thread). */
+static double cpu_seconds(void)
+{
+    struct timespec ts;
+    return clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts) == 0 ? (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec : NAN;
+}
+
+void rs_stage_report(const rs_config *cfg, const char *const *stages)
+{
+    char dir[4096];
+    rs_err err;
+    rs_err_clear(&err);
+    double t0 = rs_now(), c0 = cpu_seconds();
+    char truth[4096];
+    const char *tp =
+        rs_config_has(cfg, "report", "truth") ? rs_config_path(cfg, "report", "truth", truth, sizeof truth) : NULL;
+    rs_report_opts o = {dir, stages, tp, NULL};
+    if (rs_workdir(cfg, dir, sizeof dir, &err) != 0 || rs_report_write(&o, &err) != 0) {
+        rs_log_warn("report: report.html not written: %s%s%s", err.file, err.file[0] ? ": " : "", err.msg);
+        return;
+    }
+    rs_log_info("report: %s/report.html (%.3f s, CPU %.3f s)", dir, rs_now() - t0, cpu_seconds() - c0);
+}
+
 int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_skips *skips, rs_err *err)
 {
     char dir[4096], path[4096];
@@ -262,15 +288,21 @@ int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_skips *sk
     rep.skipped = rs_json_set_arr(rep.metrics, "skipped");
 
     rs_log_info("%s: started", def->name);
-    double t0 = rs_now();
+    double t0 = rs_now(), c0 = cpu_seconds();
+    size_t warned = rs_log_warning_count();
     int rc = def->run(cfg, &rep, err);
-    double wall = rs_now() - t0;
+    double wall = rs_now() - t0, cpu = cpu_seconds() - c0;
     if (rc != 0) {
         rs_json_free(rep.metrics);
         remove_if_created(dir, existed);
         return -1;
     }
     rs_json_set_num(rep.metrics, "wall_time_s", wall);
+    rs_json_set_num(rep.metrics, "cpu_time_s", cpu); /* every thread's, this process */
+    if (rs_log_warning_count() > warned) {           /* what it warned of, for the report */
+        rs_json *w = rs_json_set_arr(rep.metrics, "warnings");
+        for (size_t k = warned; k < rs_log_warning_count(); k++) rs_json_push_str(w, rs_log_warning(k));
+    }
     double peak = peak_rss_mb();
     if (!isnan(peak)) rs_json_set_num(rep.metrics, "peak_rss_mb", peak); /* the process's, so far */
     char hex[32];
@@ -400,6 +432,7 @@ static int run_stage(const rs_stage_def *def, const rs_stage_def *table, const r
         rc = err.kind ? (int)err.kind : 3;
     } else {
         rs_skips_log(&skips);
+        if (rs_config_bool(cfg, "report", "write")) rs_stage_report(cfg, NULL);
     }
     rs_skips_release(&skips);
     return rc;

@@ -62,6 +62,11 @@ const char *rs_work_path(const rs_config *cfg, const char *name, char *out, size
  * added to skips (may be NULL), under the stage's name. */
 int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_skips *skips, rs_err *err);
 
+/* After a stage or a run: the run report (pipeline/report.h) for cfg's work folder and its
+ * [report] truth (stages: the pipeline's names in order, or NULL: metrics.json's). A failure is
+ * logged as a warning: the stages' outputs stand without the page. */
+void rs_stage_report(const rs_config *cfg, const char *const *stages);
+
 /* The fingerprint of a stage's inputs: program version, its config sections as in effect,
  * and the contents of every input file (work-folder inputs and the files its keys name). */
 int rs_stage_fingerprint(const rs_stage_def *def, const rs_config *cfg, uint64_t *fp, rs_err *err);

@@ -2,14 +2,16 @@
 # Installs the Debian 12 packages rhoscan builds and tests with (run as root).
 # Usage: tools/setup-debian.sh [--tests]   (--tests adds what the test suites need)
 set -eu
-pkgs="build-essential cmake pkg-config libembree-dev libtbb-dev libopenexr-dev libstb-dev zlib1g-dev libinih-dev libcjson-dev libopencv-dev libpcl-dev"
+pkgs="build-essential cmake pkg-config libembree-dev libtbb-dev libopenexr-dev libstb-dev zlib1g-dev libinih-dev libcjson-dev libopencv-dev libpcl-dev libjs-three"
 # libpcl-dev: point-cloud cleaning, normals and surface reconstruction (common/pcl_bridge.cpp).
+# libjs-three: three.js r111, copied beside report.html for the 3D view of albedo.glb (pipeline/report_model.c).
 # libopencv-dev: rig files, TIFF frames and HDR merging in the calib stage (calib/cv_adapter.cpp).
 if [ "${1:-}" = "--tests" ]; then
     # cmocka: unit tests; python3 with numpy/scipy/OpenImageIO: the reference evaluator;
     # clang + libclang-rt-14-dev + libomp-dev (OpenMP for clang): fuzzing and sanitizer builds;
-    # blender-data: real DWA-compressed skies.
-    pkgs="$pkgs libcmocka-dev python3 python3-numpy python3-scipy python3-openimageio clang libclang-rt-14-dev libomp-dev blender-data"
+    # blender-data: real DWA-compressed skies; chromium, chromium-driver, python3-selenium: the
+    # report's page test (tests/report/report_page.py).
+    pkgs="$pkgs libcmocka-dev python3 python3-numpy python3-scipy python3-openimageio clang libclang-rt-14-dev libomp-dev blender-data chromium chromium-driver python3-selenium"
 fi
 missing=""
 for p in $pkgs; do

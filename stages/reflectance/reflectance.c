@@ -101,7 +101,9 @@ typedef struct {
     double fill[3];                        /* the mean of all estimable facets */
     double fill_class[RS_FILL_CLASSES][3]; /* what unobserved facets of each orientation take */
     int iterations;
-    const char *origin; /* rhoscan_origin "OX OY OZ", "" when none */
+    const char *origin;    /* rhoscan_origin "OX OY OZ", "" when none */
+    double residuals[200]; /* the largest relative change of each sweep (solve_residuals) */
+    int nresiduals;
 } refl_out;
 
 static uint8_t fill_class_of(rs_v3 n)
@@ -219,6 +221,7 @@ static int solve(const refl_in *in, refl_out *out)
     free(e);
 
     memset(out->Lfill, 0, 3 * nf * sizeof *out->Lfill);
+    out->nresiduals = 0;
     double prev[RS_FILL_CLASSES][3];
     for (int c = 0; c < RS_FILL_CLASSES; c++) prev[c][0] = prev[c][1] = prev[c][2] = -1;
     for (out->iterations = 1; out->iterations <= 200; out->iterations++) {
@@ -243,6 +246,7 @@ static int solve(const refl_in *in, refl_out *out)
                 if (d > change) change = d;
                 prev[c][ch] = out->fill_class[c][ch];
             }
+        out->residuals[out->nresiduals++] = change;
         if (change < 1e-7) break;
     }
     if (in->method == RS_REFL_DIRECT) memset(out->G, 0, 3 * nf * sizeof *out->G);
@@ -599,6 +603,8 @@ static void report_reflectance(rs_report *rep, const refl_in *in, const refl_out
                     "them (albedo_above_one = 1)",
                     n->above_one);
     rs_json_set_int(rep->metrics, "fill_iterations", out->iterations);
+    rs_json *res = rs_json_set_arr(rep->metrics, "solve_residuals"); /* per sweep, for the report's plot */
+    for (int k = 0; k < out->nresiduals; k++) rs_json_push_num(res, out->residuals[k]);
     rs_json *fill = rs_json_set_arr(rep->metrics, "fill_albedo");
     for (int ch = 0; ch < 3; ch++) rs_json_push_num(fill, out->fill[ch]);
     rs_json *by = rs_json_set_obj(rep->metrics, "fill_albedo_by_orientation");

@@ -21,12 +21,9 @@ void rs_eval_opts_default(rs_eval_opts *o)
 
 static void eval_free(ev *e)
 {
-    rs_mesh_free(e->truth);
+    rs_truth_free(&e->tr);
     rs_mesh_free(e->res);
-    rs_ply_free(e->truth_ply);
     rs_ply_free(e->res_ply);
-    free(e->tpart);
-    free(e->trgb);
     free(e->alb);
     free(e->rel);
     free(e->sel);
@@ -48,46 +45,14 @@ static int load_truth(ev *e, const char *dir, rs_err *err)
 {
     char path[4096];
     join(path, sizeof path, dir, "truth.ply");
-    if (!(e->truth = rs_mesh_read(path, &e->truth_ply, err))) return -1;
-    e->nt = e->truth->nfaces;
-    double *part = malloc((e->nt + 1) * sizeof *part);
-    e->tpart = malloc((e->nt + 1) * sizeof *e->tpart);
-    e->trgb = malloc((3 * e->nt + 1) * sizeof *e->trgb);
-    if (!part || !e->tpart || !e->trgb) {
-        free(part);
-        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
-    }
-    /* Truth albedo is float `red green blue` (docs/DESIGN.md, section Reference scenes), not uchar sRGB. */
-    int rc = rs_faceprop_get(e->truth_ply, path, "part", e->nt, part, err);
-    const char *names[3] = {"red", "green", "blue"};
-    for (int c = 0; c < 3 && rc == 0; c++) {
-        double *v = malloc((e->nt + 1) * sizeof *v);
-        if (!v) {
-            free(part);
-            return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
-        }
-        rc = rs_faceprop_get(e->truth_ply, path, names[c], e->nt, v, err);
-        for (size_t f = 0; f < e->nt && rc == 0; f++) {
-            if (!(v[f] > 0 && v[f] <= 1)) {
-                rc = rs_err_set(err, RS_ERR_INPUT, path, 0, "face %zu: %s = %g: expected a truth albedo in (0, 1]", f,
-                                names[c], v[f]);
-                break;
-            }
-            e->trgb[3 * f + c] = v[f];
-        }
-        free(v);
-    }
-    for (size_t f = 0; f < e->nt && rc == 0; f++) {
-        if (!(part[f] >= 0 && part[f] < 100000 && part[f] == floor(part[f]))) {
-            rc =
-                rs_err_set(err, RS_ERR_INPUT, path, 0, "face %zu: part = %g: expected an integer 0..99999", f, part[f]);
-            break;
-        }
-        e->tpart[f] = (int)part[f];
-        if (e->tpart[f] + 1 > e->nparts) e->nparts = e->tpart[f] + 1;
-    }
-    free(part);
-    return rc;
+    if (rs_truth_read(path, &e->tr, err) != 0) return -1;
+    e->truth = e->tr.mesh;
+    e->truth_ply = e->tr.ply;
+    e->nt = e->tr.nt;
+    e->nparts = e->tr.nparts;
+    e->tpart = e->tr.part;
+    e->trgb = e->tr.rgb;
+    return 0;
 }
 
 static int load_result(ev *e, const char *dir, rs_err *err)
@@ -113,13 +78,7 @@ static int load_result(ev *e, const char *dir, rs_err *err)
         rs_faceprop_get(e->res_ply, path, "observed", nf, e->obs, err) != 0 ||
         rs_faceprop_get(e->res_ply, path, "estimable", nf, e->est, err) != 0)
         return -1;
-    /* A georeferenced run was recentred (rhoscan_origin, docs/DESIGN.md): its facets back into
-     * the truth's frame before anything is matched. */
-    const char *origin = rs_ply_find_comment(e->res_ply, "rhoscan_origin");
-    double o[3];
-    if (origin && sscanf(origin, "%lf %lf %lf", &o[0], &o[1], &o[2]) == 3)
-        for (size_t v = 0; v < e->res->nverts; v++)
-            for (int j = 0; j < 3; j++) e->res->verts[3 * v + j] = (float)(e->res->verts[3 * v + j] + o[j]);
+    rs_truth_unshift(e->res, e->res_ply);
     for (size_t f = 0; f < nf; f++) {
         rs_v3 c, n;
         rs_mesh_face(e->res, f, &c, &n, &e->area[f]);
@@ -143,50 +102,22 @@ static rs_image *load_view(const char *dir, const char *name, int channels, cons
     return img;
 }
 
-/* Area-weighted statistics of rel over the facets in mask (as eval_albedo.py: the weighted
- * median and 95th percentile are the first sorted value whose cumulative weight reaches q). */
-static const double *g_sort_key;
-static int cmp_idx(const void *a, const void *b)
-{
-    size_t i = *(const size_t *)a, j = *(const size_t *)b;
-    double x = g_sort_key[i], y = g_sort_key[j];
-    return x < y ? -1 : x > y ? 1 : (i > j) - (i < j);
-}
-
+/* The area-weighted statistics of rel over the facets in mask (pipeline/truth.h) under key. */
 static void put_stats(rs_json *parent, const char *key, const ev *e, const uint8_t *mask, size_t *idx)
 {
-    size_t n = 0;
-    double w = 0, sr = 0, sb = 0;
-    for (size_t f = 0; f < e->nf; f++)
-        if (mask[f]) {
-            idx[n++] = f;
-            w += e->area[f];
-            sr += e->rel[f] * e->area[f];
-            sb += e->sgn[f] * e->area[f];
-        }
-    if (n == 0 || !(w > 0)) {
+    rs_truth_stats st;
+    rs_truth_stats_of(e->rel, e->sgn, e->area, mask, e->nf, idx, &st);
+    if (st.facets == 0) {
         rs_json_set_parsed(parent, key, "null");
         return;
     }
-    g_sort_key = e->rel;
-    qsort(idx, n, sizeof *idx, cmp_idx);
-    double q[2] = {0.5, 0.95}, val[2];
-    for (int k = 0; k < 2; k++) {
-        double cw = 0;
-        size_t i = 0;
-        for (; i < n; i++) {
-            cw += e->area[idx[i]];
-            if (cw / w >= q[k]) break;
-        }
-        val[k] = e->rel[idx[i < n ? i : n - 1]];
-    }
     rs_json *s = rs_json_set_obj(parent, key);
-    rs_json_set_int(s, "facets", (long long)n);
-    rs_json_set_num(s, "area_m2", w);
-    rs_json_set_num(s, "mean_rel", sr / w);
-    rs_json_set_num(s, "median_rel", val[0]);
-    rs_json_set_num(s, "p95_rel", val[1]);
-    rs_json_set_num(s, "bias_rel", sb / w);
+    rs_json_set_int(s, "facets", (long long)st.facets);
+    rs_json_set_num(s, "area_m2", st.area);
+    rs_json_set_num(s, "mean_rel", st.mean_rel);
+    rs_json_set_num(s, "median_rel", st.median_rel);
+    rs_json_set_num(s, "p95_rel", st.p95_rel);
+    rs_json_set_num(s, "bias_rel", st.bias_rel);
 }
 
 double rs_eval_get(const rs_json *doc, const char *path)
@@ -255,11 +186,7 @@ int rs_eval_run(const rs_eval_opts *o, rs_json **result, int *passed, rs_err *er
         e.rel[f] = e.sgn[f] = 0;
         if (!(good[f] && finite && e.m.part[f] >= 0)) continue;
         e.sel[f] = 1;
-        for (int c = 0; c < 3; c++) {
-            double tc = t[c] > 1e-6 ? t[c] : 1e-6;
-            e.rel[f] += fabs(a[c] - t[c]) / tc / 3;
-            e.sgn[f] += (a[c] - t[c]) / tc / 3;
-        }
+        rs_truth_facet_error(a, t, &e.rel[f], &e.sgn[f]);
     }
     rs_json_set_str(doc, "program", "rhoscan-eval");
     rs_json_set_str(doc, "version", RHOSCAN_VERSION);

@@ -9,6 +9,7 @@
 #include "common/err.h"
 #include "common/json.h"
 #include "common/mesh.h"
+#include "pipeline/truth.h"
 
 typedef struct rs_eval_opts {
     const char *truth_dir;    /* truth.ply, pano.exr, pano_diffcol/diffdir/diffind.exr */
@@ -35,28 +36,5 @@ int rs_eval_run(const rs_eval_opts *o, rs_json **result, int *passed, rs_err *er
 /* A number of the result by dotted path ("albedo.interior.mean_rel", "parts.0.concave");
  * true/false read as 1/0; NAN when absent or null. */
 double rs_eval_get(const rs_json *doc, const char *path);
-
-/* The truth part each result facet lies on. Seven points per facet (the centroid, and the
- * corners and edge midpoints pulled 15 % toward it, as ../shared/tools/eval_albedo.py does)
- * each take the part of their nearest truth triangle if it lies within tol_m. */
-typedef struct rs_eval_match {
-    int *part;         /* majority part per facet (ties: the lower id), -1 unmatched */
-    double *truth_rgb; /* 3 per facet: the albedo of the first agreeing point's triangle */
-    uint8_t *interior; /* all seven points matched and on one part */
-} rs_eval_match;
-
-/* A facet is matched when its centroid lies within tol_m of the truth. truth_part and
- * truth_rgb hold one (three) value(s) per truth triangle. Caller frees with rs_eval_match_free. */
-int rs_eval_match_facets(const rs_mesh *res, const rs_mesh *truth, const int *truth_part, const double *truth_rgb,
-                         double tol_m, rs_eval_match *out, rs_err *err);
-void rs_eval_match_free(rs_eval_match *m);
-
-/* Enclosure of each facet of mesh: the cosine-weighted share of its hemisphere that hits the
- * mesh itself (64 stratified directions from the centroid), i.e. how much of its light can be
- * interreflection. out[nfaces]. */
-int rs_eval_enclosure(const rs_mesh *mesh, double *out, rs_err *err);
-
-/* Closest distance from p to triangle (a, b, c) (Ericson, Real-Time Collision Detection 5.1.5). */
-double rs_eval_point_tri_dist(rs_v3 p, rs_v3 a, rs_v3 b, rs_v3 c);
 
 #endif

@@ -9,6 +9,7 @@
 
 /* Everything one evaluation holds; freed by eval_free. */
 typedef struct ev {
+    rs_truth tr; /* owns truth, truth_ply, tpart, trgb */
     rs_mesh *truth, *res;
     rs_ply *truth_ply, *res_ply;
     size_t nt, nf;

@@ -1,9 +1,9 @@
-/* eval_match: which truth part each result facet lies on (nearest truth triangle of seven
+/* truth_match: which truth part each result facet lies on (nearest truth triangle of seven
  * points per facet, majority vote), and how enclosed each facet is (rays against the mesh). */
 #include <float.h>
 #include <stdlib.h>
 #include <string.h>
-#include "tools/eval/eval.h"
+#include "pipeline/truth.h"
 #include "common/sampling.h"
 #include "common/scene.h"
 
