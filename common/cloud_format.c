@@ -8,6 +8,7 @@
 
 #include "common/cloud_ply.h"
 #include "common/cloud_text.h"
+#include "common/e57.h"
 #include "common/pcl_bridge.h"
 #include "common/ptx.h"
 
@@ -75,6 +76,11 @@ static rs_cloud *read_text(const char *path, const rs_cloud_read_opts *opts, rs_
     return rs_cloud_read_text(path, opts->columns, err);
 }
 
+static rs_cloud *read_e57(const char *path, const rs_cloud_read_opts *opts, rs_err *err)
+{
+    return rs_e57_read(path, err);
+}
+
 static rs_cloud *read_ptx(const char *path, const rs_cloud_read_opts *opts, rs_err *err)
 {
     return rs_ptx_read(path, err);
@@ -85,7 +91,7 @@ static rs_cloud *read_ptx(const char *path, const rs_cloud_read_opts *opts, rs_e
  * comment lines could hold too. */
 static const cloud_format formats[] = {
     {"PLY", ply_is_a, ".ply", read_ply, NULL},
-    {"E57", e57_is_a, ".e57", NULL, "E57 is not supported yet"},
+    {"E57", e57_is_a, ".e57", read_e57, NULL},
     {"LAZ", laz_is_a, ".laz", NULL, "LAZ (compressed LAS) is not supported"},
     {"LAS", las_is_a, ".las", NULL, "LAS is not supported yet"},
     {"PCD", NULL, ".pcd", read_pcd, NULL},
