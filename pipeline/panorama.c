@@ -7,6 +7,7 @@
 #include "common/fileio.h"
 #include "common/image.h"
 #include "pipeline/calib_files.h"
+#include "pipeline/capture_e57.h"
 #include "pipeline/stage.h"
 
 int rs_capture_panorama_check(const rs_config *cfg, rs_err *err)
@@ -36,6 +37,7 @@ int rs_capture_panorama_width(const rs_config *cfg, int *width, char *from, size
 {
     if (rs_capture_panorama_check(cfg, err) != 0) return -1;
     if (rs_config_path(cfg, "capture", "panorama", from, n)) {
+        if (rs_capture_is_e57(from)) return rs_capture_e57_width(cfg, "capture", from, width, err) == 0 ? 1 : -1;
         rs_image *img = rs_image_read(from, err);
         if (!img) return -1;
         *width = img->width;

@@ -36,7 +36,8 @@ static void assert_same(const rs_cloud *a, const rs_cloud *b, double tol)
     }
     if (tol == 0) assert_memory_equal(a->xyz, b->xyz, 3 * a->npoints * sizeof *a->xyz);
     for (size_t i = 0; i < 3 * a->npoints; i++)
-        if (!(fabs(a->xyz[i] - b->xyz[i]) <= tol)) fail_msg("coordinate %zu: %.17g, expected %.17g", i, b->xyz[i], a->xyz[i]);
+        if (!(fabs(a->xyz[i] - b->xyz[i]) <= tol))
+            fail_msg("coordinate %zu: %.17g, expected %.17g", i, b->xyz[i], a->xyz[i]);
     assert_memory_equal(a->valid, b->valid, a->npoints);
     assert_true((a->intensity == NULL) == (b->intensity == NULL));
     if (a->intensity) assert_memory_equal(a->intensity, b->intensity, a->npoints * sizeof *a->intensity);
@@ -66,10 +67,11 @@ static void test_synthetic(void **state)
 {
     const char *dir = rs_test_tmpdir("e57w");
     const char *ptx = rs_test_path(dir, "two.ptx");
-    rs_test_write(ptx, "3\n2\n1 2 3\n1 0 0\n0 1 0\n0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n1 2 3 1\n"
-                       "0.5 0.25 -1 0.5\n0 0 0 0.5\n1.5 2.5 3.5 1.5\n-1 -2 -3 0.25\n7 8 9 0.125\n0 0 0\n"
-                       "2\n2\n10 0 0\n0 1 0\n-1 0 0\n0 0 1\n0 1 0 0\n-1 0 0 0\n0 0 1 0\n10 0 0 1\n"
-                       "1 0 0 0.5 255 0 10\n0 1 0 0.5 1 2 3\n0 0 1 0.5 4 5 6\n1 1 1 0.5 7 8 9\n");
+    rs_test_write(ptx,
+                  "3\n2\n1 2 3\n1 0 0\n0 1 0\n0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n1 2 3 1\n"
+                  "0.5 0.25 -1 0.5\n0 0 0 0.5\n1.5 2.5 3.5 1.5\n-1 -2 -3 0.25\n7 8 9 0.125\n0 0 0\n"
+                  "2\n2\n10 0 0\n0 1 0\n-1 0 0\n0 0 1\n0 1 0 0\n-1 0 0 0\n0 0 1 0\n10 0 0 1\n"
+                  "1 0 0 0.5 255 0 10\n0 1 0 0.5 1 2 3\n0 0 1 0.5 4 5 6\n1 1 1 0.5 7 8 9\n");
     round_trip(ptx, dir, 1e-12);
     rs_test_rmtree(dir);
 }

@@ -60,7 +60,10 @@ static void put(writer *w, const void *data, size_t n)
     }
 }
 
-static uint64_t physical(uint64_t logical) { return logical / DATA * PAGE + logical % DATA; }
+static uint64_t physical(uint64_t logical)
+{
+    return logical / DATA * PAGE + logical % DATA;
+}
 
 static void put_u64(uint8_t *p, uint64_t v)
 {
@@ -71,11 +74,11 @@ static void put_u64(uint8_t *p, uint64_t v)
 typedef struct field {
     const char *xml; /* the prototype element */
     int bits;
-    int64_t min;     /* Integer: raw = value - min */
+    int64_t min; /* Integer: raw = value - min */
     int is_float;
-    uint8_t *buf;    /* this packet's bytes */
+    uint8_t *buf; /* this packet's bytes */
     size_t len;
-    uint64_t acc;    /* bits not yet whole bytes */
+    uint64_t acc; /* bits not yet whole bytes */
     int nacc;
 } field;
 
@@ -144,8 +147,9 @@ static void put_section(writer *w, scan *s, field *fs, int nf)
             if (s->v) {
                 const double *p = s->v + 7 * i;
                 int none = p[0] == 0 && p[1] == 0 && p[2] == 0;
-                double r[10] = {p[0], p[1], p[2], p[3], (double)(i % (uint64_t)s->rows), (double)(i / (uint64_t)s->rows),
-                                none ? 2 : 0, p[4], p[5], p[6]};
+                double r[10] = {
+                    p[0],         p[1], p[2], p[3], (double)(i % (uint64_t)s->rows), (double)(i / (uint64_t)s->rows),
+                    none ? 2 : 0, p[4], p[5], p[6]};
                 memcpy(rec, r, sizeof r);
             } else {
                 double t = (double)i * 1e-4;
@@ -163,14 +167,16 @@ static void put_section(writer *w, scan *s, field *fs, int nf)
     put_u64(len8, length);
     for (int b = 0; b < 8; b++, at++) {
         uint64_t page = at / DATA;
-        if (page == w->logical / DATA) w->page[at % DATA] = len8[b];
+        if (page == w->logical / DATA)
+            w->page[at % DATA] = len8[b];
         else {
             uint8_t pg[PAGE];
             long pos = (long)(page * PAGE);
             if (fseek(w->fp, pos, SEEK_SET) != 0 || fread(pg, 1, PAGE, w->fp) != PAGE) die("re-read failed");
             pg[at % DATA] = len8[b];
             uint32_t c = rs_e57_crc32c(pg, DATA);
-            pg[1020] = (uint8_t)(c >> 24), pg[1021] = (uint8_t)(c >> 16), pg[1022] = (uint8_t)(c >> 8), pg[1023] = (uint8_t)c;
+            pg[1020] = (uint8_t)(c >> 24), pg[1021] = (uint8_t)(c >> 16), pg[1022] = (uint8_t)(c >> 8),
+            pg[1023] = (uint8_t)c;
             if (page == 0) memcpy(w->page0, pg, PAGE);
             if (fseek(w->fp, pos, SEEK_SET) != 0 || fwrite(pg, 1, PAGE, w->fp) != PAGE) die("rewrite failed");
             if (fseek(w->fp, 0, SEEK_END) != 0) die("seek failed");
@@ -239,37 +245,46 @@ static void quaternion(const double *T, double q[4])
 
 static void xml_pose(FILE *x, const double q[4], const double t[3])
 {
-    fprintf(x,
-            "<pose type=\"Structure\"><rotation type=\"Structure\"><w type=\"Float\">%.17g</w><x type=\"Float\">%.17g</x>"
-            "<y type=\"Float\">%.17g</y><z type=\"Float\">%.17g</z></rotation><translation type=\"Structure\">"
-            "<x type=\"Float\">%.17g</x><y type=\"Float\">%.17g</y><z type=\"Float\">%.17g</z></translation></pose>\n",
-            q[0], q[1], q[2], q[3], t[0], t[1], t[2]);
+    fprintf(
+        x,
+        "<pose type=\"Structure\"><rotation type=\"Structure\"><w type=\"Float\">%.17g</w><x type=\"Float\">%.17g</x>"
+        "<y type=\"Float\">%.17g</y><z type=\"Float\">%.17g</z></rotation><translation type=\"Structure\">"
+        "<x type=\"Float\">%.17g</x><y type=\"Float\">%.17g</y><z type=\"Float\">%.17g</z></translation></pose>\n",
+        q[0], q[1], q[2], q[3], t[0], t[1], t[2]);
 }
 
 static void xml_scan(FILE *x, const scan *s, int i)
 {
-    fprintf(x, "<vectorChild type=\"Structure\"><guid type=\"String\"><![CDATA[{e57write-scan-%d}]]></guid>"
-               "<name type=\"String\"><![CDATA[scan %d]]></name>\n", i, i);
+    fprintf(x,
+            "<vectorChild type=\"Structure\"><guid type=\"String\"><![CDATA[{e57write-scan-%d}]]></guid>"
+            "<name type=\"String\"><![CDATA[scan %d]]></name>\n",
+            i, i);
     if (s->v) {
         double q[4], t[3] = {s->T[12], s->T[13], s->T[14]};
         quaternion(s->T, q);
         xml_pose(x, q, t);
-        fprintf(x, "<indexBounds type=\"Structure\"><rowMinimum type=\"Integer\">0</rowMinimum><rowMaximum "
-                   "type=\"Integer\">%d</rowMaximum><columnMinimum type=\"Integer\">0</columnMinimum><columnMaximum "
-                   "type=\"Integer\">%d</columnMaximum></indexBounds>\n<intensityLimits type=\"Structure\">"
-                   "<intensityMinimum type=\"Float\">0</intensityMinimum><intensityMaximum type=\"Float\">1"
-                   "</intensityMaximum></intensityLimits>\n", s->rows - 1, s->cols - 1);
+        fprintf(x,
+                "<indexBounds type=\"Structure\"><rowMinimum type=\"Integer\">0</rowMinimum><rowMaximum "
+                "type=\"Integer\">%d</rowMaximum><columnMinimum type=\"Integer\">0</columnMinimum><columnMaximum "
+                "type=\"Integer\">%d</columnMaximum></indexBounds>\n<intensityLimits type=\"Structure\">"
+                "<intensityMinimum type=\"Float\">0</intensityMinimum><intensityMaximum type=\"Float\">1"
+                "</intensityMaximum></intensityLimits>\n",
+                s->rows - 1, s->cols - 1);
     }
-    fprintf(x, "<points type=\"CompressedVector\" fileOffset=\"%llu\" recordCount=\"%llu\"><prototype "
-               "type=\"Structure\"><cartesianX type=\"Float\"/><cartesianY type=\"Float\"/><cartesianZ type=\"Float\"/>\n",
+    fprintf(x,
+            "<points type=\"CompressedVector\" fileOffset=\"%llu\" recordCount=\"%llu\"><prototype "
+            "type=\"Structure\"><cartesianX type=\"Float\"/><cartesianY type=\"Float\"/><cartesianZ type=\"Float\"/>\n",
             (unsigned long long)s->offset, (unsigned long long)s->n);
     if (s->v) {
-        fprintf(x, "<intensity type=\"Float\"/><rowIndex type=\"Integer\" minimum=\"0\" maximum=\"%d\"/>"
-                   "<columnIndex type=\"Integer\" minimum=\"0\" maximum=\"%d\"/>"
-                   "<cartesianInvalidState type=\"Integer\" minimum=\"0\" maximum=\"2\"/>\n", s->rows - 1, s->cols - 1);
+        fprintf(x,
+                "<intensity type=\"Float\"/><rowIndex type=\"Integer\" minimum=\"0\" maximum=\"%d\"/>"
+                "<columnIndex type=\"Integer\" minimum=\"0\" maximum=\"%d\"/>"
+                "<cartesianInvalidState type=\"Integer\" minimum=\"0\" maximum=\"2\"/>\n",
+                s->rows - 1, s->cols - 1);
         if (s->has_rgb)
-            fprintf(x, "<colorRed type=\"Integer\" minimum=\"0\" maximum=\"255\"/><colorGreen type=\"Integer\" "
-                       "minimum=\"0\" maximum=\"255\"/><colorBlue type=\"Integer\" minimum=\"0\" maximum=\"255\"/>\n");
+            fprintf(x,
+                    "<colorRed type=\"Integer\" minimum=\"0\" maximum=\"255\"/><colorGreen type=\"Integer\" "
+                    "minimum=\"0\" maximum=\"255\"/><colorBlue type=\"Integer\" minimum=\"0\" maximum=\"255\"/>\n");
     }
     fprintf(x, "</prototype><codecs type=\"Vector\" allowHeterogeneousChildren=\"1\"/></points></vectorChild>\n");
 }
@@ -283,7 +298,9 @@ static int bits_for(uint64_t range)
 
 static void write_scan(writer *w, scan *s)
 {
-    field fs[10] = {{.xml = "x", .bits = 64, .is_float = 1}, {.xml = "y", .bits = 64, .is_float = 1}, {.xml = "z", .bits = 64, .is_float = 1}};
+    field fs[10] = {{.xml = "x", .bits = 64, .is_float = 1},
+                    {.xml = "y", .bits = 64, .is_float = 1},
+                    {.xml = "z", .bits = 64, .is_float = 1}};
     int nf = 3;
     if (s->v) {
         fs[3] = (field){.xml = "intensity", .bits = 64, .is_float = 1};
@@ -346,15 +363,17 @@ static void embed_image(writer *w, image_opt *im)
 
 static void xml_image(FILE *x, const image_opt *im)
 {
-    fprintf(x, "<images2D type=\"Vector\" allowHeterogeneousChildren=\"1\"><vectorChild type=\"Structure\">"
-               "<guid type=\"String\"><![CDATA[{e57write-image-0}]]></guid><name type=\"String\"><![CDATA[%s]]></name>"
-               "<associatedData3DGuid type=\"String\"><![CDATA[{e57write-scan-0}]]></associatedData3DGuid>\n",
+    fprintf(x,
+            "<images2D type=\"Vector\" allowHeterogeneousChildren=\"1\"><vectorChild type=\"Structure\">"
+            "<guid type=\"String\"><![CDATA[{e57write-image-0}]]></guid><name type=\"String\"><![CDATA[%s]]></name>"
+            "<associatedData3DGuid type=\"String\"><![CDATA[{e57write-scan-0}]]></associatedData3DGuid>\n",
             im->name);
     xml_pose(x, im->pose, im->pose + 4);
-    fprintf(x, "<sphericalRepresentation type=\"Structure\"><%s type=\"Blob\" fileOffset=\"%llu\" length=\"%zu\"/>"
-               "<imageWidth type=\"Integer\">%d</imageWidth><imageHeight type=\"Integer\">%d</imageHeight>"
-               "<pixelWidth type=\"Float\">%.17g</pixelWidth><pixelHeight type=\"Float\">%.17g</pixelHeight>"
-               "</sphericalRepresentation></vectorChild></images2D>\n",
+    fprintf(x,
+            "<sphericalRepresentation type=\"Structure\"><%s type=\"Blob\" fileOffset=\"%llu\" length=\"%zu\"/>"
+            "<imageWidth type=\"Integer\">%d</imageWidth><imageHeight type=\"Integer\">%d</imageHeight>"
+            "<pixelWidth type=\"Float\">%.17g</pixelWidth><pixelHeight type=\"Float\">%.17g</pixelHeight>"
+            "</sphericalRepresentation></vectorChild></images2D>\n",
             im->png ? "pngImage" : "jpegImage", (unsigned long long)im->offset, im->length, im->width, im->height,
             2 * PI / im->width, PI / im->height);
 }
@@ -365,11 +384,12 @@ static void finish(writer *w, scan *scans, int n, const image_opt *im)
     char *xml;
     size_t xlen;
     FILE *x = open_memstream(&xml, &xlen);
-    fprintf(x, "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<e57Root type=\"Structure\" "
-               "xmlns=\"http://www.astm.org/COMMIT/E57/2010-e57-v1.0\">\n<formatName type=\"String\"><![CDATA[ASTM E57 "
-               "3D Imaging Data File]]></formatName><guid type=\"String\"><![CDATA[{e57write}]]></guid>"
-               "<versionMajor type=\"Integer\">1</versionMajor><versionMinor type=\"Integer\">0</versionMinor>\n"
-               "<data3D type=\"Vector\" allowHeterogeneousChildren=\"1\">\n");
+    fprintf(x,
+            "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<e57Root type=\"Structure\" "
+            "xmlns=\"http://www.astm.org/COMMIT/E57/2010-e57-v1.0\">\n<formatName type=\"String\"><![CDATA[ASTM E57 "
+            "3D Imaging Data File]]></formatName><guid type=\"String\"><![CDATA[{e57write}]]></guid>"
+            "<versionMajor type=\"Integer\">1</versionMajor><versionMinor type=\"Integer\">0</versionMinor>\n"
+            "<data3D type=\"Vector\" allowHeterogeneousChildren=\"1\">\n");
     for (int i = 0; i < n; i++) xml_scan(x, &scans[i], i);
     fprintf(x, "</data3D>\n");
     if (im->path) xml_image(x, im);
@@ -397,9 +417,12 @@ int main(int argc, char **argv)
     long long synthetic = -1;
     int a = 1;
     for (; a + 1 < argc && strncmp(argv[a], "--", 2) == 0; a += 2) {
-        if (strcmp(argv[a], "--image") == 0) im.path = argv[a + 1];
-        else if (strcmp(argv[a], "--image-name") == 0) im.name = argv[a + 1];
-        else if (strcmp(argv[a], "--synthetic") == 0) synthetic = atoll(argv[a + 1]);
+        if (strcmp(argv[a], "--image") == 0)
+            im.path = argv[a + 1];
+        else if (strcmp(argv[a], "--image-name") == 0)
+            im.name = argv[a + 1];
+        else if (strcmp(argv[a], "--synthetic") == 0)
+            synthetic = atoll(argv[a + 1]);
         else if (strcmp(argv[a], "--image-pose") == 0) {
             if (sscanf(argv[a + 1], "%lf %lf %lf %lf %lf %lf %lf", &im.pose[0], &im.pose[1], &im.pose[2], &im.pose[3],
                        &im.pose[4], &im.pose[5], &im.pose[6]) != 7)

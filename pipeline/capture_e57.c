@@ -1,0 +1,188 @@
+/* capture_e57: a capture's panorama from an E57 file's images2D (see capture_e57.h). */
+#include "pipeline/capture_e57.h"
+
+#include <ctype.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "calib/response.h"
+#include "common/e57.h"
+#include "common/image_stb.h"
+#include "common/log.h"
+
+int rs_capture_is_e57(const char *path)
+{
+    FILE *fp = fopen(path, "rb");
+    char head[8] = {0};
+    if (!fp) return 0;
+    size_t n = fread(head, 1, sizeof head, fp);
+    fclose(fp);
+    return n == 8 && memcmp(head, "ASTM-E57", 8) == 0;
+}
+
+static const char *projection_name(rs_e57_projection p)
+{
+    return p == RS_E57_SPHERICAL  ? "spherical"
+        : p == RS_E57_PINHOLE     ? "pinhole"
+        : p == RS_E57_CYLINDRICAL ? "cylindrical"
+                                  : "visual reference";
+}
+
+/* The image [section] e57_image names, or the only spherical one. */
+static int select_image(const rs_config *cfg, const char *section, rs_e57 *e, const char *path, rs_err *err)
+{
+    const char *want = rs_config_string(cfg, section, "e57_image");
+    int n = rs_e57_image_count(e);
+    if (want) {
+        int digits = want[0] != 0;
+        for (const char *p = want; *p; p++) digits &= isdigit((unsigned char)*p) != 0;
+        for (int i = 0; i < n; i++)
+            if (strcmp(rs_e57_image(e, i)->name, want) == 0) return i;
+        if (digits && atoi(want) < n && strlen(want) < 9) return atoi(want);
+        return rs_err_set(err, RS_ERR_INPUT, path, 0,
+                          "[%s] e57_image = %s: no images2D entry of that name or index; expected one of its %d "
+                          "image%s (by name, or 0 to %d)",
+                          section, want, n, n == 1 ? "" : "s", n - 1);
+    }
+    int found = -1, count = 0;
+    for (int i = 0; i < n; i++)
+        if (rs_e57_image(e, i)->projection == RS_E57_SPHERICAL) found = i, count++;
+    if (count == 1) return found;
+    return rs_err_set(err, RS_ERR_INPUT, path, 0,
+                      "[%s] e57_image is not set and the file has %d spherical images (of %d); expected [%s] e57_image "
+                      "= NAME or INDEX",
+                      section, count, n, section);
+}
+
+/* The selected image, checked to be usable as a capture's panorama (before decoding). */
+static const rs_e57_image_info *usable(const rs_e57_image_info *im, int index, const char *path, rs_err *err)
+{
+    if (im->projection == RS_E57_CYLINDRICAL || im->projection == RS_E57_VISUAL) {
+        rs_err_set(err, RS_ERR_INPUT, path, 0,
+                   "image %d \"%s\" is a %s image: it cannot be a capture's panorama; expected a spherical image "
+                   "(sphericalRepresentation) with a pose",
+                   index, im->name, projection_name(im->projection));
+        return NULL;
+    }
+    return im;
+}
+
+static int full_sphere(const rs_e57_image_info *im, int index, const char *path, rs_err *err)
+{
+    double aw = im->pixel_width * im->width, ah = im->pixel_height * im->height;
+    if (im->width != 2 * im->height || fabs(aw - 2 * M_PI) > 1e-6 * 2 * M_PI || fabs(ah - M_PI) > 1e-6 * M_PI)
+        return rs_err_set(err, RS_ERR_INPUT, path, 0,
+                          "image %d \"%s\": %d x %d pixels of %g x %g rad cover %g x %g rad; expected a full sphere "
+                          "(2 pi x pi rad, width = 2 x height) as an equirectangular panorama",
+                          index, im->name, im->width, im->height, im->pixel_width, im->pixel_height, aw, ah);
+    return 0;
+}
+
+/* Codes to linear radiance through the response (or sRGB); clipped pixels become NaN. */
+static rs_image *linearise(const unsigned char *codes, int w, int h, const float *response, size_t *clipped,
+                           const char *path, rs_err *err)
+{
+    rs_image *img = rs_image_new(w, h, 3);
+    if (!img) {
+        rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory");
+        return NULL;
+    }
+    float lut[256 * 3];
+    for (int i = 0; i < 256; i++)
+        for (int k = 0; k < 3; k++)
+            lut[3 * i + k] = response ? response[3 * i + k] : rs_srgb_to_linear((float)i / 255.0f);
+    *clipped = 0;
+    for (size_t p = 0; p < (size_t)w * (size_t)h; p++) {
+        const unsigned char *c = codes + 3 * p;
+        int clip = c[0] == 255 || c[1] == 255 || c[2] == 255;
+        *clipped += (size_t)clip;
+        for (int k = 0; k < 3; k++) img->data[3 * p + k] = clip ? NAN : lut[3 * c[k] + k];
+    }
+    return img;
+}
+
+/* The blob decoded and linearised. */
+static rs_image *decode(const rs_config *cfg, const char *section, rs_e57 *e, int index, size_t *clipped,
+                        const char *path, rs_err *err)
+{
+    const rs_e57_image_info *im = rs_e57_image(e, index);
+    uint8_t *blob;
+    size_t size;
+    if (rs_e57_image_blob(e, index, &blob, &size, err) != 0) return NULL;
+    char name[4400];
+    snprintf(name, sizeof name, "%s, image %d \"%s\"", path, index, im->name);
+    int w = 0, h = 0;
+    rs_err why = {0};
+    unsigned char *codes = rs_image_ldr_codes_mem(blob, size, name, &w, &h, &why);
+    free(blob);
+    if (!codes) {
+        rs_err_set(err, why.kind, path, 0, "image %d \"%s\": its %s blob (%zu bytes) does not decode: %s", index,
+                   im->name, im->png ? "PNG" : "JPEG", size, why.msg);
+        return NULL;
+    }
+    if (w != im->width || h != im->height) {
+        free(codes);
+        rs_err_set(err, RS_ERR_INPUT, path, 0, "image %d \"%s\": the XML says %d x %d, its blob is %d x %d", index,
+                   im->name, im->width, im->height, w, h);
+        return NULL;
+    }
+    float response[256 * 3];
+    char rpath[4096];
+    int have = rs_config_path(cfg, section, "response_file", rpath, sizeof rpath) != NULL;
+    if (have && rs_response_read(rpath, response, err) != 0) {
+        free(codes);
+        return NULL;
+    }
+    if (!have)
+        rs_log_warn("%s: image \"%s\" is 8-bit and [%s] response_file is not set: linearised with the sRGB curve", path,
+                    im->name, section);
+    rs_image *img = linearise(codes, w, h, have ? response : NULL, clipped, path, err);
+    free(codes);
+    return img;
+}
+
+int rs_capture_load_e57(const rs_config *cfg, const char *section, rs_capture *cap, int *posed, size_t *clipped,
+                        rs_err *err)
+{
+    *posed = 0;
+    *clipped = 0;
+    rs_e57 *e = rs_e57_open(cap->path, err);
+    if (!e) return -1;
+    int index = select_image(cfg, section, e, cap->path, err);
+    const rs_e57_image_info *im = index < 0 ? NULL : usable(rs_e57_image(e, index), index, cap->path, err);
+    rs_image *img = im ? decode(cfg, section, e, index, clipped, cap->path, err) : NULL;
+    int rc = -1;
+    if (img && im->projection == RS_E57_PINHOLE)
+        rs_err_set(err, RS_ERR_INPUT, cap->path, 0,
+                   "image %d \"%s\" is a pinhole image: stitching an E57 file's pinhole images into a panorama is not "
+                   "supported yet; expected a spherical image (or the frames as a [rig])",
+                   index, im->name);
+    else if (img && full_sphere(im, index, cap->path, err) == 0) {
+        cap->pano = img;
+        img = NULL;
+        if (im->has_pose) {
+            *posed = 1;
+            cap->pose.position = rs_v3_make(im->translation[0], im->translation[1], im->translation[2]);
+            memcpy(cap->pose.rot, im->rotation, sizeof cap->pose.rot);
+        }
+        if (*clipped)
+            rs_log_warn("%s: image \"%s\": %zu clipped pixels (a channel at 255) are not used", cap->path, im->name,
+                        *clipped);
+        rc = 0;
+    }
+    rs_image_free(img);
+    rs_e57_close(e);
+    return rc;
+}
+
+int rs_capture_e57_width(const rs_config *cfg, const char *section, const char *path, int *width, rs_err *err)
+{
+    rs_e57 *e = rs_e57_open(path, err);
+    if (!e) return -1;
+    int index = select_image(cfg, section, e, path, err);
+    if (index >= 0) *width = rs_e57_image(e, index)->width;
+    rs_e57_close(e);
+    return index < 0 ? -1 : 0;
+}
