@@ -167,7 +167,8 @@ int e57_cv_open(e57_cv *cv, e57_file *f, const e57_node *node, int (*role_of)(co
     /* Every field takes at least one bit a record, except constants: the section must hold them. */
     uint64_t bits = 0;
     for (int k = 0; k < cv->nfields; k++) bits += (uint64_t)cv->fields[k].bits;
-    if (bits > 0 && cv->records > e57_logical_size(f) * 8 / bits)
+    /* Constant fields take no bits: such a vector still cannot claim more records than bits in the file. */
+    if (cv->records > e57_logical_size(f) * 8 / (bits ? bits : 1))
         return rs_err_set(err, RS_ERR_INPUT, f->name, node->line,
                           "XML %s: recordCount %llu of %llu bits each exceeds the file's %llu data bytes", cv->path,
                           (unsigned long long)cv->records, (unsigned long long)bits,
