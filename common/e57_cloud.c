@@ -97,6 +97,16 @@ static int read_loose(rs_e57 *e, int i, rs_cloud *c, rs_progress *pr, rs_err *er
     rs_e57_points p;
     int r;
     while ((r = rs_e57_scan_next(e, &p, err)) > 0) {
+        if (!memchr(p.valid, 0, p.n)) { /* all valid (the usual case): whole arrays at once */
+            size_t k = c->npoints;
+            memcpy(c->xyz + 3 * k, p.xyz, 3 * p.n * sizeof *c->xyz);
+            memset(c->valid + k, 1, p.n);
+            if (p.intensity) memcpy(c->intensity + k, p.intensity, p.n * sizeof *c->intensity);
+            if (p.rgb) memcpy(c->rgb + 3 * k, p.rgb, 3 * p.n);
+            c->npoints += p.n;
+            rs_progress_add(pr, p.n);
+            continue;
+        }
         for (size_t j = 0; j < p.n; j++) {
             if (!p.valid[j]) continue;
             size_t k = c->npoints++;
