@@ -8,6 +8,8 @@
 #include <string.h>
 
 #include "calib/response.h"
+#include "calib/rig.h"
+#include "calib/stitch.h"
 #include "common/e57.h"
 #include "common/image_stb.h"
 #include "common/log.h"
@@ -50,9 +52,11 @@ static int select_image(const rs_config *cfg, const char *section, rs_e57 *e, co
     for (int i = 0; i < n; i++)
         if (rs_e57_image(e, i)->projection == RS_E57_SPHERICAL) found = i, count++;
     if (count == 1) return found;
+    for (int i = 0; i < n && count == 0; i++)
+        if (rs_e57_image(e, i)->projection == RS_E57_PINHOLE && rs_e57_image(e, i)->has_pose) return i;
     return rs_err_set(err, RS_ERR_INPUT, path, 0,
-                      "[%s] e57_image is not set and the file has %d spherical images (of %d); expected [%s] e57_image "
-                      "= NAME or INDEX",
+                      "[%s] e57_image is not set and the file has %d spherical images (of %d) and no posed pinhole "
+                      "images; expected [%s] e57_image = NAME or INDEX",
                       section, count, n, section);
 }
 
@@ -143,6 +147,99 @@ static rs_image *decode(const rs_config *cfg, const char *section, rs_e57 *e, in
     return img;
 }
 
+/* Image i as a rig camera (x right, y down, z forward, as calib/rig.h's; the pose camera to
+ * world, its centre relative to centre). */
+static int rig_camera(const rs_e57_image_info *im, int i, const double centre[3], rs_cv_camera *c, const char *path,
+                      rs_err *err)
+{
+    memset(c, 0, sizeof *c);
+    snprintf(c->name, sizeof c->name, "%.63s", im->name);
+    snprintf(c->model, sizeof c->model, "pinhole");
+    c->width = im->width, c->height = im->height;
+    c->has_width = c->has_height = c->has_matrix = c->has_rotation = c->has_translation = 1;
+    double fx = im->pixel_width > 0 ? im->focal_length / im->pixel_width : 0;
+    double fy = im->pixel_height > 0 ? im->focal_length / im->pixel_height : 0, cx = im->principal_x,
+           cy = im->principal_y;
+    if (!(fx > 0 && fy > 0) && im->has_distortion) fx = im->fx, fy = im->fy, cx = im->cx, cy = im->cy;
+    if (!(fx > 0 && fy > 0))
+        return rs_err_set(err, RS_ERR_INPUT, path, 0,
+                          "image %d \"%s\": focal length %g m with pixels of %g x %g m; expected a positive focal "
+                          "length and pixel size (or the dist: extension's CV_FX, CV_FY)",
+                          i, im->name, im->focal_length, im->pixel_width, im->pixel_height);
+    if (im->has_distortion && (im->k[3] != 0 || im->k[4] != 0 || im->k[5] != 0))
+        return rs_err_set(err, RS_ERR_INPUT, path, 0,
+                          "image %d \"%s\": distortion CV_K4..K6 (OpenCV's rational model) are not 0; expected the "
+                          "k1 k2 p1 p2 k3 model of the rig's cameras",
+                          i, im->name);
+    double m[9] = {fx, 0, cx, 0, fy, cy, 0, 0, 1};
+    memcpy(c->camera_matrix, m, sizeof m);
+    double d[5] = {im->k[0], im->k[1], im->p[0], im->p[1], im->k[2]};
+    memcpy(c->distortion, d, sizeof d);
+    c->distortion_count = 5;
+    memcpy(c->r_rig_cam, im->rotation, sizeof c->r_rig_cam);
+    for (int k = 0; k < 3; k++) c->t_rig_cam[k] = im->translation[k] - centre[k];
+    return 0;
+}
+
+/* The posed pinhole images of the selected one's scan stitched as a rig's frames are (at
+ * infinite depth, gains estimated); the rig frame is the world's, centred on the cameras. */
+static int stitch_pinholes(const rs_config *cfg, const char *section, rs_e57 *e, int index, rs_capture *cap,
+                           size_t *clipped, rs_err *err)
+{
+    const rs_e57_image_info *sel = rs_e57_image(e, index);
+    int n = rs_e57_image_count(e), m = 0, rc = -1;
+    int *use = calloc((size_t)n, sizeof *use);
+    rs_cv_camera *cams = calloc((size_t)n, sizeof *cams);
+    rs_image **frames = calloc((size_t)n, sizeof *frames);
+    double *gains = calloc((size_t)n, sizeof *gains), centre[3] = {0, 0, 0};
+    rs_rig rig = {0};
+    if (!use || !cams || !frames || !gains) {
+        rs_err_set(err, RS_ERR_SYSTEM, cap->path, 0, "out of memory");
+        goto out;
+    }
+    for (int i = 0; i < n; i++) {
+        const rs_e57_image_info *im = rs_e57_image(e, i);
+        if (im->projection != RS_E57_PINHOLE || strcmp(im->associated_scan, sel->associated_scan) != 0) continue;
+        use[m++] = i;
+        for (int k = 0; k < 3; k++) centre[k] += im->translation[k];
+    }
+    for (int k = 0; k < 3; k++) centre[k] /= m;
+    for (int j = 0; j < m; j++) {
+        size_t cl = 0;
+        const rs_e57_image_info *im = rs_e57_image(e, use[j]);
+        int i = use[j];
+        if (!(frames[j] = decode(cfg, section, e, i, &cl, cap->path, err))) goto out;
+        if (!im->has_pose) {
+            rs_err_set(err, RS_ERR_INPUT, cap->path, 0,
+                       "pinhole image %d \"%s\" has no pose; expected every pinhole image to be stitched to have one",
+                       i, im->name);
+            goto out;
+        }
+        if (rig_camera(im, i, centre, &cams[j], cap->path, err) != 0) goto out;
+        *clipped += cl;
+    }
+    if (rs_rig_check(cap->path, cams, m, m, &rig, err) != 0) goto out;
+    rs_stitch_opts opts = {.width = rs_stitch_default_width(&rig),
+                           .feather_px = rs_config_real(cfg, "rig", "feather_px"),
+                           .estimate_gain = m > 1};
+    rs_stitch_stats stats;
+    if (rs_stitch(&rig, frames, &opts, &cap->pano, gains, &stats, err) != 0) goto out;
+    rs_log_info("%s: %d pinhole images stitched into a %d x %d panorama (%.1f %% of the sphere seen)", cap->path, m,
+                cap->pano->width, cap->pano->height, 100 * stats.coverage);
+    cap->pose.position = rs_v3_make(centre[0], centre[1], centre[2]);
+    static const double I[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    memcpy(cap->pose.rot, I, sizeof I);
+    rc = 0;
+out:
+    for (int j = 0; frames && j < m; j++) rs_image_free(frames[j]);
+    rs_rig_release(&rig);
+    free(use);
+    free(cams);
+    free(frames);
+    free(gains);
+    return rc;
+}
+
 int rs_capture_load_e57(const rs_config *cfg, const char *section, rs_capture *cap, int *posed, size_t *clipped,
                         rs_err *err)
 {
@@ -152,14 +249,15 @@ int rs_capture_load_e57(const rs_config *cfg, const char *section, rs_capture *c
     if (!e) return -1;
     int index = select_image(cfg, section, e, cap->path, err);
     const rs_e57_image_info *im = index < 0 ? NULL : usable(rs_e57_image(e, index), index, cap->path, err);
+    if (im && im->projection == RS_E57_PINHOLE) {
+        int rc = stitch_pinholes(cfg, section, e, index, cap, clipped, err);
+        *posed = rc == 0;
+        rs_e57_close(e);
+        return rc;
+    }
     rs_image *img = im ? decode(cfg, section, e, index, clipped, cap->path, err) : NULL;
     int rc = -1;
-    if (img && im->projection == RS_E57_PINHOLE)
-        rs_err_set(err, RS_ERR_INPUT, cap->path, 0,
-                   "image %d \"%s\" is a pinhole image: stitching an E57 file's pinhole images into a panorama is not "
-                   "supported yet; expected a spherical image (or the frames as a [rig])",
-                   index, im->name);
-    else if (img && full_sphere(im, index, cap->path, err) == 0) {
+    if (img && full_sphere(im, index, cap->path, err) == 0) {
         cap->pano = img;
         img = NULL;
         if (im->has_pose) {

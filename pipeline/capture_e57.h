@@ -1,10 +1,14 @@
 /* capture_e57: a capture's panorama taken from an E57 file ([capture] panorama = FILE.e57): the
  * images2D entry [capture] e57_image names (by name or 0-based index; unset: the only spherical
- * image), a full-sphere sphericalRepresentation (2 pi x pi), decoded from its JPEG or PNG blob
- * and linearised by [capture] response_file (or the sRGB curve, with a warning), clipped pixels
- * (a channel at code 255) flagged NaN so that no stage trusts them; its pose becomes the
- * capture's. Cylindrical and visual-reference images are refused as captures, pinhole ones
- * until their stitching lands, an image whose blob does not decode is refused naming it. */
+ * image, else the posed pinhole images), decoded from its JPEG or PNG blob and linearised by
+ * [capture] response_file (or the sRGB curve, with a warning), clipped pixels (a channel at code
+ * 255) flagged NaN so that no stage trusts them. A full-sphere sphericalRepresentation (2 pi x
+ * pi) is the panorama and its pose the capture's. A pinhole image is stitched with the other
+ * posed pinhole images of its scan the way a rig's frames are (calib/stitch.h, at infinite
+ * depth; camera frame x right, y down, z forward; the Leica dist: extension's k1 k2 p1 p2 k3),
+ * the capture at the cameras' mean centre with the world's axes. Cylindrical and
+ * visual-reference images are refused as captures, an image whose blob does not decode is
+ * refused naming it. */
 #ifndef RS_CAPTURE_E57_H
 #define RS_CAPTURE_E57_H
 

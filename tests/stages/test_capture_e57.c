@@ -14,6 +14,7 @@
 #include "common/capture.h"
 #include "common/config.h"
 #include "common/image.h"
+#include "common/pano.h"
 #include "pipeline/capture_load.h"
 
 #define W 64
@@ -116,6 +117,109 @@ static void test_same_as_files(void **state)
     rs_test_rmtree(dir);
 }
 
+/* The synthetic sky every camera sees: smooth in the direction, below code 255. */
+static void sky(const double d[3], float out[3])
+{
+    out[0] = (float)(0.1 + 0.3 * (d[0] + 1)), out[1] = (float)(0.15 + 0.25 * (d[1] + 1)),
+    out[2] = (float)(0.2 + 0.2 * (d[2] + 1));
+}
+
+/* The unit quaternion (w x y z) of a rotation matrix (row-major) with a positive trace or not. */
+static void quat(const double *R, double q[4])
+{
+    double tr = R[0] + R[4] + R[8];
+    if (tr > 0) {
+        double s = sqrt(tr + 1) * 2;
+        q[0] = s / 4, q[1] = (R[7] - R[5]) / s, q[2] = (R[2] - R[6]) / s, q[3] = (R[3] - R[1]) / s;
+    } else if (R[0] > R[4] && R[0] > R[8]) {
+        double s = sqrt(1 + R[0] - R[4] - R[8]) * 2;
+        q[0] = (R[7] - R[5]) / s, q[1] = s / 4, q[2] = (R[1] + R[3]) / s, q[3] = (R[2] + R[6]) / s;
+    } else if (R[4] > R[8]) {
+        double s = sqrt(1 + R[4] - R[0] - R[8]) * 2;
+        q[0] = (R[2] - R[6]) / s, q[1] = (R[1] + R[3]) / s, q[2] = s / 4, q[3] = (R[5] + R[7]) / s;
+    } else {
+        double s = sqrt(1 + R[8] - R[0] - R[4]) * 2;
+        q[0] = (R[3] - R[1]) / s, q[1] = (R[2] + R[6]) / s, q[2] = (R[5] + R[7]) / s, q[3] = s / 4;
+    }
+}
+
+/* Six pinhole cameras on the cube's faces (100 degree field, x right, y down, z forward), each
+ * an 8-bit PNG of the synthetic sky, embedded with their poses: stitched into a panorama that
+ * shows that sky. */
+static void test_pinholes_stitched(void **state)
+{
+    const char *dir = rs_test_tmpdir("cape57p");
+    /* columns: right, down, forward (camera axes in the world) */
+    const double axes[6][9] = {{0, -1, 0, 0, 0, -1, 1, 0, 0}, {1, 0, 0, 0, 0, -1, 0, 1, 0},
+                               {0, 1, 0, 0, 0, -1, -1, 0, 0}, {-1, 0, 0, 0, 0, -1, 0, -1, 0},
+                               {1, 0, 0, 0, 1, 0, 0, 0, 1},   {1, 0, 0, 0, -1, 0, 0, 0, -1}};
+    const int n = 64;
+    const double fx = (n / 2.0) / tan(50 * M_PI / 180), cx = (n - 1) / 2.0, pw = 1e-5;
+    char args[16384] = "", path[4096], e57[4096];
+    size_t at = 0;
+    for (int c = 0; c < 6; c++) {
+        double R[9]; /* camera -> world, row-major: its columns are the axes */
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) R[3 * i + j] = axes[c][3 * j + i];
+        rs_image *img = rs_image_new(n, n, 3);
+        for (int y = 0; y < n; y++)
+            for (int x = 0; x < n; x++) {
+                double dc[3] = {(x - cx) / fx, (y - cx) / fx, 1}, len = sqrt(dc[0] * dc[0] + dc[1] * dc[1] + 1), d[3];
+                for (int i = 0; i < 3; i++) d[i] = (R[3 * i] * dc[0] + R[3 * i + 1] * dc[1] + R[3 * i + 2]) / len;
+                sky(d, img->data + 3 * (y * n + x));
+            }
+        snprintf(path, sizeof path, "%s/cam%d.png", dir, c);
+        rs_err err = {0};
+        assert_int_equal(rs_image_write_png(img, path, 1.0f, &err), 0);
+        rs_image_free(img);
+        double q[4];
+        quat(R, q);
+        at += (size_t)snprintf(args + at, sizeof args - at,
+                               "--image '%s' --image-name cam%d --image-pose '%.17g %.17g %.17g %.17g 2 3 %g' "
+                               "--pinhole '%.17g %.17g %.17g %.17g %.17g' ",
+                               path, c, q[0], q[1], q[2], q[3], 1.5 + 0.01 * c, fx * pw, pw, pw, cx, cx);
+    }
+    snprintf(e57, sizeof e57, "%s/rig.e57", dir);
+    const char *ptx = rs_test_path(dir, "s.ptx");
+    rs_test_write(ptx, "1\n1\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n1 0 0 0.5\n");
+    char cmd[20000], *out = NULL;
+    snprintf(cmd, sizeof cmd, "%s/e57write %s '%s' '%s'", rs_test_bin_dir(), args, ptx, e57);
+    if (rs_test_run(cmd, &out) != 0) fail_msg("%s", out ? out : "");
+    free(out);
+    char text[8192];
+    snprintf(text, sizeof text, "panorama = %s\ne57_image = cam2\n", e57);
+    rs_capture cap;
+    rs_err err = {0};
+    if (load(dir, text, &cap, &err) != 0) fail_msg("%s", err.msg);
+    /* The capture: at the cameras' mean centre, world axes. */
+    assert_true(fabs(cap.pose.position.x - 2) < 1e-12 && fabs(cap.pose.position.z - 1.525) < 1e-12);
+    assert_true(cap.pose.rot[0] == 1 && cap.pose.rot[4] == 1 && cap.pose.rot[8] == 1);
+    int w = cap.pano->width, h = cap.pano->height;
+    assert_true(w > 100 && w == 2 * h);
+    double sum = 0, worst = 0;
+    long seen = 0;
+    for (int r = 0; r < h; r++)
+        for (int c = 0; c < w; c++) {
+            const float *px = cap.pano->data + 3 * ((size_t)r * w + c);
+            if (!rs_capture_pixel_ok(px)) continue;
+            rs_v3 d = rs_pano_pixel_dir(w, h, c, r);
+            float want[3];
+            sky((double[]){d.x, d.y, d.z}, want);
+            for (int k = 0; k < 3; k++) {
+                double e = fabs(px[k] - want[k]);
+                sum += e, worst = fmax(worst, e);
+            }
+            seen++;
+        }
+    print_message("stitched %d x %d: %ld of %d pixels seen, mean |error| %.5f, max %.5f\n", w, h, seen, w * h,
+                  sum / (3.0 * seen), worst);
+    assert_true(seen == (long)w * h);
+    assert_true(sum / (3.0 * seen) < 0.003);
+    assert_true(worst < 0.03);
+    rs_capture_release(&cap);
+    rs_test_rmtree(dir);
+}
+
 static void expect_refusal(const char *file, const char *image, const char *words)
 {
     char rel[256], text[4096];
@@ -146,8 +250,10 @@ static void test_refusals(void **state)
     expect_refusal("tiny_pc_and_images.e57", "spherical", "expected a full sphere");
     expect_refusal("tiny_pc_and_images.e57", NULL, "expected a full sphere"); /* the only spherical one */
     expect_refusal("PinholeImageWithDistortionParameters.e57", NULL, "has 0 spherical images (of 3)");
-    expect_refusal("PinholeImageWithDistortionParameters.e57", "1", "is a pinhole image: stitching");
+    expect_refusal("PinholeImageWithDistortionParameters.e57", "1",
+                   "pinhole image 0 \"JPEG Image Test 1\" has no pose");
     expect_refusal("bad-crc.e57", NULL, "checksum");
 }
 
-RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_same_as_files), cmocka_unit_test(test_refusals))
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_same_as_files), cmocka_unit_test(test_pinholes_stitched),
+             cmocka_unit_test(test_refusals))

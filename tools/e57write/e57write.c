@@ -1,11 +1,14 @@
 /* e57write: a small ASTM E57 writer for the tests and the bench (not installed).
  *
- *   e57write [--image FILE.png|.jpg --image-pose "w x y z tx ty tz" [--image-name NAME]] in.ptx out.e57
+ *   e57write [--image FILE.png|.jpg [--image-pose "w x y z tx ty tz"] [--image-name NAME]
+ *             [--pinhole "f pw ph cx cy"]]... in.ptx out.e57
  *       each PTX scan as an E57 scan: its points in the scanner's frame as the PTX lines give
  *       them (cartesianX/Y/Z and intensity as doubles, colour when the PTX has it), rowIndex and
  *       columnIndex (the PTX grid, column by column), cartesianInvalidState 2 for no-return
- *       "0 0 0" points, and the PTX matrix as the pose (unit quaternion + translation). --image
- *       embeds an 8-bit equirectangular image as a sphericalRepresentation with that pose.
+ *       "0 0 0" points, and the PTX matrix as the pose (unit quaternion + translation). Each --image
+ *       embeds an 8-bit image with its pose (camera to world): an equirectangular one as a
+ *       full-sphere sphericalRepresentation, or with --pinhole a pinholeRepresentation (focal
+ *       length and pixel size in metres, principal point in pixels).
  *   e57write --synthetic N out.e57
  *       N points of cartesianX/Y/Z doubles (a helix), one unorganized scan: the bench's input.
  *
@@ -327,6 +330,8 @@ static uint64_t write_blob(writer *w, const uint8_t *data, size_t n)
 typedef struct image_opt {
     const char *path, *name;
     double pose[7];
+    int pinhole;         /* 0: spherical (the full sphere) */
+    double pinhole_p[5]; /* focal length, pixel width, pixel height (m), principal point x, y (px) */
     int width, height, png;
     uint64_t offset;
     size_t length;
@@ -361,25 +366,33 @@ static void embed_image(writer *w, image_opt *im)
     free(d);
 }
 
-static void xml_image(FILE *x, const image_opt *im)
+static void xml_image(FILE *x, const image_opt *im, int i)
 {
     fprintf(x,
-            "<images2D type=\"Vector\" allowHeterogeneousChildren=\"1\"><vectorChild type=\"Structure\">"
-            "<guid type=\"String\"><![CDATA[{e57write-image-0}]]></guid><name type=\"String\"><![CDATA[%s]]></name>"
+            "<vectorChild type=\"Structure\"><guid type=\"String\"><![CDATA[{e57write-image-%d}]]></guid>"
+            "<name type=\"String\"><![CDATA[%s]]></name>"
             "<associatedData3DGuid type=\"String\"><![CDATA[{e57write-scan-0}]]></associatedData3DGuid>\n",
-            im->name);
+            i, im->name);
     xml_pose(x, im->pose, im->pose + 4);
+    const char *rep = im->pinhole ? "pinholeRepresentation" : "sphericalRepresentation";
     fprintf(x,
-            "<sphericalRepresentation type=\"Structure\"><%s type=\"Blob\" fileOffset=\"%llu\" length=\"%zu\"/>"
-            "<imageWidth type=\"Integer\">%d</imageWidth><imageHeight type=\"Integer\">%d</imageHeight>"
-            "<pixelWidth type=\"Float\">%.17g</pixelWidth><pixelHeight type=\"Float\">%.17g</pixelHeight>"
-            "</sphericalRepresentation></vectorChild></images2D>\n",
-            im->png ? "pngImage" : "jpegImage", (unsigned long long)im->offset, im->length, im->width, im->height,
-            2 * PI / im->width, PI / im->height);
+            "<%s type=\"Structure\"><%s type=\"Blob\" fileOffset=\"%llu\" length=\"%zu\"/>"
+            "<imageWidth type=\"Integer\">%d</imageWidth><imageHeight type=\"Integer\">%d</imageHeight>",
+            rep, im->png ? "pngImage" : "jpegImage", (unsigned long long)im->offset, im->length, im->width, im->height);
+    if (im->pinhole)
+        fprintf(x,
+                "<focalLength type=\"Float\">%.17g</focalLength><pixelWidth type=\"Float\">%.17g</pixelWidth>"
+                "<pixelHeight type=\"Float\">%.17g</pixelHeight><principalPointX type=\"Float\">%.17g"
+                "</principalPointX><principalPointY type=\"Float\">%.17g</principalPointY>",
+                im->pinhole_p[0], im->pinhole_p[1], im->pinhole_p[2], im->pinhole_p[3], im->pinhole_p[4]);
+    else
+        fprintf(x, "<pixelWidth type=\"Float\">%.17g</pixelWidth><pixelHeight type=\"Float\">%.17g</pixelHeight>",
+                2 * PI / im->width, PI / im->height);
+    fprintf(x, "</%s></vectorChild>\n", rep);
 }
 
 /* The XML, then the header into page 0. */
-static void finish(writer *w, scan *scans, int n, const image_opt *im)
+static void finish(writer *w, scan *scans, int n, const image_opt *im, int nim)
 {
     char *xml;
     size_t xlen;
@@ -392,7 +405,9 @@ static void finish(writer *w, scan *scans, int n, const image_opt *im)
             "<data3D type=\"Vector\" allowHeterogeneousChildren=\"1\">\n");
     for (int i = 0; i < n; i++) xml_scan(x, &scans[i], i);
     fprintf(x, "</data3D>\n");
-    if (im->path) xml_image(x, im);
+    if (nim) fprintf(x, "<images2D type=\"Vector\" allowHeterogeneousChildren=\"1\">\n");
+    for (int i = 0; i < nim; i++) xml_image(x, &im[i], i);
+    if (nim) fprintf(x, "</images2D>\n");
     fprintf(x, "</e57Root>\n");
     fclose(x);
     uint64_t xoff = physical(w->logical);
@@ -411,28 +426,46 @@ static void finish(writer *w, scan *scans, int n, const image_opt *im)
     if (fseek(w->fp, 0, SEEK_SET) != 0 || fwrite(h, 1, PAGE, w->fp) != PAGE) die("header write failed");
 }
 
+#define MAX_IMAGES 16
+
+/* An image option (applies to the last --image). */
+static void image_option(image_opt *im, const char *opt, const char *arg)
+{
+    if (strcmp(opt, "--image-name") == 0)
+        im->name = arg;
+    else if (strcmp(opt, "--image-pose") == 0) {
+        if (sscanf(arg, "%lf %lf %lf %lf %lf %lf %lf", &im->pose[0], &im->pose[1], &im->pose[2], &im->pose[3],
+                   &im->pose[4], &im->pose[5], &im->pose[6]) != 7)
+            die("--image-pose: expected \"w x y z tx ty tz\"");
+    } else if (strcmp(opt, "--pinhole") == 0) {
+        im->pinhole = 1;
+        if (sscanf(arg, "%lf %lf %lf %lf %lf", &im->pinhole_p[0], &im->pinhole_p[1], &im->pinhole_p[2],
+                   &im->pinhole_p[3], &im->pinhole_p[4]) != 5)
+            die("--pinhole: expected \"focal_m pixel_width_m pixel_height_m principal_x_px principal_y_px\"");
+    } else
+        die("unknown option");
+}
+
 int main(int argc, char **argv)
 {
-    image_opt im = {.name = "panorama", .pose = {1, 0, 0, 0, 0, 0, 0}};
+    static image_opt im[MAX_IMAGES];
+    int nim = 0;
     long long synthetic = -1;
     int a = 1;
     for (; a + 1 < argc && strncmp(argv[a], "--", 2) == 0; a += 2) {
-        if (strcmp(argv[a], "--image") == 0)
-            im.path = argv[a + 1];
-        else if (strcmp(argv[a], "--image-name") == 0)
-            im.name = argv[a + 1];
-        else if (strcmp(argv[a], "--synthetic") == 0)
+        if (strcmp(argv[a], "--image") == 0) {
+            if (nim == MAX_IMAGES) die("at most 16 images");
+            im[nim++] = (image_opt){.path = argv[a + 1], .name = "panorama", .pose = {1, 0, 0, 0, 0, 0, 0}};
+        } else if (strcmp(argv[a], "--synthetic") == 0)
             synthetic = atoll(argv[a + 1]);
-        else if (strcmp(argv[a], "--image-pose") == 0) {
-            if (sscanf(argv[a + 1], "%lf %lf %lf %lf %lf %lf %lf", &im.pose[0], &im.pose[1], &im.pose[2], &im.pose[3],
-                       &im.pose[4], &im.pose[5], &im.pose[6]) != 7)
-                die("--image-pose: expected \"w x y z tx ty tz\"");
-        } else
-            die("unknown option");
+        else if (nim > 0)
+            image_option(&im[nim - 1], argv[a], argv[a + 1]);
+        else
+            die("unknown option (image options follow their --image)");
     }
     if (argc - a != (synthetic >= 0 ? 1 : 2))
-        die("usage: e57write [--image F --image-pose \"w x y z tx ty tz\" [--image-name N]] in.ptx out.e57 | "
-            "e57write --synthetic N out.e57");
+        die("usage: e57write [--image F [--image-pose \"w x y z tx ty tz\"] [--image-name N] [--pinhole \"f pw ph "
+            "cx cy\"]]... in.ptx out.e57 | e57write --synthetic N out.e57");
     scan one = {.n = (uint64_t)(synthetic > 0 ? synthetic : 0)}, *scans = &one;
     int n = synthetic >= 0 ? 1 : read_ptx(argv[a], &scans);
     writer w = {.fp = fopen(argv[argc - 1], "w+b")};
@@ -440,8 +473,8 @@ int main(int argc, char **argv)
     static const uint8_t header[48];
     put(&w, header, sizeof header);
     for (int i = 0; i < n; i++) write_scan(&w, &scans[i]);
-    if (im.path) embed_image(&w, &im);
-    finish(&w, scans, n, &im);
+    for (int i = 0; i < nim; i++) embed_image(&w, &im[i]);
+    finish(&w, scans, n, im, nim);
     if (fclose(w.fp) != 0) die("close failed");
     for (int i = 0; i < n && synthetic < 0; i++) free(scans[i].v);
     if (synthetic < 0) free(scans);
