@@ -284,3 +284,25 @@ int rs_capture_e57_width(const rs_config *cfg, const char *section, const char *
     rs_e57_close(e);
     return index < 0 ? -1 : 0;
 }
+
+int rs_capture_e57_position(const rs_config *cfg, const char *section, const char *path, double pos[3])
+{
+    rs_err err = {0};
+    rs_e57 *e = rs_e57_open(path, &err);
+    if (!e) return 0;
+    int index = select_image(cfg, section, e, path, &err), n = 0;
+    const rs_e57_image_info *sel = index >= 0 ? rs_e57_image(e, index) : NULL;
+    double sum[3] = {0, 0, 0};
+    for (int i = 0; sel && i < rs_e57_image_count(e); i++) {
+        const rs_e57_image_info *im = rs_e57_image(e, i);
+        int same = sel->projection == RS_E57_PINHOLE
+            ? im->projection == RS_E57_PINHOLE && strcmp(im->associated_scan, sel->associated_scan) == 0
+            : i == index;
+        if (!same || !im->has_pose) continue;
+        for (int k = 0; k < 3; k++) sum[k] += im->translation[k];
+        n++;
+    }
+    rs_e57_close(e);
+    for (int k = 0; k < 3 && n; k++) pos[k] = sum[k] / n;
+    return n > 0;
+}

@@ -54,3 +54,12 @@ int rs_capture_panorama_width(const rs_config *cfg, int *width, char *from, size
     }
     return 0;
 }
+
+int rs_capture_position(const rs_config *cfg, double pos[3])
+{
+    char path[4096];
+    if (rs_config_path(cfg, "capture", "panorama", path, sizeof path) && rs_capture_is_e57(path) &&
+        rs_capture_e57_position(cfg, "capture", path, pos))
+        return 0;
+    return rs_config_reals(cfg, "capture", "position", pos);
+}

@@ -25,4 +25,9 @@ int rs_capture_panorama_path(const rs_config *cfg, const char *section, char *ou
  * is set; -1 with err when rs_capture_panorama_check refuses or the file cannot be read. */
 int rs_capture_panorama_width(const rs_config *cfg, int *width, char *from, size_t n, rs_err *err);
 
+/* [capture]'s camera centre for the stages that need it before the capture is loaded (the mesh
+ * stage): the pose of the E57 image when [capture] panorama is an E57 file whose image has one
+ * (pipeline/capture_e57.h), else [capture] position. 0 with pos, -1 when neither gives one. */
+int rs_capture_position(const rs_config *cfg, double pos[3]);
+
 #endif
