@@ -11,6 +11,7 @@
 
 #include "common/cloud_format.h"
 #include "common/e57.h"
+#include "common/fileio.h"
 #include "common/ptx.h"
 
 static void write_e57(const char *ptx, const char *e57, const char *extra)
@@ -108,5 +109,45 @@ static void test_synthetic_points(void **state)
     rs_test_rmtree(dir);
 }
 
+/* The ingest program on E57 files: a good one gives cloud.ply with its grid; a damaged one exits
+ * 1 naming the file and the checksum, and writes nothing. */
+static void test_ingest_program(void **state)
+{
+    const char *bad = rs_test_shared_file("formats/e57/bad-crc.e57");
+    if (!bad) {
+        if (getenv("CI") && strcmp(getenv("CI"), "true") == 0) fail_msg("the shared E57 files are missing");
+        skip();
+    }
+    char badp[4096];
+    snprintf(badp, sizeof badp, "%s", bad);
+    const char *dir = rs_test_tmpdir("e57w");
+    char ptx[4096], e57[4096], ini[4096], cmd[16384], text[16384], *out = NULL;
+    snprintf(ptx, sizeof ptx, "%s", rs_test_path(dir, "two.ptx"));
+    snprintf(e57, sizeof e57, "%s", rs_test_path(dir, "two.e57"));
+    snprintf(ini, sizeof ini, "%s", rs_test_path(dir, "c.ini"));
+    rs_test_write(ptx,
+                  "2\n2\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n"
+                  "1 0 0 0.5\n1 1 0 0.5\n1 0 1 0.5\n1 1 1 0.5\n");
+    write_e57(ptx, e57, NULL);
+    snprintf(text, sizeof text, "[pipeline]\nworkdir = %s/work\n[ingest]\nscan = %s\n[mesh]\nfacet_size = 0.5\n", dir,
+             e57);
+    rs_test_write(ini, text);
+    snprintf(cmd, sizeof cmd, "%s/rhoscan-ingest '%s'", rs_test_bin_dir(), ini);
+    int rc = rs_test_run(cmd, &out);
+    if (rc != 0) fail_msg("%s: %s", cmd, out);
+    assert_non_null(strstr(out, "(E57): 4 points, 4 with a return, 1 scan grid(s)"));
+    free(out);
+    assert_true(rs_file_exists(rs_test_path(dir, "work/cloud.ply")));
+    snprintf(text, sizeof text, "[pipeline]\nworkdir = %s/bad\n[ingest]\nscan = %s\n[mesh]\nfacet_size = 0.5\n", dir,
+             badp);
+    rs_test_write(ini, text);
+    rc = rs_test_run(cmd, &out);
+    assert_int_equal(rc, 1);
+    if (!strstr(out, "bad-crc.e57") || !strstr(out, "page 0 fails its checksum")) fail_msg("%s", out);
+    free(out);
+    assert_false(rs_file_exists(rs_test_path(dir, "bad/cloud.ply")));
+    rs_test_rmtree(dir);
+}
+
 RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_synthetic), cmocka_unit_test(test_reference_scan),
-             cmocka_unit_test(test_synthetic_points))
+             cmocka_unit_test(test_synthetic_points), cmocka_unit_test(test_ingest_program))
