@@ -233,6 +233,8 @@ static void test_normals(void **state)
     assert_true(rs_e57_scan(e, 0)->has_normals);
     rs_e57_points p = first_chunk(e, 0);
     assert_int_equal(p.n, 2);
+    assert_false(rs_e57_scan_next(e, &p, NULL)); /* the end of the scan */
+    p = first_chunk(e, 0);                       /* and read again from its start */
     assert_xyz(p.xyz, 1, 0, 0, 1e-7);
     assert_xyz(p.xyz + 3, 2, 0, 0, 1e-7);
     double n0[3] = {p.normal[0], p.normal[1], p.normal[2]}, n1[3] = {p.normal[3], p.normal[4], p.normal[5]};
@@ -256,8 +258,13 @@ static void test_spherical(void **state)
 
 static void test_images(void **state)
 {
+    rs_cloud *c = read_shared("tiny_pc_and_images.e57");
+    if (!c) skip();
+    assert_int_equal(c->npoints, 2);
+    assert_xyz(c->xyz, 0, 0, 0, 1e-7);
+    assert_xyz(c->xyz + 3, 1, 1, 1, 1e-7);
+    rs_cloud_free(c);
     rs_e57 *e = open_shared("tiny_pc_and_images.e57");
-    if (!e) skip();
     assert_int_equal(rs_e57_scan(e, 0)->records, 2);
     assert_int_equal(rs_e57_image_count(e), 4);
     const rs_e57_projection proj[4] = {RS_E57_VISUAL, RS_E57_SPHERICAL, RS_E57_PINHOLE, RS_E57_CYLINDRICAL};
