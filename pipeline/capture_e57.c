@@ -285,7 +285,7 @@ int rs_capture_e57_width(const rs_config *cfg, const char *section, const char *
     return index < 0 ? -1 : 0;
 }
 
-int rs_capture_e57_position(const rs_config *cfg, const char *section, const char *path, double pos[3])
+int rs_capture_e57_pose(const rs_config *cfg, const char *section, const char *path, rs_pose *pose)
 {
     rs_err err = {0};
     rs_e57 *e = rs_e57_open(path, &err);
@@ -302,7 +302,12 @@ int rs_capture_e57_position(const rs_config *cfg, const char *section, const cha
         for (int k = 0; k < 3; k++) sum[k] += im->translation[k];
         n++;
     }
+    if (n) {
+        static const double I[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+        /* a spherical image's own rotation; stitched pinhole images: the world's axes */
+        memcpy(pose->rot, sel->projection == RS_E57_PINHOLE ? I : sel->rotation, sizeof pose->rot);
+        pose->position = rs_v3_make(sum[0] / n, sum[1] / n, sum[2] / n);
+    }
     rs_e57_close(e);
-    for (int k = 0; k < 3 && n; k++) pos[k] = sum[k] / n;
     return n > 0;
 }

@@ -27,9 +27,9 @@ int rs_capture_load_e57(const rs_config *cfg, const char *section, rs_capture *c
 /* The width of the panorama [section] panorama's E57 file holds (for rs_capture_panorama_width). */
 int rs_capture_e57_width(const rs_config *cfg, const char *section, const char *path, int *width, rs_err *err);
 
-/* The camera centre of the capture path's E57 file gives (its selected image's pose; the mean
- * centre of stitched pinhole images): 1 with pos, 0 when it has none or cannot be read (the
- * capture's loading then says why). */
-int rs_capture_e57_position(const rs_config *cfg, const char *section, const char *path, double pos[3]);
+/* The pose the capture path's E57 file gives (its selected image's; for stitched pinhole images
+ * their mean centre and the world's axes): 1 with *pose, 0 when it has none or cannot be read
+ * (the capture's loading then says why). */
+int rs_capture_e57_pose(const rs_config *cfg, const char *section, const char *path, rs_pose *pose);
 
 #endif

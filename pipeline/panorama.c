@@ -55,11 +55,23 @@ int rs_capture_panorama_width(const rs_config *cfg, int *width, char *from, size
     return 0;
 }
 
-int rs_capture_position(const rs_config *cfg, double pos[3])
+int rs_capture_config_pose(const rs_config *cfg, rs_pose *pose)
 {
     char path[4096];
     if (rs_config_path(cfg, "capture", "panorama", path, sizeof path) && rs_capture_is_e57(path) &&
-        rs_capture_e57_position(cfg, "capture", path, pos))
+        rs_capture_e57_pose(cfg, "capture", path, pose))
         return 0;
-    return rs_config_reals(cfg, "capture", "position", pos);
+    double pos[3];
+    if (rs_config_reals(cfg, "capture", "position", pos) != 0) return -1;
+    pose->position = rs_v3_make(pos[0], pos[1], pos[2]);
+    rs_config_reals(cfg, "capture", "rotation", pose->rot);
+    return 0;
+}
+
+int rs_capture_position(const rs_config *cfg, double pos[3])
+{
+    rs_pose pose;
+    if (rs_capture_config_pose(cfg, &pose) != 0) return -1;
+    pos[0] = pose.position.x, pos[1] = pose.position.y, pos[2] = pose.position.z;
+    return 0;
 }
