@@ -418,10 +418,11 @@ int rs_e57_scan_begin(rs_e57 *e, int i, rs_err *err)
     return 0;
 }
 
-/* v scaled from lo..hi to 0..1 (as it is when the limits are not usable). */
+/* v scaled from lo..hi to 0..1 (as it is when the limits are not usable), through the
+ * reciprocal of hi - lo (exact when it is a power of two, as 0..1 is). */
 static double unit(double v, double lo, double hi)
 {
-    return hi > lo ? (v - lo) / (hi - lo) : v;
+    return hi > lo ? (v - lo) * (1.0 / (hi - lo)) : v;
 }
 
 /* The values of record i into point i of the chunk. */
@@ -454,7 +455,7 @@ static void assemble(const e57_scan *s, double *const *v, size_t i, rs_e57_point
     }
     for (int k = 0; k < 3 && o->rgb; k++) {
         double u = unit(v[E57_R_RED + k][i], s->col_min[k], s->col_max[k]) * 255.0;
-        o->rgb[3 * i + k] = (uint8_t)(u > 0 ? (u < 255 ? lround(u) : 255) : 0);
+        o->rgb[3 * i + k] = (uint8_t)(u > 0 ? (u < 255 ? (int)(u + 0.5) : 255) : 0); /* rounded half up */
     }
     if (o->normal) {
         double nx = v[E57_R_NX][i], ny = v[E57_R_NY][i], nz = v[E57_R_NZ][i];
