@@ -106,7 +106,8 @@ static int limits(const e57_node *scan, const char *group, const char *lo_name, 
 }
 
 /* The grid's bounds: indexBounds, else the rowIndex/columnIndex ranges; refused (unorganized)
- * when absent or far larger than the records. */
+ * when absent or far larger than the records (16 times and a million cells: a grid's cells
+ * cost 25 bytes each, so a lying indexBounds cannot ask for much more than the points). */
 static int grid_bounds(e57_scan *s, const e57_node *scan, const char *file, rs_err *err)
 {
     rs_e57_scan_info *in = &s->info;
@@ -118,7 +119,7 @@ static int grid_bounds(e57_scan *s, const e57_node *scan, const char *file, rs_e
         return -1;
     double cells = (r1 - r0 + 1) * (c1 - c0 + 1);
     if (!(r1 >= r0 && c1 >= c0) || r1 - r0 >= 2147483647.0 || c1 - c0 >= 2147483647.0 ||
-        cells > 4.0 * (double)in->records + 1e6) {
+        cells > 16.0 * (double)in->records + 1e6) {
         rs_log_warn("%s: scan %s: rows %g..%g, columns %g..%g do not bound a grid of about its %llu points; read "
                     "as unorganized",
                     file, in->name, r0, r1, c0, c1, (unsigned long long)in->records);
