@@ -280,10 +280,12 @@ static int parse_root(rs_e57 *e, rs_err *err)
     e->scans = calloc((size_t)ns + 1, sizeof *e->scans);
     e->images = calloc((size_t)ni + 1, sizeof *e->images);
     if (!e->scans || !e->images) return rs_err_set(err, RS_ERR_SYSTEM, e->name, 0, "out of memory");
-    for (int i = 0; i < ns; i++, e->nscans++)
-        if (parse_scan(e, e57_child_at(d3, i), &e->scans[i], err) != 0) return -1;
-    for (int i = 0; i < ni; i++, e->nimages++)
-        if (parse_image(e, e57_child_at(i2, i), &e->images[i], err) != 0) return -1;
+    int i = 0;
+    for (const e57_node *c = ns ? d3->child : NULL; c; c = c->next, i++, e->nscans++)
+        if (parse_scan(e, c, &e->scans[i], err) != 0) return -1;
+    i = 0;
+    for (const e57_node *c = ni ? i2->child : NULL; c; c = c->next, i++, e->nimages++)
+        if (parse_image(e, c, &e->images[i], err) != 0) return -1;
     return 0;
 }
 

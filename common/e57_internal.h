@@ -58,7 +58,7 @@ typedef struct e57_node {
     size_t text_len;
     char **attrs; /* name, value pairs, NULL-terminated */
     long line;
-    struct e57_node *parent, *child, *next;
+    struct e57_node *parent, *child, *next, *last; /* last: the last child */
     int nchildren;
     int index; /* its place among its parent's children */
 } e57_node;

@@ -106,12 +106,12 @@ static void XMLCALL on_start(void *ud, const char *name, const char **attrs)
         }
         s->root = n;
     } else {
-        e57_node **tail = &s->cur->child;
-        /* Children are appended; a last-child pointer would save the walk, but E57 structures
-         * are short and vectors of thousands of scans rare. */
-        while (*tail) tail = &(*tail)->next;
+        if (s->cur->last)
+            s->cur->last->next = n;
+        else
+            s->cur->child = n;
+        s->cur->last = n;
         n->index = s->cur->nchildren++;
-        *tail = n;
     }
     s->cur = n;
 }
