@@ -275,12 +275,33 @@ int rs_capture_load_e57(const rs_config *cfg, const char *section, rs_capture *c
     return rc;
 }
 
+/* The width rs_stitch_default_width gives the pinhole images stitched with image index: 2 pi
+ * times their largest focal length in pixels, even. */
+static int stitched_width(rs_e57 *e, int index)
+{
+    const rs_e57_image_info *sel = rs_e57_image(e, index);
+    double f = 0;
+    for (int i = 0; i < rs_e57_image_count(e); i++) {
+        const rs_e57_image_info *im = rs_e57_image(e, i);
+        if (im->projection != RS_E57_PINHOLE || strcmp(im->associated_scan, sel->associated_scan) != 0) continue;
+        double fx = im->pixel_width > 0 ? im->focal_length / im->pixel_width : 0;
+        double fy = im->pixel_height > 0 ? im->focal_length / im->pixel_height : 0;
+        if (!(fx > 0 && fy > 0) && im->has_distortion) fx = im->fx, fy = im->fy;
+        if (isfinite(fx) && isfinite(fy)) f = fmax(f, fmax(fx, fy));
+    }
+    int w = (int)fmin(ceil(2 * M_PI * f), 65536);
+    w += w & 1;
+    return w < 16 ? 16 : w > 65536 ? 65536 : w;
+}
+
 int rs_capture_e57_width(const rs_config *cfg, const char *section, const char *path, int *width, rs_err *err)
 {
     rs_e57 *e = rs_e57_open(path, err);
     if (!e) return -1;
     int index = select_image(cfg, section, e, path, err);
-    if (index >= 0) *width = rs_e57_image(e, index)->width;
+    if (index >= 0)
+        *width = rs_e57_image(e, index)->projection == RS_E57_PINHOLE ? stitched_width(e, index)
+                                                                      : rs_e57_image(e, index)->width;
     rs_e57_close(e);
     return index < 0 ? -1 : 0;
 }

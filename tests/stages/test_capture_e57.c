@@ -16,6 +16,7 @@
 #include "common/image.h"
 #include "common/pano.h"
 #include "pipeline/capture_load.h"
+#include "pipeline/panorama.h"
 
 #define W 64
 #define H 32
@@ -196,6 +197,19 @@ static void test_pinholes_stitched(void **state)
     assert_true(cap.pose.rot[0] == 1 && cap.pose.rot[4] == 1 && cap.pose.rot[8] == 1);
     int w = cap.pano->width, h = cap.pano->height;
     assert_true(w > 100 && w == 2 * h);
+    /* The width the mesh stage derives its facet size from, before anything is stitched. */
+    char cfgtext[9000];
+    snprintf(cfgtext, sizeof cfgtext, "[pipeline]\nworkdir = work\n[capture]\n%s", text);
+    rs_config *cfg = rs_config_load_string(cfgtext, rs_test_path(dir, "w.ini"), dir, NULL, &err);
+    assert_non_null(cfg);
+    int width = 0;
+    char from[4096];
+    assert_int_equal(rs_capture_panorama_width(cfg, &width, from, sizeof from, &err), 1);
+    assert_int_equal(width, w);
+    double pos[3];
+    assert_int_equal(rs_capture_position(cfg, pos), 0);
+    assert_true(pos[0] == cap.pose.position.x && pos[1] == cap.pose.position.y && pos[2] == cap.pose.position.z);
+    rs_config_free(cfg);
     double sum = 0, worst = 0;
     long seen = 0;
     for (int r = 0; r < h; r++)
