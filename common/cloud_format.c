@@ -8,13 +8,14 @@
 
 #include "common/cloud_ply.h"
 #include "common/cloud_text.h"
+#include "common/e57.h"
 #include "common/las.h"
 #include "common/pcl_bridge.h"
 #include "common/ptx.h"
 
 /* Bytes read to tell the formats apart: LAS keeps its point format at byte 104. */
 #define HEAD_SIZE 256
-#define READABLE  "expected PTX, PLY, PCD or XYZ/CSV text (convert it, e.g. with PDAL or CloudCompare)"
+#define READABLE  "expected E57, LAS, PTX, PLY, PCD or XYZ/CSV text (convert it, e.g. with PDAL or CloudCompare)"
 
 typedef struct cloud_format {
     const char *name;
@@ -83,6 +84,11 @@ static rs_cloud *read_las(const char *path, const rs_cloud_read_opts *opts, rs_e
     return rs_las_read(path, opts->las_keep, err);
 }
 
+static rs_cloud *read_e57(const char *path, const rs_cloud_read_opts *opts, rs_err *err)
+{
+    return rs_e57_read(path, err);
+}
+
 static rs_cloud *read_ptx(const char *path, const rs_cloud_read_opts *opts, rs_err *err)
 {
     return rs_ptx_read(path, err);
@@ -92,9 +98,12 @@ static rs_cloud *read_ptx(const char *path, const rs_cloud_read_opts *opts, rs_e
  * PCD is known by extension only, as XYZ text: its header is text that a text cloud's
  * comment lines could hold too. */
 static const cloud_format formats[] = {
-    {"PLY", ply_is_a, ".ply", read_ply, NULL}, {"E57", e57_is_a, ".e57", NULL, "E57 is not supported yet"},
-    {"LAZ", laz_is_a, ".laz", read_las, NULL}, {"LAS", las_is_a, ".las", read_las, NULL},
-    {"PCD", NULL, ".pcd", read_pcd, NULL},     {"text", NULL, ".xyz .txt .csv .pts", read_text, NULL},
+    {"PLY", ply_is_a, ".ply", read_ply, NULL},
+    {"E57", e57_is_a, ".e57", read_e57, NULL},
+    {"LAZ", laz_is_a, ".laz", read_las, NULL},
+    {"LAS", las_is_a, ".las", read_las, NULL},
+    {"PCD", NULL, ".pcd", read_pcd, NULL},
+    {"text", NULL, ".xyz .txt .csv .pts", read_text, NULL},
     {"PTX", NULL, ".ptx", read_ptx, NULL},
 };
 enum { NFORMATS = sizeof formats / sizeof formats[0] };

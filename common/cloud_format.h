@@ -17,7 +17,7 @@ typedef struct rs_cloud_read_opts {
 
 /* Reads a point-cloud file with the reader its magic bytes name, else its extension:
  *   PLY  "ply" magic                        rs_cloud_read_ply (cloud_ply.h)
- *   E57  "ASTM-E57"                          refused: not supported yet
+ *   E57  "ASTM-E57"                          rs_e57_read (e57.h)
  *   LAZ  "LASF", compressed (bit 7 or 6 of the point format at byte 104): refused by rs_las_read
  *   LAS  "LASF"                              rs_las_read (las.h), opts->las_keep
  *   PCD  .pcd                                rs_pcl_read_pcd (pcl_bridge.h)

@@ -70,7 +70,14 @@ const rs_cfg_key rs_cfg_keys[] = {
      "denoise: no vertex moves farther than this (a small multiple of the scan noise)"},
 
     {"capture", "panorama", RS_CFG_PATH, NULL, 0, 0, NULL, "", "mesh observe irradiance render",
-     "equirectangular panorama (EXR or Radiance HDR), linear radiance, width = 2 x height"},
+     "equirectangular panorama (EXR or Radiance HDR), linear radiance, width = 2 x height; or an E57 file holding "
+     "it as a spherical image with its pose (e57_image)"},
+    {"capture", "e57_image", RS_CFG_STRING, NULL, 0, 0, NULL, "", "mesh observe irradiance render",
+     "panorama = FILE.e57: the images2D entry that is the panorama, by name or 0-based index; unset: the file's only "
+     "spherical image. Its pose is the capture's (position and rotation unused when it has one)"},
+    {"capture", "response_file", RS_CFG_PATH, NULL, 0, 0, NULL, "", "mesh observe irradiance render",
+     "panorama = FILE.e57: the camera response that linearises its 8-bit image (as [rig] response_file); unset: the "
+     "sRGB curve, with a warning"},
     {"capture", "position", RS_CFG_VEC3, NULL, 0, 0, NULL, "m", "mesh observe irradiance render",
      "camera centre in the world frame (required: a forgotten pose would silently misplace every pixel)"},
     {"capture", "rotation", RS_CFG_ROTATION, "1 0 0 0 1 0 0 0 1", 0, 0, NULL, "", "mesh observe irradiance render",

@@ -192,9 +192,8 @@ static int png_first_idat_empty(const unsigned char *p, size_t n)
     return 0;
 }
 
-/* 8- or 16-bit PNG and JPEG: sRGB-decoded to linear; grey (+alpha) -> 1 channel, colour
- * (+alpha) -> 3; alpha is dropped. */
-static rs_image *ldr_read_mem(const void *data, size_t size, const char *name, const char *kind, rs_err *err)
+/* The checks before stb decodes a PNG or JPEG; its size into *w, *h. */
+static int ldr_check(const void *data, size_t size, const char *name, const char *kind, int *wp, int *hp, rs_err *err)
 {
     int w = 0, h = 0, comp = 0;
     /* Before any stb call: stbi_info already builds the Huffman tables. */
@@ -204,17 +203,17 @@ static rs_image *ldr_read_mem(const void *data, size_t size, const char *name, c
                    "JPEG: Huffman table at byte %zu has more than "
                    "256 codes: expected a valid JPEG",
                    bad_dht);
-        return NULL;
+        return -1;
     }
     if (kind[0] == 'P' && png_first_idat_empty(data, size)) {
         rs_err_set(err, RS_ERR_INPUT, name, 0, "PNG: empty first IDAT chunk: not supported");
-        return NULL;
+        return -1;
     }
     if (!stbi_info_from_memory(data, (int)size, &w, &h, &comp)) {
         rs_err_set(err, RS_ERR_INPUT, name, 0, "%s: %s", kind, stbi_failure_reason());
-        return NULL;
+        return -1;
     }
-    if (rs_image_check_size(w, h, name, err) != 0) return NULL;
+    if (rs_image_check_size(w, h, name, err) != 0) return -1;
     /* stb decodes a truncated JPEG to its full size without complaint, so a few hundred bytes
      * can ask for millions of pixels. Real JPEGs hold at most a few hundred pixels per byte
      * (a flat 8 x 8 block still costs bits), so 4096 only refuses impossible ones. */
@@ -223,8 +222,19 @@ static rs_image *ldr_read_mem(const void *data, size_t size, const char *name, c
                    "JPEG: %d x %d pixels cannot come from %zu bytes: "
                    "truncated or corrupt",
                    w, h, size);
-        return NULL;
+        return -1;
     }
+    *wp = w;
+    *hp = h;
+    return 0;
+}
+
+/* 8- or 16-bit PNG and JPEG: sRGB-decoded to linear; grey (+alpha) -> 1 channel, colour
+ * (+alpha) -> 3; alpha is dropped. */
+static rs_image *ldr_read_mem(const void *data, size_t size, const char *name, const char *kind, rs_err *err)
+{
+    int w = 0, h = 0, comp = 0;
+    if (ldr_check(data, size, name, kind, &w, &h, err) != 0) return NULL;
     int is16 = stbi_is_16_bit_from_memory(data, (int)size);
     void *px = is16 ? (void *)stbi_load_16_from_memory(data, (int)size, &w, &h, &comp, 0)
                     : (void *)stbi_load_from_memory(data, (int)size, &w, &h, &comp, 0);
@@ -422,4 +432,33 @@ static int write_png8(const unsigned char *px, int width, int height, int channe
 int rs_image_write_png8(const unsigned char *px, int width, int height, int channels, const char *path, rs_err *err)
 {
     return write_png8(px, width, height, channels, 1, path, err); /* Sub for every row: no choosing */
+}
+
+unsigned char *rs_image_ldr_codes_mem(const void *data, size_t size, const char *name, int *width, int *height,
+                                      rs_err *err)
+{
+    const unsigned char *p = data;
+    const char *kind = size >= 8 && memcmp(p, "\x89PNG\r\n\x1a\n", 8) == 0 ? "PNG"
+        : size >= 3 && p[0] == 0xff && p[1] == 0xd8 && p[2] == 0xff        ? "JPEG"
+                                                                           : NULL;
+    if (!kind) {
+        rs_err_set(err, RS_ERR_INPUT, name, 0, "neither a PNG nor a JPEG (the data does not start like one)");
+        return NULL;
+    }
+    int w = 0, h = 0, comp = 0;
+    if (ldr_check(data, size, name, kind, &w, &h, err) != 0) return NULL;
+    unsigned char *px = stbi_load_from_memory(data, (int)size, &w, &h, &comp, 3);
+    if (!px) {
+        rs_err_set(err, RS_ERR_INPUT, name, 0, "%s: %s", kind, stbi_failure_reason());
+        return NULL;
+    }
+    unsigned char *out = malloc((size_t)w * (size_t)h * 3);
+    if (!out)
+        rs_err_set(err, RS_ERR_SYSTEM, name, 0, "out of memory");
+    else
+        memcpy(out, px, (size_t)w * (size_t)h * 3);
+    stbi_image_free(px);
+    *width = w;
+    *height = h;
+    return out;
 }

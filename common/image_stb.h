@@ -15,4 +15,10 @@ rs_image *rs_image_png_read_mem(const void *data, size_t size, const char *name,
 /* JPEG (data starts with FF D8 FF): as PNG. */
 rs_image *rs_image_jpeg_read_mem(const void *data, size_t size, const char *name, rs_err *err);
 
+/* The 8-bit codes of a PNG or JPEG (16-bit PNGs reduced to 8 bits), 3 channels (grey
+ * repeated), row by row, as its camera wrote them: for linearising with a response curve. The
+ * same checks as the readers above; caller frees. */
+unsigned char *rs_image_ldr_codes_mem(const void *data, size_t size, const char *name, int *width, int *height,
+                                      rs_err *err);
+
 #endif

@@ -1,8 +1,10 @@
-/* capture_load: loading a posed panorama from a config section (see capture_load.h). */
+/* capture_load: loading a posed panorama from a config section (see capture_load.h); an E57
+ * file's spherical image through pipeline/capture_e57.h. */
 #include "pipeline/capture_load.h"
 
 #include <string.h>
 #include "pipeline/calib_files.h"
+#include "pipeline/capture_e57.h"
 #include "pipeline/panorama.h"
 
 int rs_capture_load(const rs_config *cfg, const char *section, rs_capture *cap, rs_err *err)
@@ -13,7 +15,11 @@ int rs_capture_load(const rs_config *cfg, const char *section, rs_capture *cap, 
     if (!found)
         return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
                           "[%s] panorama is not set: expected an equirectangular EXR or HDR file", section);
-    rs_image *img = rs_image_read(cap->path, err);
+    int posed = 0, e57 = rs_capture_is_e57(cap->path);
+    size_t clipped = 0;
+    if (e57 && rs_capture_load_e57(cfg, section, cap, &posed, &clipped, err) != 0) return -1;
+    rs_image *img = e57 ? cap->pano : rs_image_read(cap->path, err);
+    cap->pano = NULL; /* set again below, once checked */
     if (!img) return -1;
     if (img->width != 2 * img->height) {
         rs_err_set(err, RS_ERR_INPUT, cap->path, 0,
@@ -51,6 +57,7 @@ int rs_capture_load(const rs_config *cfg, const char *section, rs_capture *cap, 
         }
         return 0;
     }
+    if (posed) return 0; /* the E57 image's pose */
     double pos[3];
     if (rs_config_reals(cfg, section, "position", pos) != 0) {
         rs_capture_release(cap);

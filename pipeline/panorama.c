@@ -7,6 +7,7 @@
 #include "common/fileio.h"
 #include "common/image.h"
 #include "pipeline/calib_files.h"
+#include "pipeline/capture_e57.h"
 #include "pipeline/stage.h"
 
 int rs_capture_panorama_check(const rs_config *cfg, rs_err *err)
@@ -36,6 +37,7 @@ int rs_capture_panorama_width(const rs_config *cfg, int *width, char *from, size
 {
     if (rs_capture_panorama_check(cfg, err) != 0) return -1;
     if (rs_config_path(cfg, "capture", "panorama", from, n)) {
+        if (rs_capture_is_e57(from)) return rs_capture_e57_width(cfg, "capture", from, width, err) == 0 ? 1 : -1;
         rs_image *img = rs_image_read(from, err);
         if (!img) return -1;
         *width = img->width;
@@ -50,5 +52,26 @@ int rs_capture_panorama_width(const rs_config *cfg, int *width, char *from, size
         rs_rig_release(&rig);
         return 1;
     }
+    return 0;
+}
+
+int rs_capture_config_pose(const rs_config *cfg, rs_pose *pose)
+{
+    char path[4096];
+    if (rs_config_path(cfg, "capture", "panorama", path, sizeof path) && rs_capture_is_e57(path) &&
+        rs_capture_e57_pose(cfg, "capture", path, pose))
+        return 0;
+    double pos[3];
+    if (rs_config_reals(cfg, "capture", "position", pos) != 0) return -1;
+    pose->position = rs_v3_make(pos[0], pos[1], pos[2]);
+    rs_config_reals(cfg, "capture", "rotation", pose->rot);
+    return 0;
+}
+
+int rs_capture_position(const rs_config *cfg, double pos[3])
+{
+    rs_pose pose;
+    if (rs_capture_config_pose(cfg, &pose) != 0) return -1;
+    pos[0] = pose.position.x, pos[1] = pose.position.y, pos[2] = pose.position.z;
     return 0;
 }

@@ -7,6 +7,7 @@
 #include <stddef.h>
 #include "common/config.h"
 #include "common/err.h"
+#include "common/pano.h"
 
 /* -1 with the refusal when both [rig] file and [capture] panorama are set, else 0. The calib
  * stage asks before it stitches; the functions below refuse the same. */
@@ -24,5 +25,12 @@ int rs_capture_panorama_path(const rs_config *cfg, const char *section, char *ou
  * *width and the file it was read from (the panorama or the rig file) in from; 0 when neither
  * is set; -1 with err when rs_capture_panorama_check refuses or the file cannot be read. */
 int rs_capture_panorama_width(const rs_config *cfg, int *width, char *from, size_t n, rs_err *err);
+
+/* [capture]'s camera centre for the stages that need it before the capture is loaded (the mesh
+ * stage): the pose of the E57 image when [capture] panorama is an E57 file whose image has one
+ * (pipeline/capture_e57.h), else [capture] position. 0 with pos, -1 when neither gives one. */
+int rs_capture_position(const rs_config *cfg, double pos[3]);
+/* The same with the rotation: the E57 image's, else [capture] rotation. */
+int rs_capture_config_pose(const rs_config *cfg, rs_pose *pose);
 
 #endif

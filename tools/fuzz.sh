@@ -4,7 +4,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 total=${1:-300}
-readers="ply ptx config image pairs response colmap pcd xyz rig las"
+readers="ply ptx config image pairs response colmap pcd xyz rig las e57"
 nreaders=$(echo $readers | wc -w)
 per=$(( total / nreaders )); [ "$per" -ge 1 ] || per=1
 
@@ -30,6 +30,7 @@ for r in $readers; do
                        { printf '\0'; cat "$f"; } > "$work/$(basename "$f")"
                    done
                fi ;;
+        e57)   [ -d "$shared/formats/e57" ] && cp -f "$shared"/formats/e57/*.e57 "$work"/ ;;
         image) cp -f sample_data/two_planes/pano_diffcol.exr "$work"/ 2>/dev/null || true ;;
     esac
     echo "fuzz_$r: ${per} s" >&2

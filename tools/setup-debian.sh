@@ -2,7 +2,8 @@
 # Installs the Debian 12 packages rhoscan builds and tests with (run as root).
 # Usage: tools/setup-debian.sh [--tests]   (--tests adds what the test suites need)
 set -eu
-pkgs="build-essential cmake pkg-config libembree-dev libtbb-dev libopenexr-dev libstb-dev zlib1g-dev libinih-dev libcjson-dev libopencv-dev libpcl-dev libjs-three"
+pkgs="build-essential cmake pkg-config libembree-dev libtbb-dev libopenexr-dev libstb-dev zlib1g-dev libinih-dev libcjson-dev libexpat1-dev libopencv-dev libpcl-dev libjs-three"
+# libexpat1-dev: the XML section of E57 files (common/e57_xml.c).
 # libpcl-dev: point-cloud cleaning, normals and surface reconstruction (common/pcl_bridge.cpp).
 # libjs-three: three.js r111, copied beside report.html for the 3D view of albedo.glb (pipeline/report_model.c).
 # libopencv-dev: rig files, TIFF frames and HDR merging in the calib stage (calib/cv_adapter.cpp).

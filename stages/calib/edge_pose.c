@@ -29,14 +29,11 @@ static int start_pose(const rs_config *cfg, rs_pose *pose, rs_err *err)
     if ((rs_config_has(cfg, "capture", "correspondences") || rs_config_has(cfg, "capture", "colmap_panorama")) &&
         rs_file_exists(path))
         return rs_calib_pose_read(path, "capture", pose, err);
-    double pos[3];
-    if (rs_config_reals(cfg, "capture", "position", pos) != 0)
+    if (rs_capture_config_pose(cfg, pose) != 0) /* [capture] position and rotation, or an E57 image's pose */
         return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
                           "[capture] refine_edges = true but [capture] "
                           "position is not set and no pose was solved: expected a rough centre (m, world frame) to "
                           "start from, or [capture] correspondences");
-    pose->position = rs_v3_make(pos[0], pos[1], pos[2]);
-    rs_config_reals(cfg, "capture", "rotation", pose->rot);
     return 0;
 }
 

@@ -79,7 +79,7 @@ static void mesh_opts_read(const rs_config *cfg, mesh_opts *o)
     o->denoise_opts.sigma_r_deg = rs_config_real(cfg, "mesh", "denoise_sigma_r_deg");
     o->denoise_opts.sigma_s_edges = rs_config_real(cfg, "mesh", "denoise_sigma_s");
     o->denoise_opts.max_move_m = rs_config_real(cfg, "mesh", "denoise_max_move");
-    o->has_camera = rs_config_reals(cfg, "capture", "position", o->camera) == 0;
+    o->has_camera = rs_capture_position(cfg, o->camera) == 0;
 }
 
 static int cmp_double(const void *a, const void *b)
@@ -227,7 +227,7 @@ static int derive_facet_size(const rs_config *cfg, const rs_mesh *m, double *fac
                           "[mesh] facet_size is not set and there is no [capture] panorama or [rig] file to derive it "
                           "from; expected [mesh] facet_size = <metres> (or facets = <count>) or a panorama");
     double cam[3] = {0, 0, 0};
-    rs_config_reals(cfg, "capture", "position", cam);
+    rs_capture_position(cfg, cam);
     double *dist = malloc((m->nverts ? m->nverts : 1) * sizeof *dist);
     if (!dist) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
     for (size_t v = 0; v < m->nverts; v++) {
