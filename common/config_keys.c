@@ -246,4 +246,16 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"render", "exposure", RS_CFG_REAL, NULL, 1e-12, 1e12, NULL, "", "render",
      "scale of the radiance PNG previews; default maps the 99th percentile to 1"},
 
+    {"texture", "texel_size", RS_CFG_REAL, NULL, 1e-4, 100, NULL, "m", "texture",
+     "texel side on the surface; default: the finest panorama sampling on the model (10th percentile over the "
+     "observed facets of a pixel's footprint), raised to stay within max_texels"},
+    {"texture", "max_texels", RS_CFG_INT, "16777216", 4096, 1073741824, NULL, "texels", "texture",
+     "the atlas pages' texels, all pages together, at most this many (about 21 bytes each while the stage runs)"},
+    {"texture", "chart_angle_deg", RS_CFG_REAL, "10", 0.1, 60, NULL, "deg", "texture",
+     "connected facets whose normals lie within this of a chart's first facet share its chart"},
+    {"texture", "gutter", RS_CFG_INT, "4", 1, 64, NULL, "texels", "texture",
+     "empty texels around each chart, filled by dilation so that mipmaps show no seams"},
+    {"texture", "max_side", RS_CFG_INT, "8192", 64, 8192, NULL, "texels", "texture",
+     "largest atlas page side (a power of two); more pages when one is not enough"},
+
     {NULL, NULL, 0, NULL, 0, 0, NULL, NULL, NULL, NULL}};
