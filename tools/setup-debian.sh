@@ -8,8 +8,10 @@ pkgs="build-essential cmake pkg-config libembree-dev libtbb-dev libopenexr-dev l
 if [ "${1:-}" = "--tests" ]; then
     # cmocka: unit tests; python3 with numpy/scipy/OpenImageIO: the reference evaluator;
     # clang + libclang-rt-14-dev + libomp-dev (OpenMP for clang): fuzzing and sanitizer builds;
-    # blender-data: real DWA-compressed skies.
-    pkgs="$pkgs libcmocka-dev python3 python3-numpy python3-scipy python3-openimageio clang libclang-rt-14-dev libomp-dev blender-data"
+    # blender-data: real DWA-compressed skies; blender and python3-open3d: the viewers the
+    # texture stage's exports must open in (tests/stages/texture_viewers.py; about 45 s to
+    # install, 85 MB of packages, 266 MB on disk).
+    pkgs="$pkgs libcmocka-dev python3 python3-numpy python3-scipy python3-openimageio clang libclang-rt-14-dev libomp-dev blender-data blender python3-open3d"
 fi
 missing=""
 for p in $pkgs; do
