@@ -138,11 +138,43 @@ static void chart_st(const rs_atlas_chart *c, rs_v3 p, double *s, double *t)
     *t = rs_v3_dot(d, c->ev);
 }
 
+/* Turns the chart's (eu, ev) about its normal to the angle, in 3-degree steps over a quarter
+ * turn, whose bounding rectangle of the corners is smallest: an oblique wall or a rotated yard
+ * then packs without the empty triangles of an axis-aligned box. */
+static void chart_orient(const rs_mesh *m, const rs_atlas *a, rs_atlas_chart *c)
+{
+    double best = INFINITY, best_ang = 0;
+    for (int step = 0; step < 30; step++) {
+        double ang = step * (M_PI / 60), ca = cos(ang), sa = sin(ang);
+        rs_v3 eu = rs_v3_add(rs_v3_scale(c->eu, ca), rs_v3_scale(c->ev, sa));
+        rs_v3 ev = rs_v3_cross(c->normal, eu);
+        double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+        for (size_t q = c->first; q < c->first + c->count; q++)
+            for (int k = 0; k < 3; k++) {
+                rs_v3 d = rs_v3_sub(rs_mesh_vert(m, m->tris[3 * (size_t)a->faces[q] + k]), c->origin);
+                double s = rs_v3_dot(d, eu), t = rs_v3_dot(d, ev);
+                lo[0] = fmin(lo[0], s);
+                hi[0] = fmax(hi[0], s);
+                lo[1] = fmin(lo[1], t);
+                hi[1] = fmax(hi[1], t);
+            }
+        double area = (hi[0] - lo[0]) * (hi[1] - lo[1]);
+        if (area < best * (1 - 1e-9)) {
+            best = area;
+            best_ang = ang;
+        }
+    }
+    double ca = cos(best_ang), sa = sin(best_ang);
+    c->eu = rs_v3_norm(rs_v3_add(rs_v3_scale(c->eu, ca), rs_v3_scale(c->ev, sa)));
+    c->ev = rs_v3_cross(c->normal, c->eu);
+}
+
 /* Extent of each chart in metres (s range, t range) into ext[4 * ncharts]: smin smax tmin tmax. */
-static void chart_extents(const rs_mesh *m, const rs_atlas *a, double *ext)
+static void chart_extents(const rs_mesh *m, rs_atlas *a, double *ext)
 {
     for (size_t ci = 0; ci < a->ncharts; ci++) {
-        const rs_atlas_chart *c = &a->charts[ci];
+        rs_atlas_chart *c = &a->charts[ci];
+        if (c->count > 1) chart_orient(m, a, c);
         double *x = ext + 4 * ci;
         x[0] = x[2] = INFINITY;
         x[1] = x[3] = -INFINITY;
@@ -211,6 +243,17 @@ static int next_pow2(double v)
     return s;
 }
 
+/* The charts' rectangles with their gutters at texel size tx, texels. */
+static double rect_need(const rs_atlas *a, const double *ext, double tx)
+{
+    double need = 0;
+    int g = a->gutter;
+    for (size_t ci = 0; ci < a->ncharts; ci++)
+        need += (ceil((ext[4 * ci + 1] - ext[4 * ci]) / tx) + 1 + 2 * g) *
+            (ceil((ext[4 * ci + 3] - ext[4 * ci + 2]) / tx) + 1 + 2 * g);
+    return need;
+}
+
 /* Texel size, page side and the packing: the smallest page that holds everything on one page,
  * or max_side pages; the texel raised until the largest chart fits and the pages' texels stay
  * within max_texels. */
@@ -241,11 +284,22 @@ static int layout(rs_atlas *a, const rs_atlas_opts *o, const double *ext, int ma
             if (side >= max_side) break;
             side *= 2;
         }
+        if (np == 1 && side > 64) { /* a texel up to 25 % larger for a page of a quarter the texels */
+            for (int k = 1; k <= 5; k++)
+                if (pack(a, ext, tx * (1 + 0.05 * k), side / 2, order, rh) == 1) {
+                    tx *= 1 + 0.05 * k;
+                    side /= 2;
+                    break;
+                }
+            np = pack(a, ext, tx, side, order, rh);
+            need = rect_need(a, ext, tx);
+        }
         double total = (double)np * side * side;
         if (np && (o->max_texels <= 0 || total <= o->max_texels || side <= 64)) {
             a->npages = np;
             a->side = side;
             a->texel = tx;
+            a->rect_texels = need;
             rc = 0;
             break;
         }

@@ -36,7 +36,8 @@ typedef struct rs_atlas {
     double texel; /* metres per texel, as used */
     int gutter;
     int npages;
-    int side; /* every page's side, texels */
+    int side;           /* every page's side, texels */
+    double rect_texels; /* the charts' rectangles with their gutters, texels (packing: / pages' texels) */
     size_t nfaces, ncharts;
     rs_atlas_chart *charts;
     uint32_t *face_chart; /* nfaces: the chart of each face */

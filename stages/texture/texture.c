@@ -30,7 +30,7 @@
 #include "stages/stages.h"
 #include "stages/texture/texture_internal.h"
 
-#define SUN_RAYS 4
+#define SUN_RAYS       4
 #define SUN_RADIUS_RAD (0.2665 * M_PI / 180)
 
 typedef struct {
@@ -159,8 +159,8 @@ static double *corner_irradiance(const tex_inputs *in, const rs_atlas *a)
     }
     for (size_t f = 0; f < nf; f++)
         for (int k = 0; k < 3; k++)
-            r[3 * f + k] = (corner_rec){(uint64_t)a->face_chart[f] << 32 | in->mesh->tris[3 * f + k], (uint32_t)f,
-                                        (uint8_t)k};
+            r[3 * f + k] =
+                (corner_rec){(uint64_t)a->face_chart[f] << 32 | in->mesh->tris[3 * f + k], (uint32_t)f, (uint8_t)k};
     qsort(r, nc, sizeof *r, corner_cmp);
     for (size_t i = 0; i < nc;) {
         size_t j = i;
@@ -192,10 +192,10 @@ typedef struct {
     const tex_inputs *in;
     const rs_scene *scene;
     rs_tex_pages *t;
-    double *Dc;   /* corner_irradiance */
-    double *U;    /* 3 per chart: the sun's normal irradiance */
-    float *vis;   /* per texel: V, -1 where the sun is behind the face */
-    float *L;     /* 3 per texel: radiance; seen[k] when measured */
+    double *Dc; /* corner_irradiance */
+    double *U;  /* 3 per chart: the sun's normal irradiance */
+    float *vis; /* per texel: V, -1 where the sun is behind the face */
+    float *L;   /* 3 per texel: radiance; seen[k] when measured */
     uint8_t *seen;
     int sub_max; /* sub-samples per side, at most */
 } tex_ctx;
@@ -212,7 +212,8 @@ static float sun_visibility(const tex_ctx *c, rs_v3 p, rs_v3 n)
     double off = rs_scene_offset(c->scene, p) * 4;
     static const double jx[SUN_RAYS] = {0.5, -0.5, -0.5, 0.5}, jy[SUN_RAYS] = {0.5, 0.5, -0.5, -0.5};
     for (int r = 0; r < SUN_RAYS; r++) {
-        rs_v3 d = rs_v3_add(s, rs_v3_add(rs_v3_scale(t1, jx[r] * SUN_RADIUS_RAD), rs_v3_scale(t2, jy[r] * SUN_RADIUS_RAD)));
+        rs_v3 d =
+            rs_v3_add(s, rs_v3_add(rs_v3_scale(t1, jx[r] * SUN_RADIUS_RAD), rs_v3_scale(t2, jy[r] * SUN_RADIUS_RAD)));
         rays[r] = (rs_ray){rs_v3_add(p, rs_v3_scale(n, off)), rs_v3_norm(d), 0, INFINITY};
     }
     rs_scene_occluded(c->scene, rays, occ, SUN_RAYS);
@@ -411,7 +412,7 @@ static int write_pages(const rs_config *cfg, const rs_tex_pages *t, char names[]
             img->data[5 * k + 3] = t->flags[base + k];
             img->data[5 * k + 4] = t->sigma[base + k];
         }
-        char file[48], path[4096];
+        char file[48];
         if (t->npages == 1)
             snprintf(file, sizeof file, "albedo_texture");
         else
@@ -419,9 +420,21 @@ static int write_pages(const rs_config *cfg, const rs_tex_pages *t, char names[]
         snprintf(names[p], 64, "%s.png", file);
         char exr[80];
         snprintf(exr, sizeof exr, "%s.exr", file);
-        if (rs_image_write_exr(img, rs_work_path(cfg, exr, path, sizeof path), chn, 0, "rhoscan texture", err) != 0 ||
-            rs_image_write_png(rgb, rs_work_path(cfg, names[p], path, sizeof path), 1.0f, err) != 0)
-            goto out;
+        /* the two files on two threads: each writer is serial */
+        rs_err werr[2] = {{0}};
+        int wrc[2];
+#pragma omp parallel for schedule(static, 1)
+        for (int w = 0; w < 2; w++) {
+            char wpath[4096];
+            wrc[w] = w == 0 ? rs_image_write_exr(img, rs_work_path(cfg, exr, wpath, sizeof wpath), chn, 0,
+                                                 "rhoscan texture", &werr[w])
+                            : rs_image_write_png(rgb, rs_work_path(cfg, names[p], wpath, sizeof wpath), 1.0f, &werr[w]);
+        }
+        for (int w = 0; w < 2; w++)
+            if (wrc[w] != 0) {
+                if (err) *err = werr[w];
+                goto out;
+            }
     }
     rc = 0;
 out:
@@ -436,6 +449,7 @@ static void report_texture(rs_report *rep, const rs_atlas *a, const tex_counts *
     rs_json_set_int(rep->metrics, "charts", (long long)a->ncharts);
     rs_json_set_int(rep->metrics, "pages", a->npages);
     rs_json_set_int(rep->metrics, "page_side", a->side);
+    rs_json_set_num(rep->metrics, "chart_rect_texels", a->rect_texels);
     rs_json_set_int(rep->metrics, "surface_texels", (long long)n->texels);
     rs_json_set_int(rep->metrics, "seen_texels", (long long)n->seen);
     rs_json_set_int(rep->metrics, "unseen_texels", (long long)n->unseen);
@@ -447,8 +461,8 @@ static void report_texture(rs_report *rep, const rs_atlas *a, const tex_counts *
 static int build_atlas(const rs_config *cfg, const tex_inputs *in, rs_atlas **out, rs_err *err)
 {
     rs_atlas_opts ao = {0};
-    ao.texel = rs_config_has(cfg, "texture", "texel_size") ? rs_config_real(cfg, "texture", "texel_size")
-                                                           : default_texel(in);
+    ao.texel =
+        rs_config_has(cfg, "texture", "texel_size") ? rs_config_real(cfg, "texture", "texel_size") : default_texel(in);
     ao.max_texels = (double)rs_config_int(cfg, "texture", "max_texels");
     ao.max_angle_deg = rs_config_real(cfg, "texture", "chart_angle_deg");
     ao.gutter = (int)rs_config_int(cfg, "texture", "gutter");
@@ -507,7 +521,7 @@ int rs_texture_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_tex_pages t = {0};
     tex_counts n = {0};
     int rc = -1;
-    char (*names)[64] = NULL;
+    char(*names)[64] = NULL;
     double t0 = rs_now();
     if (read_inputs(cfg, &in, err) != 0 || build_atlas(cfg, &in, &atlas, err) != 0) goto out;
     rs_report_time(rep, "atlas", rs_now() - t0);

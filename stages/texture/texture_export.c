@@ -40,9 +40,9 @@ static int split_cmp(const void *a, const void *b)
 typedef struct {
     size_t nv, nf;
     float *pos, *uv, *rgb;
-    uint32_t *tris;   /* 3 per face, faces grouped by page */
-    size_t *vstart;   /* npages + 1 */
-    size_t *fstart;   /* npages + 1 */
+    uint32_t *tris; /* 3 per face, faces grouped by page */
+    size_t *vstart; /* npages + 1 */
+    size_t *fstart; /* npages + 1 */
 } split_model;
 
 static void split_free(split_model *s)
@@ -78,7 +78,8 @@ static int split_build(const rs_tex_pages *t, split_model *s)
         qsort(r, nc, sizeof *r, split_cmp);
         for (size_t i = 0; i < nc;) {
             size_t j = i, v = s->nv++;
-            for (; j < nc && r[j].chart == r[i].chart && r[j].vertex == r[i].vertex; j++) cidx[r[j].corner] = (uint32_t)v;
+            for (; j < nc && r[j].chart == r[i].chart && r[j].vertex == r[i].vertex; j++)
+                cidx[r[j].corner] = (uint32_t)v;
             for (int q = 0; q < 3; q++) s->pos[3 * v + q] = m->verts[3 * (size_t)r[i].vertex + q];
             memcpy(s->uv + 2 * v, a->uv + 2 * (size_t)r[i].corner, 2 * sizeof(float));
             rs_tex_sample(t, (int)r[i].page, s->uv[2 * v], s->uv[2 * v + 1], s->rgb + 3 * v);
@@ -223,7 +224,8 @@ static cJSON *gltf_json(const split_model *s, const rs_tex_export *e, const size
         char name[64];
         snprintf(name, sizeof name, "albedo_page_%d", p);
         cJSON_AddStringToObject(mat, "name", name);
-        cJSON_AddNumberToObject(cJSON_AddObjectToObject(pbr, "baseColorTexture"), "index", cJSON_GetArraySize(texs) - 1);
+        cJSON_AddNumberToObject(cJSON_AddObjectToObject(pbr, "baseColorTexture"), "index",
+                                cJSON_GetArraySize(texs) - 1);
         cJSON_AddNumberToObject(pbr, "metallicFactor", 0);
         cJSON_AddNumberToObject(pbr, "roughnessFactor", 1);
         cJSON_AddItemToArray(mats, mat);
@@ -282,7 +284,8 @@ static int write_glb(const split_model *s, const rs_tex_export *e, rs_err *err)
     if (b != 0) goto oom;
     if (!(root = gltf_json(s, e, po, pl, bin.len, yup)) || !(json = cJSON_PrintUnformatted(root))) goto oom;
     size_t jl = strlen(json), jpad = (4 - jl % 4) % 4;
-    uint32_t hdr[5] = {0x46546C67u, 2, (uint32_t)(12 + 8 + jl + jpad + 8 + bin.len), (uint32_t)(jl + jpad), 0x4E4F534Au};
+    uint32_t hdr[5] = {0x46546C67u, 2, (uint32_t)(12 + 8 + jl + jpad + 8 + bin.len), (uint32_t)(jl + jpad),
+                       0x4E4F534Au};
     uint32_t bh[2] = {(uint32_t)bin.len, 0x004E4942u};
     if (bytes_put(&out, hdr, sizeof hdr) || bytes_put(&out, json, jl) || bytes_pad(&out, ' ') ||
         bytes_put(&out, bh, sizeof bh) || bytes_put(&out, bin.data, bin.len))
@@ -369,8 +372,9 @@ static int write_vertex_ply(const split_model *s, const rs_tex_export *e, rs_err
     }
     memcpy(m->verts, s->pos, 3 * s->nv * sizeof(float));
     memcpy(m->tris, s->tris, 3 * s->nf * sizeof(uint32_t));
-    rs_ply_add_comment(ply, "rhoscan albedo per vertex (texture stage): red green blue are the albedo clipped to "
-                            "[0, 1], sRGB-encoded 8-bit; albedo_r/_g/_b linear floats; vertices split per chart");
+    rs_ply_add_comment(ply,
+                       "rhoscan albedo per vertex (texture stage): red green blue are the albedo clipped to "
+                       "[0, 1], sRGB-encoded 8-bit; albedo_r/_g/_b linear floats; vertices split per chart");
     if (e->origin[0] || e->origin[1] || e->origin[2])
         rs_ply_add_comment(ply, "rhoscan_origin %.17g %.17g %.17g", e->origin[0], e->origin[1], e->origin[2]);
     rs_mesh_to_ply(m, ply);

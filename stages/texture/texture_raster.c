@@ -115,66 +115,75 @@ size_t rs_tex_raster(rs_tex_pages *t)
     return n;
 }
 
-/* One ring of dilation over page p: every empty texel with a filled 4-neighbour (in `filled`)
- * takes their mean. Returns how many it filled. */
-static size_t dilate_ring(rs_tex_pages *t, int p, uint8_t *filled, uint8_t *next)
+/* One ring of dilation within the rectangle [x0, x1) x [y0, y1) of page p: every empty texel
+ * with a filled 4-neighbour inside it (in filled, the rectangle's own) takes their mean. */
+static size_t dilate_ring(rs_tex_pages *t, size_t base, int x0, int y0, int rw, int rh, uint8_t *filled, uint8_t *next)
 {
-    size_t S = (size_t)t->side, base = (size_t)p * S * S, n = 0;
-    memcpy(next, filled, S * S);
-#pragma omp parallel for schedule(static) reduction(+ : n)
-    for (long y = 0; y < (long)S; y++)
-        for (size_t x = 0; x < S; x++) {
-            size_t k = (size_t)y * S + x;
-            if (filled[k]) continue;
+    size_t S = (size_t)t->side, n = 0;
+    memcpy(next, filled, (size_t)rw * rh);
+    for (int y = 0; y < rh; y++)
+        for (int x = 0; x < rw; x++) {
+            size_t r = (size_t)y * rw + x;
+            if (filled[r]) continue;
             float acc[3] = {0, 0, 0};
             int cnt = 0;
-            size_t nb[4] = {x > 0 ? k - 1 : k, x + 1 < S ? k + 1 : k, y > 0 ? k - S : k, (size_t)y + 1 < S ? k + S : k};
-            for (int d = 0; d < 4; d++)
-                if (nb[d] != k && filled[nb[d]]) {
-                    for (int ch = 0; ch < 3; ch++) acc[ch] += t->rgb[3 * (base + nb[d]) + ch];
-                    cnt++;
-                }
+            static const int dx[4] = {-1, 1, 0, 0}, dy[4] = {0, 0, -1, 1};
+            for (int d = 0; d < 4; d++) {
+                int qx = x + dx[d], qy = y + dy[d];
+                if (qx < 0 || qy < 0 || qx >= rw || qy >= rh || !filled[(size_t)qy * rw + qx]) continue;
+                size_t k = base + (size_t)(y0 + qy) * S + (size_t)(x0 + qx);
+                for (int ch = 0; ch < 3; ch++) acc[ch] += t->rgb[3 * k + ch];
+                cnt++;
+            }
             if (!cnt) continue;
-            for (int ch = 0; ch < 3; ch++) t->rgb[3 * (base + k) + ch] = acc[ch] / cnt;
-            t->flags[base + k] |= RS_TEX_GUTTER;
-            next[k] = 1;
+            size_t k = base + (size_t)(y0 + y) * S + (size_t)(x0 + x);
+            for (int ch = 0; ch < 3; ch++) t->rgb[3 * k + ch] = acc[ch] / cnt;
+            t->flags[k] |= RS_TEX_GUTTER;
+            next[r] = 1;
             n++;
         }
-    memcpy(filled, next, S * S);
+    memcpy(filled, next, (size_t)rw * rh);
     return n;
+}
+
+/* A chart's rectangle with its gutter, ring by ring from its texels. */
+static void dilate_chart(rs_tex_pages *t, const rs_atlas_chart *c)
+{
+    int g = t->atlas->gutter, x0 = c->x0 - g, y0 = c->y0 - g, rw = c->w + 2 * g, rh = c->h + 2 * g;
+    size_t S = (size_t)t->side, base = (size_t)c->page * S * S;
+    uint8_t *filled = malloc((size_t)rw * rh), *next = malloc((size_t)rw * rh);
+    if (filled && next) {
+        for (int y = 0; y < rh; y++)
+            for (int x = 0; x < rw; x++)
+                filled[(size_t)y * rw + x] = t->face[base + (size_t)(y0 + y) * S + (size_t)(x0 + x)] >= 0;
+        for (int r = 0; r < 2 * g + 2; r++)
+            if (!dilate_ring(t, base, x0, y0, rw, rh, filled, next)) break;
+    }
+    free(filled);
+    free(next);
 }
 
 void rs_tex_dilate(rs_tex_pages *t)
 {
     size_t S = (size_t)t->side;
-    uint8_t *filled = malloc(S * S), *next = malloc(S * S);
-    if (!filled || !next) { /* no memory for the rings: the gutters keep the page's mean */
-        free(filled);
-        free(next);
-        return;
-    }
-    int rings = 2 * t->atlas->gutter + 2;
+    long nc = (long)t->atlas->ncharts;
+#pragma omp parallel for schedule(dynamic, 4)
+    for (long ci = 0; ci < nc; ci++) dilate_chart(t, &t->atlas->charts[ci]);
+    /* What no ring reached (between the charts' rectangles): the page's mean. */
     for (int p = 0; p < t->npages; p++) {
-        size_t base = (size_t)p * S * S;
+        size_t base = (size_t)p * S * S, nf = 0;
         double mean[3] = {0, 0, 0};
-        size_t nf = 0;
-        for (size_t k = 0; k < S * S; k++) {
-            filled[k] = t->face[base + k] >= 0;
-            if (filled[k]) {
-                for (int ch = 0; ch < 3; ch++) mean[ch] += t->rgb[3 * (base + k) + ch];
+        for (size_t k = base; k < base + S * S; k++)
+            if (t->face[k] >= 0) {
+                for (int ch = 0; ch < 3; ch++) mean[ch] += t->rgb[3 * k + ch];
                 nf++;
             }
-        }
-        for (int r = 0; r < rings; r++)
-            if (!dilate_ring(t, p, filled, next)) break;
-        for (size_t k = 0; k < S * S; k++)
-            if (!filled[k]) {
-                for (int ch = 0; ch < 3; ch++) t->rgb[3 * (base + k) + ch] = nf ? (float)(mean[ch] / nf) : 0;
-                t->flags[base + k] |= RS_TEX_GUTTER;
+        for (size_t k = base; k < base + S * S; k++)
+            if (t->face[k] < 0 && !(t->flags[k] & RS_TEX_GUTTER)) {
+                for (int ch = 0; ch < 3; ch++) t->rgb[3 * k + ch] = nf ? (float)(mean[ch] / nf) : 0;
+                t->flags[k] |= RS_TEX_GUTTER;
             }
     }
-    free(filled);
-    free(next);
 }
 
 void rs_tex_sample(const rs_tex_pages *t, int p, double u, double v, float rgb[3])
