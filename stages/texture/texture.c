@@ -12,9 +12,9 @@
  *   normal irradiance that makes the chart's sun power equal the facets' (sum A_f E_sun,f /
  *   sum A_f cos_f V_f, V_f the facet's mean texel V). A texel the shadow's edge crosses
  *   (0 < V < 1) is flagged. The sun's direction is irradiance.json's `sun_direction`.
- * Texels no capture sees take their facet's solved albedo. Outputs: albedo_texture.exr (R G B
- * linear, flags, sigma) and .png (sRGB), one pair per page (albedo_texture_P.* with several),
- * and the exports (texture_export.c). */
+ * Texels no capture sees take their facet's solved albedo. Outputs: albedo_texture.exr (R G B,
+ * linear), albedo_texture_flags.exr (flags, sigma) and albedo_texture.png (sRGB) per page
+ * (albedo_texture_P.* with several), and the exports (texture_export.c). */
 #include <cjson/cJSON.h>
 #include <math.h>
 #include <stdio.h>
@@ -32,6 +32,7 @@
 
 #define SUN_RAYS       4
 #define SUN_RADIUS_RAD (0.2665 * M_PI / 180)
+#define TEX_SEEN       128u /* while the texels are measured: the camera saw the texel */
 
 typedef struct {
     rs_mesh *mesh;
@@ -192,11 +193,10 @@ typedef struct {
     const tex_inputs *in;
     const rs_scene *scene;
     rs_tex_pages *t;
-    double *Dc; /* corner_irradiance */
-    double *U;  /* 3 per chart: the sun's normal irradiance */
-    float *vis; /* per texel: V, -1 where the sun is behind the face */
-    float *L;   /* 3 per texel: radiance; seen[k] when measured */
-    uint8_t *seen;
+    double *Dc;  /* corner_irradiance */
+    double *U;   /* 3 per chart: the sun's normal irradiance */
+    float *vis;  /* per texel: V, -1 where the sun is behind the face (the pages' sigma until the albedo) */
+    float *L;    /* 3 per texel: radiance, flag TEX_SEEN when measured (the pages' rgb until the albedo) */
     int sub_max; /* sub-samples per side, at most */
 } tex_ctx;
 
@@ -293,7 +293,7 @@ static void pass_measure(tex_ctx *c)
             if (t->face[k] < 0) continue;
             uint32_t f = (uint32_t)t->face[k];
             int y = (int)(row % S);
-            c->seen[k] = (uint8_t)texel_radiance(c, f, x, y, c->L + 3 * k);
+            if (texel_radiance(c, f, x, y, c->L + 3 * k)) t->flags[k] |= TEX_SEEN;
             if (has_sun) {
                 double b[3];
                 c->vis[k] = sun_visibility(c, rs_tex_point(t, f, x, y, b), rs_scene_normal(c->scene, f));
@@ -371,7 +371,8 @@ static void pass_albedo(tex_ctx *c, tex_counts *n)
                 Etot += E[q] / 3;
             }
             texels++;
-            int ok = c->seen[k] && in->estimable[f] > 0;
+            int ok = (t->flags[k] & TEX_SEEN) && in->estimable[f] > 0;
+            t->flags[k] &= (uint8_t)~TEX_SEEN;
             for (int q = 0; q < 3; q++) ok &= E[q] > 0 && isfinite(E[q]);
             if (c->vis[k] > 0 && c->vis[k] < 1) {
                 t->flags[k] |= RS_TEX_PENUMBRA;
@@ -394,23 +395,21 @@ static void pass_albedo(tex_ctx *c, tex_counts *n)
     n->unseen = texels - seen;
 }
 
-/* The texture's pages as EXR (R G B flags sigma) and PNG; names[p] gets each PNG's name. */
+/* The texture's pages: albedo_texture.exr (R G B, linear) and .png (sRGB) from the pages' own
+ * array, and albedo_texture_flags.exr (flags, sigma); albedo_texture_P.* with several pages.
+ * names[p] gets each PNG's name. */
 static int write_pages(const rs_config *cfg, const rs_tex_pages *t, char names[][64], rs_err *err)
 {
     int S = t->side;
-    rs_image *img = rs_image_new(S, S, 5), *rgb = rs_image_new(S, S, 3);
-    int rc = -1;
-    if (!img || !rgb) {
-        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for a %d x %d texture page", S, S);
-        goto out;
-    }
-    static const char *const chn[] = {"R", "G", "B", "flags", "sigma"};
+    rs_image *fl = rs_image_new(S, S, 2);
+    if (!fl) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for a %d x %d texture page", S, S);
+    static const char *const rgbn[] = {"R", "G", "B"}, *const fln[] = {"flags", "sigma"};
     for (int p = 0; p < t->npages; p++) {
         size_t base = (size_t)p * S * S;
+        rs_image page = {S, S, 3, t->rgb + 3 * base}; /* borrowed */
         for (size_t k = 0; k < (size_t)S * S; k++) {
-            for (int q = 0; q < 3; q++) img->data[5 * k + q] = rgb->data[3 * k + q] = t->rgb[3 * (base + k) + q];
-            img->data[5 * k + 3] = t->flags[base + k];
-            img->data[5 * k + 4] = t->sigma[base + k];
+            fl->data[2 * k] = t->flags[base + k];
+            fl->data[2 * k + 1] = t->sigma[base + k];
         }
         char file[48];
         if (t->npages == 1)
@@ -418,29 +417,30 @@ static int write_pages(const rs_config *cfg, const rs_tex_pages *t, char names[]
         else
             snprintf(file, sizeof file, "albedo_texture_%d", p);
         snprintf(names[p], 64, "%s.png", file);
-        char exr[80];
-        snprintf(exr, sizeof exr, "%s.exr", file);
-        /* the two files on two threads: each writer is serial */
-        rs_err werr[2] = {{0}};
-        int wrc[2];
+        /* the three files on the threads there are: each writer is serial */
+        rs_err werr[3] = {{0}};
+        int wrc[3];
 #pragma omp parallel for schedule(static, 1)
-        for (int w = 0; w < 2; w++) {
-            char wpath[4096];
-            wrc[w] = w == 0 ? rs_image_write_exr(img, rs_work_path(cfg, exr, wpath, sizeof wpath), chn, 0,
-                                                 "rhoscan texture", &werr[w])
-                            : rs_image_write_png(rgb, rs_work_path(cfg, names[p], wpath, sizeof wpath), 1.0f, &werr[w]);
+        for (int w = 0; w < 3; w++) {
+            char wpath[4096], wname[80];
+            snprintf(wname, sizeof wname, w == 0 ? "%s.exr" : w == 1 ? "%s_flags.exr" : "%s.png", file);
+            rs_work_path(cfg, wname, wpath, sizeof wpath);
+            wrc[w] = w == 0 ? rs_image_write_exr(&page, wpath, rgbn, 0, "rhoscan texture: albedo, linear", &werr[w])
+                : w == 1    ? rs_image_write_exr(fl, wpath, fln, 0,
+                                                 "rhoscan texture: flags 1 unseen (facet albedo), 2 penumbra, 4 edge, "
+                                                    "8 gutter; sigma relative",
+                                                 &werr[w])
+                            : rs_image_write_png(&page, wpath, 1.0f, &werr[w]);
         }
-        for (int w = 0; w < 2; w++)
+        for (int w = 0; w < 3; w++)
             if (wrc[w] != 0) {
                 if (err) *err = werr[w];
-                goto out;
+                rs_image_free(fl);
+                return -1;
             }
     }
-    rc = 0;
-out:
-    rs_image_free(img);
-    rs_image_free(rgb);
-    return rc;
+    rs_image_free(fl);
+    return 0;
 }
 
 static void report_texture(rs_report *rep, const rs_atlas *a, const tex_counts *n, size_t vertices)
@@ -483,10 +483,9 @@ static int texture_compute(const rs_config *cfg, tex_inputs *in, rs_tex_pages *t
     if (!scene) return -1;
     c.scene = scene;
     c.Dc = corner_irradiance(in, t->atlas);
-    c.vis = malloc((t->ntex + 1) * sizeof *c.vis);
-    c.L = malloc((3 * t->ntex + 1) * sizeof *c.L);
-    c.seen = calloc(t->ntex + 1, 1);
-    if (!c.Dc || !c.vis || !c.L || !c.seen) {
+    c.vis = t->sigma;
+    c.L = t->rgb;
+    if (!c.Dc) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu texels", t->ntex);
         goto out;
     }
@@ -506,9 +505,6 @@ static int texture_compute(const rs_config *cfg, tex_inputs *in, rs_tex_pages *t
     rc = 0;
 out:
     free(c.Dc);
-    free(c.vis);
-    free(c.L);
-    free(c.seen);
     free(c.U);
     rs_scene_free(scene);
     return rc;

@@ -11,7 +11,7 @@
 #include "common/mesh.h"
 #include "meshing/atlas.h"
 
-/* Texel flags (the EXR's channel "flags"). */
+/* Texel flags (channel "flags" of albedo_texture_flags.exr). */
 #define RS_TEX_UNSEEN   1u /* no capture saw it: the facet's solved albedo */
 #define RS_TEX_PENUMBRA 2u /* the sun's shadow edge crosses it: not resolved at this texel size */
 #define RS_TEX_EDGE     4u /* just outside its face, on the face's plane (for filtering at edges) */

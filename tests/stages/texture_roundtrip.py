@@ -9,7 +9,8 @@ code:
     percentile within 8 %);
   - albedo.obj: triangles only, Y up, every face with a UV, its mtllib and map_Kd files there;
   - albedo_vertex.ply: uchar sRGB red green blue equal to the sRGB encoding of its linear floats;
-  - albedo_texture.exr: R G B plus flags and sigma, a power-of-two square, nothing non-finite.
+  - albedo_texture.exr (R G B) and albedo_texture_flags.exr (flags, sigma): a power-of-two square,
+    nothing non-finite; albedo_texture.png its sRGB encoding.
 """
 import argparse
 import os
@@ -104,16 +105,24 @@ def check_vertex_ply(work):
 
 def check_exr(work):
     import OpenImageIO as oiio
-    img = oiio.ImageBuf(os.path.join(work, 'albedo_texture.exr'))
-    spec = img.spec()
-    names = list(spec.channelnames)
-    if names[:3] != ['R', 'G', 'B'] or 'flags' not in names or 'sigma' not in names:
-        fail('albedo_texture.exr channels %s' % names)
+    rgb, fl = oiio.ImageBuf(os.path.join(work, 'albedo_texture.exr')), oiio.ImageBuf(
+        os.path.join(work, 'albedo_texture_flags.exr'))
+    spec = rgb.spec()
+    if list(spec.channelnames) != ['R', 'G', 'B'] or list(fl.spec().channelnames) != ['flags', 'sigma']:
+        fail('albedo_texture.exr channels %s, albedo_texture_flags.exr %s' % (list(spec.channelnames),
+                                                                             list(fl.spec().channelnames)))
     if spec.width != spec.height or spec.width & (spec.width - 1):
         fail('albedo_texture.exr is %d x %d: expected a power-of-two square' % (spec.width, spec.height))
-    px = img.get_pixels(oiio.FLOAT)
-    if not np.isfinite(px).all():
-        fail('albedo_texture.exr holds values that are not finite')
+    px, fx = rgb.get_pixels(oiio.FLOAT), fl.get_pixels(oiio.FLOAT)
+    if not np.isfinite(px).all() or not np.isfinite(fx).all():
+        fail('the texture EXRs hold values that are not finite')
+    png = oiio.ImageBuf(os.path.join(work, 'albedo_texture.png')).get_pixels(oiio.FLOAT)[:, :, :3]
+    if np.abs(png - srgb8(px) / 255).max() > 1.01 / 255:
+        fail('albedo_texture.png is not the sRGB encoding of albedo_texture.exr')
+    flags = fx[:, :, 0].astype(int)
+    surface = (flags & 8) == 0
+    print('albedo_texture.exr: %d x %d, %.1f %% of the texels on the surface, %.1f %% of those unseen' %
+          (spec.width, spec.height, 100 * surface.mean(), 100 * ((flags & 1) != 0)[surface].mean()))
 
 
 def main():
