@@ -67,23 +67,23 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"mesh", "denoise_max_move", RS_CFG_REAL, "0.005", 1e-6, 10, NULL, "m", "mesh",
      "denoise: no vertex moves farther than this (a small multiple of the scan noise)"},
 
-    {"capture", "panorama", RS_CFG_PATH, NULL, 0, 0, NULL, "", "mesh observe irradiance render",
+    {"capture", "panorama", RS_CFG_PATH, NULL, 0, 0, NULL, "", "mesh observe irradiance render texture",
      "equirectangular panorama (EXR or Radiance HDR), linear radiance, width = 2 x height"},
-    {"capture", "position", RS_CFG_VEC3, NULL, 0, 0, NULL, "m", "mesh observe irradiance render",
+    {"capture", "position", RS_CFG_VEC3, NULL, 0, 0, NULL, "m", "mesh observe irradiance render texture",
      "camera centre in the world frame (required: a forgotten pose would silently misplace every pixel)"},
-    {"capture", "rotation", RS_CFG_ROTATION, "1 0 0 0 1 0 0 0 1", 0, 0, NULL, "", "mesh observe irradiance render",
-     "camera local -> world rotation, 9 numbers row-major"},
-    {"capture", "correspondences", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib observe irradiance render",
+    {"capture", "rotation", RS_CFG_ROTATION, "1 0 0 0 1 0 0 0 1", 0, 0, NULL, "",
+     "mesh observe irradiance render texture", "camera local -> world rotation, 9 numbers row-major"},
+    {"capture", "correspondences", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib observe irradiance render texture",
      "pairs file `column row X Y Z` per line (>= 4): the calib stage solves the pose; position and rotation only seed "
      "it"},
-    {"capture", "colmap_panorama", RS_CFG_STRING, NULL, 0, 0, NULL, "", "calib observe irradiance render",
+    {"capture", "colmap_panorama", RS_CFG_STRING, NULL, 0, 0, NULL, "", "calib observe irradiance render texture",
      "label of a panorama in the [colmap] views file: its views in the COLMAP model pose this capture (position, "
      "rotation unused)"},
-    {"capture", "refine_edges", RS_CFG_BOOL, NULL, 0, 0, NULL, "", "calib observe irradiance render",
+    {"capture", "refine_edges", RS_CFG_BOOL, NULL, 0, 0, NULL, "", "calib observe irradiance render texture",
      "true: the calib stage refines the pose (solved, or position and rotation as a rough start) by aligning the "
      "panorama's edges with the model's (mesh.ply); unset or false: no refinement; [capture] only"},
 
-    {"rig", "file", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib observe irradiance render",
+    {"rig", "file", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib observe irradiance render texture",
      "camera rig in OpenCV FileStorage YAML (docs/DESIGN.md, section Rig file); its stitched panorama replaces "
      "[capture] panorama"},
     {"rig", "frames", RS_CFG_PATHS, NULL, 0, 0, NULL, "", "calib",
