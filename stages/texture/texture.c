@@ -101,6 +101,8 @@ static int read_inputs(const rs_config *cfg, tex_inputs *in, rs_err *err)
     if (rs_faceprop_get_rgb(in->irr, ip, "irradiance_sky", nf, in->esky, err) != 0 ||
         rs_faceprop_get_rgb(in->irr, ip, "irradiance_sun", nf, in->esun, err) != 0)
         return -1;
+    rs_ply_free(in->irr);
+    in->irr = NULL;
     if (rs_capture_load(cfg, "capture", &in->cap, err) != 0) return -1;
     const char *idp = rs_work_path(cfg, "facet_id.exr", path, sizeof path);
     if (!(in->ids = rs_image_read(idp, err))) return -1;
@@ -110,6 +112,9 @@ static int read_inputs(const rs_config *cfg, tex_inputs *in, rs_err *err)
     const char *o = rs_ply_find_comment(in->alb, "rhoscan_origin");
     if (!o || sscanf(o, "%lf %lf %lf", &in->origin[0], &in->origin[1], &in->origin[2]) != 3)
         in->origin[0] = in->origin[1] = in->origin[2] = 0;
+    /* the PLYs hold every property as doubles (about 0.5 GB at 10^6 facets): gone once read */
+    rs_ply_free(in->alb);
+    in->alb = NULL;
     return 0;
 }
 
