@@ -58,11 +58,13 @@ int rs_texture_run(const rs_config *cfg, rs_report *rep, rs_err *err);     /* ->
     }
 
 /* The texture atlas's pages are albedo_texture.exr/.png with one page, albedo_texture_P.* with
- * several: only the files every run writes are listed. */
+ * several: only the files every run writes are listed. The sun's direction comes from
+ * irradiance.json, which is not listed: its timings would make the recorded input hashes differ
+ * from run to run, and it changes only with irradiance.ply (the same run writes both). */
 #define RS_STAGE_DEF_TEXTURE                                                                           \
     {                                                                                                  \
         "texture", rs_texture_run, "texture capture rig",                                              \
-            "albedo.ply irradiance.ply irradiance.json facet_id.exr pano_stitched.exr capture_pose.txt", \
+            "albedo.ply irradiance.ply facet_id.exr pano_stitched.exr capture_pose.txt",                 \
             "albedo.glb albedo.obj albedo.mtl albedo_vertex.ply",                                      \
             "per-texel albedo on a UV atlas; albedo.glb, albedo.obj, albedo_vertex.ply for viewers"     \
     }
