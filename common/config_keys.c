@@ -69,30 +69,30 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"mesh", "denoise_max_move", RS_CFG_REAL, "0.005", 1e-6, 10, NULL, "m", "mesh",
      "denoise: no vertex moves farther than this (a small multiple of the scan noise)"},
 
-    {"capture", "panorama", RS_CFG_PATH, NULL, 0, 0, NULL, "", "mesh observe irradiance render",
+    {"capture", "panorama", RS_CFG_PATH, NULL, 0, 0, NULL, "", "mesh observe irradiance render texture",
      "equirectangular panorama (EXR or Radiance HDR), linear radiance, width = 2 x height; or an E57 file holding "
      "it as a spherical image with its pose (e57_image)"},
-    {"capture", "e57_image", RS_CFG_STRING, NULL, 0, 0, NULL, "", "mesh observe irradiance render",
+    {"capture", "e57_image", RS_CFG_STRING, NULL, 0, 0, NULL, "", "mesh observe irradiance render texture",
      "panorama = FILE.e57: the images2D entry that is the panorama, by name or 0-based index; unset: the file's only "
      "spherical image. Its pose is the capture's (position and rotation unused when it has one)"},
-    {"capture", "response_file", RS_CFG_PATH, NULL, 0, 0, NULL, "", "mesh observe irradiance render",
+    {"capture", "response_file", RS_CFG_PATH, NULL, 0, 0, NULL, "", "mesh observe irradiance render texture",
      "panorama = FILE.e57: the camera response that linearises its 8-bit image (as [rig] response_file); unset: the "
      "sRGB curve, with a warning"},
-    {"capture", "position", RS_CFG_VEC3, NULL, 0, 0, NULL, "m", "mesh observe irradiance render",
+    {"capture", "position", RS_CFG_VEC3, NULL, 0, 0, NULL, "m", "mesh observe irradiance render texture",
      "camera centre in the world frame (required: a forgotten pose would silently misplace every pixel)"},
-    {"capture", "rotation", RS_CFG_ROTATION, "1 0 0 0 1 0 0 0 1", 0, 0, NULL, "", "mesh observe irradiance render",
-     "camera local -> world rotation, 9 numbers row-major"},
-    {"capture", "correspondences", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib observe irradiance render",
+    {"capture", "rotation", RS_CFG_ROTATION, "1 0 0 0 1 0 0 0 1", 0, 0, NULL, "",
+     "mesh observe irradiance render texture", "camera local -> world rotation, 9 numbers row-major"},
+    {"capture", "correspondences", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib observe irradiance render texture",
      "pairs file `column row X Y Z` per line (>= 4): the calib stage solves the pose; position and rotation only seed "
      "it"},
-    {"capture", "colmap_panorama", RS_CFG_STRING, NULL, 0, 0, NULL, "", "calib observe irradiance render",
+    {"capture", "colmap_panorama", RS_CFG_STRING, NULL, 0, 0, NULL, "", "calib observe irradiance render texture",
      "label of a panorama in the [colmap] views file: its views in the COLMAP model pose this capture (position, "
      "rotation unused)"},
-    {"capture", "refine_edges", RS_CFG_BOOL, NULL, 0, 0, NULL, "", "calib observe irradiance render",
+    {"capture", "refine_edges", RS_CFG_BOOL, NULL, 0, 0, NULL, "", "calib observe irradiance render texture",
      "true: the calib stage refines the pose (solved, or position and rotation as a rough start) by aligning the "
      "panorama's edges with the model's (mesh.ply); unset or false: no refinement; [capture] only"},
 
-    {"rig", "file", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib observe irradiance render",
+    {"rig", "file", RS_CFG_PATH, NULL, 0, 0, NULL, "", "calib observe irradiance render texture",
      "camera rig in OpenCV FileStorage YAML (docs/DESIGN.md, section Rig file); its stitched panorama replaces "
      "[capture] panorama"},
     {"rig", "frames", RS_CFG_PATHS, NULL, 0, 0, NULL, "", "calib",
@@ -261,5 +261,16 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"report", "truth", RS_CFG_PATH, NULL, 0, 0, NULL, "", "report",
      "a truth PLY (float red green blue albedo and an integer part per face, as a reference scene's truth.ply): the "
      "report adds the per-part albedo error table and the error map"},
+    {"texture", "texel_size", RS_CFG_REAL, NULL, 1e-4, 100, NULL, "m", "texture",
+     "texel side on the surface; default: the finest panorama sampling on the model (10th percentile over the "
+     "observed facets of a pixel's footprint), raised to stay within max_texels"},
+    {"texture", "max_texels", RS_CFG_INT, "16777216", 4096, 1073741824, NULL, "texels", "texture",
+     "the atlas pages' texels, all pages together, at most this many (about 21 bytes each while the stage runs)"},
+    {"texture", "chart_angle_deg", RS_CFG_REAL, "10", 0.1, 60, NULL, "deg", "texture",
+     "connected facets whose normals lie within this of a chart's first facet share its chart"},
+    {"texture", "gutter", RS_CFG_INT, "4", 1, 64, NULL, "texels", "texture",
+     "empty texels around each chart, filled by dilation so that mipmaps show no seams"},
+    {"texture", "max_side", RS_CFG_INT, "8192", 64, 8192, NULL, "texels", "texture",
+     "largest atlas page side (a power of two); more pages when one is not enough"},
 
     {NULL, NULL, 0, NULL, 0, 0, NULL, NULL, NULL, NULL}};

@@ -12,6 +12,7 @@ int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err);     /* ->
 int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err);  /* -> irradiance.ply, transport.ply */
 int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err); /* -> albedo.ply */
 int rs_render_run(const rs_config *cfg, rs_report *rep, rs_err *err);      /* -> images, render.json */
+int rs_texture_run(const rs_config *cfg, rs_report *rep, rs_err *err);     /* -> albedo texture, glb, obj, vertex ply */
 
 /* Each stage's definition (stage.h: rs_stage_def). A stage program builds its own from these
  * and links only its own stage: the table below (stages.c) references every stage, so a
@@ -55,6 +56,18 @@ int rs_render_run(const rs_config *cfg, rs_report *rep, rs_err *err);      /* ->
             "albedo.ply transport.ply facet_id.exr pano_stitched.exr capture_pose.txt",                               \
             "irradiance.exr albedo.exr synth.exr diff.exr irradiance.png albedo.png synth.png diff.png observed.png", \
             "re-render the panorama from the albedo and compare with the observation"                                 \
+    }
+
+/* The texture atlas's pages are albedo_texture.exr/.png with one page, albedo_texture_P.* with
+ * several: only the files every run writes are listed. The sun's direction comes from
+ * irradiance.json, which is not listed: its timings would make the recorded input hashes differ
+ * from run to run, and it changes only with irradiance.ply (the same run writes both). */
+#define RS_STAGE_DEF_TEXTURE                                                                           \
+    {                                                                                                  \
+        "texture", rs_texture_run, "texture capture rig",                                              \
+            "albedo.ply irradiance.ply facet_id.exr pano_stitched.exr capture_pose.txt",                 \
+            "albedo.glb albedo.obj albedo.mtl albedo_vertex.ply",                                      \
+            "per-texel albedo on a UV atlas; albedo.glb, albedo.obj, albedo_vertex.ply for viewers"     \
     }
 
 /* Every stage in pipeline order, ended by {NULL} (stages.c): the driver's table. It references

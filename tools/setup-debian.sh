@@ -11,8 +11,10 @@ if [ "${1:-}" = "--tests" ]; then
     # cmocka: unit tests; python3 with numpy/scipy/OpenImageIO: the reference evaluator;
     # clang + libclang-rt-14-dev + libomp-dev (OpenMP for clang): fuzzing and sanitizer builds;
     # blender-data: real DWA-compressed skies; chromium, chromium-driver, python3-selenium: the
-    # report's page test (tests/report/report_page.py).
-    pkgs="$pkgs libcmocka-dev python3 python3-numpy python3-scipy python3-openimageio clang libclang-rt-14-dev libomp-dev blender-data chromium chromium-driver python3-selenium"
+    # report's page test (tests/report/report_page.py); blender and python3-open3d: the viewers
+    # the texture stage's exports must open in (tests/stages/texture_viewers.py; about 45 s to
+    # install, 85 MB of packages, 266 MB on disk).
+    pkgs="$pkgs libcmocka-dev python3 python3-numpy python3-scipy python3-openimageio clang libclang-rt-14-dev libomp-dev blender-data chromium chromium-driver python3-selenium blender python3-open3d"
 fi
 missing=""
 for p in $pkgs; do

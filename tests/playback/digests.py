@@ -13,7 +13,7 @@ import hashlib, json, os
 
 # Keys that are not results: they change between two runs of the same build on the same input.
 VOLATILE = {'timings_s', 'wall_time_s', 'cpu_time_s', 'peak_rss_mb', 'rays_per_second', 'fingerprint', 'git_commit'}
-KINDS = ('.ply', '.exr', '.png', '.json')
+KINDS = ('.ply', '.exr', '.png', '.json', '.glb', '.obj', '.mtl')
 
 
 def _normalise(value, places):

@@ -1,0 +1,556 @@
+/* texture: the per-texel albedo (issue 22). On the atlas of the mesh (meshing/atlas.h), every
+ * texel's point x on the surface gets
+ *     rho(x) = pi L(x) / E(x),   E(x) = D(x) + U_chart cos(n, s) V(x)
+ * L(x): the capture's panorama where a ray from the camera reaches x unoccluded and x faces it,
+ *   sampled bilinearly at sub-texel points (as many as a panorama pixel's footprint needs, up
+ *   to 3 x 3) whose four pixels all see the same chart (facet_id.exr): nothing from another
+ *   surface or the sky leaks in;
+ * D(x): the sky (without the sun) and interreflected irradiance of the facets (irradiance.ply's
+ *   irradiance_sky - irradiance_sun, albedo.ply's irradiance_inter), averaged at each corner over
+ *   the chart's faces meeting there and interpolated barycentrically: no step between facets;
+ * V(x): the share of shadow rays toward the sun's disc that escape, per texel; U_chart the sun's
+ *   normal irradiance that makes the chart's sun power equal the facets' (sum A_f E_sun,f /
+ *   sum A_f cos_f V_f, V_f the facet's mean texel V). A texel the shadow's edge crosses
+ *   (0 < V < 1) is flagged. The sun's direction is irradiance.json's `sun_direction`.
+ * Texels no capture sees take their facet's solved albedo. Outputs: albedo_texture.exr (R G B,
+ * linear), albedo_texture_flags.exr (flags, sigma) and albedo_texture.png (sRGB) per page
+ * (albedo_texture_P.* with several), and the exports (texture_export.c). */
+#include <cjson/cJSON.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "common/capture.h"
+#include "common/faceprop.h"
+#include "common/fileio.h"
+#include "common/log.h"
+#include "common/scene.h"
+#include "common/select.h"
+#include "pipeline/capture_load.h"
+#include "stages/stages.h"
+#include "stages/texture/texture_internal.h"
+
+#define SUN_RAYS       4
+#define SUN_RADIUS_RAD (0.2665 * M_PI / 180)
+#define TEX_SEEN       128u /* while the texels are measured: the camera saw the texel */
+
+typedef struct {
+    rs_mesh *mesh;
+    rs_ply *alb, *irr;
+    size_t nf;
+    double *rho, *esky, *esun, *G; /* 3 per facet */
+    double *estimable;             /* per facet */
+    rs_capture cap;
+    rs_image *ids; /* facet_id.exr */
+    rs_v3 sun;     /* toward the sun; zero when none */
+    double origin[3];
+} tex_inputs;
+
+static void tex_inputs_free(tex_inputs *in)
+{
+    rs_mesh_free(in->mesh);
+    rs_ply_free(in->alb);
+    rs_ply_free(in->irr);
+    free(in->rho);
+    free(in->esky);
+    free(in->esun);
+    free(in->G);
+    free(in->estimable);
+    rs_capture_release(&in->cap);
+    rs_image_free(in->ids);
+}
+
+/* irradiance.json's sun_direction (zero when absent or not a unit vector). */
+static rs_v3 read_sun_direction(const rs_config *cfg)
+{
+    char path[4096], *text = NULL;
+    size_t n = 0;
+    rs_v3 s = rs_v3_make(0, 0, 0);
+    if (rs_read_file(rs_work_path(cfg, "irradiance.json", path, sizeof path), &text, &n, NULL) != 0) return s;
+    cJSON *j = cJSON_ParseWithLength(text, n);
+    const cJSON *d = cJSON_GetObjectItemCaseSensitive(j, "sun_direction");
+    if (cJSON_IsArray(d) && cJSON_GetArraySize(d) == 3) {
+        rs_v3 v = rs_v3_make(cJSON_GetArrayItem(d, 0)->valuedouble, cJSON_GetArrayItem(d, 1)->valuedouble,
+                             cJSON_GetArrayItem(d, 2)->valuedouble);
+        if (rs_v3_finite(v) && fabs(rs_v3_len(v) - 1) < 1e-3) s = rs_v3_norm(v);
+    }
+    cJSON_Delete(j);
+    free(text);
+    return s;
+}
+
+static int read_inputs(const rs_config *cfg, tex_inputs *in, rs_err *err)
+{
+    char ap[4096], ip[4096], path[4096];
+    rs_work_path(cfg, "albedo.ply", ap, sizeof ap);
+    rs_work_path(cfg, "irradiance.ply", ip, sizeof ip);
+    if (!(in->mesh = rs_mesh_read(ap, &in->alb, err))) return -1;
+    size_t nf = in->nf = in->mesh->nfaces;
+    in->rho = malloc((3 * nf + 1) * sizeof(double));
+    in->esky = malloc((3 * nf + 1) * sizeof(double));
+    in->esun = malloc((3 * nf + 1) * sizeof(double));
+    in->G = malloc((3 * nf + 1) * sizeof(double));
+    in->estimable = malloc((nf + 1) * sizeof(double));
+    if (!in->rho || !in->esky || !in->esun || !in->G || !in->estimable)
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+    if (rs_faceprop_get_rgb(in->alb, ap, "albedo", nf, in->rho, err) != 0 ||
+        rs_faceprop_get_rgb(in->alb, ap, "irradiance_inter", nf, in->G, err) != 0 ||
+        rs_faceprop_get(in->alb, ap, "estimable", nf, in->estimable, err) != 0)
+        return -1;
+    if (!(in->irr = rs_ply_read(ip, err))) return -1;
+    if (rs_faceprop_get_rgb(in->irr, ip, "irradiance_sky", nf, in->esky, err) != 0 ||
+        rs_faceprop_get_rgb(in->irr, ip, "irradiance_sun", nf, in->esun, err) != 0)
+        return -1;
+    rs_ply_free(in->irr);
+    in->irr = NULL;
+    if (rs_capture_load(cfg, "capture", &in->cap, err) != 0) return -1;
+    const char *idp = rs_work_path(cfg, "facet_id.exr", path, sizeof path);
+    if (!(in->ids = rs_image_read(idp, err))) return -1;
+    if (in->ids->width != in->cap.pano->width || in->ids->height != in->cap.pano->height || in->ids->channels != 1)
+        return rs_err_set(err, RS_ERR_INPUT, idp, 0, "does not match the panorama's size (rerun observe)");
+    in->sun = read_sun_direction(cfg);
+    const char *o = rs_ply_find_comment(in->alb, "rhoscan_origin");
+    if (!o || sscanf(o, "%lf %lf %lf", &in->origin[0], &in->origin[1], &in->origin[2]) != 3)
+        in->origin[0] = in->origin[1] = in->origin[2] = 0;
+    /* the PLYs hold every property as doubles (about 0.5 GB at 10^6 facets): gone once read */
+    rs_ply_free(in->alb);
+    in->alb = NULL;
+    return 0;
+}
+
+/* The default texel: the 10th percentile over observed facets of a panorama pixel's footprint
+ * at the facet (distance x pixel angle): the finest sampling the model has, robust to a few
+ * facets next to the camera. */
+static double default_texel(const tex_inputs *in)
+{
+    size_t nf = in->nf, n = 0;
+    float *v = malloc((nf + 1) * sizeof *v);
+    if (!v) return 0.01;
+    double pix = M_PI / in->cap.pano->height;
+    for (size_t f = 0; f < nf; f++) {
+        rs_v3 c, nrm;
+        double a;
+        rs_mesh_face(in->mesh, f, &c, &nrm, &a);
+        if (in->estimable[f] > 0 && a > 0) v[n++] = (float)(rs_v3_len(rs_v3_sub(c, in->cap.pose.position)) * pix);
+    }
+    double t = n ? rs_select_kth(v, n, n / 10) : 0.01;
+    free(v);
+    return t > 1e-4 ? t : 1e-4;
+}
+
+/* Per-corner D (3 values per corner, 9 per face): the area-weighted mean over the chart's faces
+ * meeting at the corner's vertex. */
+typedef struct {
+    uint64_t key; /* chart << 32 | vertex */
+    uint32_t face;
+    uint8_t corner;
+} corner_rec;
+
+static int corner_cmp(const void *a, const void *b)
+{
+    const corner_rec *x = a, *y = b;
+    if (x->key != y->key) return x->key < y->key ? -1 : 1;
+    return x->face != y->face ? (x->face < y->face ? -1 : 1) : (x->corner > y->corner) - (x->corner < y->corner);
+}
+
+static double *corner_irradiance(const tex_inputs *in, const rs_atlas *a)
+{
+    size_t nf = in->nf, nc = 3 * nf;
+    corner_rec *r = malloc(nc * sizeof *r);
+    double *out = malloc((9 * nf + 1) * sizeof *out);
+    if (!r || !out) {
+        free(r);
+        free(out);
+        return NULL;
+    }
+    for (size_t f = 0; f < nf; f++)
+        for (int k = 0; k < 3; k++)
+            r[3 * f + k] =
+                (corner_rec){(uint64_t)a->face_chart[f] << 32 | in->mesh->tris[3 * f + k], (uint32_t)f, (uint8_t)k};
+    qsort(r, nc, sizeof *r, corner_cmp);
+    for (size_t i = 0; i < nc;) {
+        size_t j = i;
+        double acc[3] = {0, 0, 0}, w = 0;
+        for (; j < nc && r[j].key == r[i].key; j++) {
+            size_t f = r[j].face;
+            rs_v3 c, n;
+            double area;
+            rs_mesh_face(in->mesh, f, &c, &n, &area);
+            double d[3];
+            int ok = 1;
+            for (int ch = 0; ch < 3; ch++) {
+                d[ch] = in->esky[3 * f + ch] - in->esun[3 * f + ch] + in->G[3 * f + ch];
+                ok &= isfinite(d[ch]) && d[ch] >= 0;
+            }
+            if (!ok || !(area > 0)) continue;
+            for (int ch = 0; ch < 3; ch++) acc[ch] += area * d[ch];
+            w += area;
+        }
+        for (size_t q = i; q < j; q++)
+            for (int ch = 0; ch < 3; ch++) out[9 * (size_t)r[q].face + 3 * r[q].corner + ch] = w > 0 ? acc[ch] / w : 0;
+        i = j;
+    }
+    free(r);
+    return out;
+}
+
+typedef struct {
+    const tex_inputs *in;
+    const rs_scene *scene;
+    rs_tex_pages *t;
+    double *Dc;  /* corner_irradiance */
+    double *U;   /* 3 per chart: the sun's normal irradiance */
+    float *vis;  /* per texel: V, -1 where the sun is behind the face (the pages' sigma until the albedo) */
+    float *L;    /* 3 per texel: radiance, flag TEX_SEEN when measured (the pages' rgb until the albedo) */
+    int sub_max; /* sub-samples per side, at most */
+} tex_ctx;
+
+/* V at point p (normal n): SUN_RAYS rays toward points of the sun's disc. */
+static float sun_visibility(const tex_ctx *c, rs_v3 p, rs_v3 n)
+{
+    rs_v3 s = c->in->sun;
+    if (rs_v3_dot(s, n) <= 0) return -1;
+    rs_v3 t1, t2;
+    rs_v3_basis(s, &t1, &t2);
+    rs_ray rays[SUN_RAYS];
+    uint8_t occ[SUN_RAYS];
+    double off = rs_scene_offset(c->scene, p) * 4;
+    static const double jx[SUN_RAYS] = {0.5, -0.5, -0.5, 0.5}, jy[SUN_RAYS] = {0.5, 0.5, -0.5, -0.5};
+    for (int r = 0; r < SUN_RAYS; r++) {
+        rs_v3 d =
+            rs_v3_add(s, rs_v3_add(rs_v3_scale(t1, jx[r] * SUN_RADIUS_RAD), rs_v3_scale(t2, jy[r] * SUN_RADIUS_RAD)));
+        rays[r] = (rs_ray){rs_v3_add(p, rs_v3_scale(n, off)), rs_v3_norm(d), 0, INFINITY};
+    }
+    rs_scene_occluded(c->scene, rays, occ, SUN_RAYS);
+    int esc = 0;
+    for (int r = 0; r < SUN_RAYS; r++) esc += !occ[r];
+    return (float)esc / SUN_RAYS;
+}
+
+/* 1 when the panorama's four pixels around continuous coordinates (X, Y) all see chart ch and
+ * hold usable radiance. */
+static int pixels_on_chart(const tex_ctx *c, double X, double Y, uint32_t ch)
+{
+    const rs_image *ids = c->in->ids, *pano = c->in->cap.pano;
+    int W = ids->width, H = ids->height, x0 = (int)floor(X - 0.5), y0 = (int)floor(Y - 0.5);
+    for (int j = 0; j < 2; j++)
+        for (int i = 0; i < 2; i++) {
+            int x = ((x0 + i) % W + W) % W, y = y0 + j < 0 ? 0 : (y0 + j >= H ? H - 1 : y0 + j);
+            float id = ids->data[(size_t)y * W + x];
+            if (!(id >= 0 && id < (float)c->in->nf)) return 0;
+            if (c->t->atlas->face_chart[(size_t)id] != ch) return 0;
+            if (!rs_capture_pixel_ok(rs_image_px(pano, x, y))) return 0;
+        }
+    return 1;
+}
+
+/* L at texel k (face f, texel x, y of its page): the mean of the sub-samples that the camera sees
+ * on the texel's own chart. Returns 1 when any was. */
+static int texel_radiance(const tex_ctx *c, uint32_t f, int x, int y, float L[3])
+{
+    const rs_capture *cap = &c->in->cap;
+    rs_v3 n = rs_scene_normal(c->scene, f);
+    double b[3];
+    rs_v3 p = rs_tex_point(c->t, f, x, y, b);
+    rs_v3 d = rs_v3_sub(p, cap->pose.position);
+    double dist = rs_v3_len(d), cosv = -rs_v3_dot(n, d) / dist;
+    if (!(cosv > 0.02)) return 0;
+    double foot = dist * (M_PI / cap->pano->height) / fmax(cosv, 0.2);
+    int ns = (int)ceil(c->t->atlas->texel / foot);
+    ns = ns < 1 ? 1 : (ns > c->sub_max ? c->sub_max : ns);
+    rs_ray ray = {cap->pose.position, d, 0, 1 - 4 * rs_scene_offset(c->scene, p) / dist};
+    uint8_t occ;
+    rs_scene_occluded(c->scene, &ray, &occ, 1);
+    if (occ) return 0;
+    const rs_atlas_chart *ch = &c->t->atlas->charts[c->t->atlas->face_chart[f]];
+    double acc[3] = {0, 0, 0};
+    int used = 0;
+    double tx = c->t->atlas->texel;
+    for (int j = 0; j < ns; j++)
+        for (int i = 0; i < ns; i++) {
+            double ds = ((i + 0.5) / ns - 0.5) * tx, dt = ((j + 0.5) / ns - 0.5) * tx;
+            rs_v3 q = rs_v3_add(p, rs_v3_add(rs_v3_scale(ch->eu, ds), rs_v3_scale(ch->ev, -dt)));
+            double u, v;
+            rs_pano_dir_to_uv(rs_pose_dir_to_local(&cap->pose, rs_v3_sub(q, cap->pose.position)), &u, &v);
+            if (!pixels_on_chart(c, u * cap->pano->width, v * cap->pano->height, c->t->atlas->face_chart[f])) continue;
+            float px[3];
+            rs_pano_sample(cap->pano, u, v, px);
+            for (int k = 0; k < 3; k++) acc[k] += px[k];
+            used++;
+        }
+    if (!used) return 0;
+    for (int k = 0; k < 3; k++) L[k] = (float)(acc[k] / used);
+    return 1;
+}
+
+/* First pass over the texels: L and V. */
+static void pass_measure(tex_ctx *c)
+{
+    rs_tex_pages *t = c->t;
+    int S = t->side;
+    long rows = (long)t->npages * S;
+    int has_sun = rs_v3_len(c->in->sun) > 0.5;
+#pragma omp parallel for schedule(dynamic, 4)
+    for (long row = 0; row < rows; row++)
+        for (int x = 0; x < S; x++) {
+            size_t k = (size_t)row * S + (size_t)x;
+            c->vis[k] = -1;
+            if (t->face[k] < 0) continue;
+            uint32_t f = (uint32_t)t->face[k];
+            int y = (int)(row % S);
+            if (texel_radiance(c, f, x, y, c->L + 3 * k)) t->flags[k] |= TEX_SEEN;
+            if (has_sun) {
+                double b[3];
+                c->vis[k] = sun_visibility(c, rs_tex_point(t, f, x, y, b), rs_scene_normal(c->scene, f));
+            }
+        }
+}
+
+/* U per chart from the facets' sun term and their mean texel V. */
+static int chart_sun(tex_ctx *c)
+{
+    const rs_atlas *a = c->t->atlas;
+    size_t nf = c->in->nf;
+    double *vs = calloc(2 * nf + 1, sizeof *vs), *num = calloc(3 * a->ncharts + 1, sizeof *num),
+           *den = calloc(a->ncharts + 1, sizeof *den);
+    if (!vs || !num || !den || !(c->U = calloc(3 * a->ncharts + 1, sizeof *c->U))) {
+        free(vs);
+        free(num);
+        free(den);
+        return -1;
+    }
+    for (size_t k = 0; k < c->t->ntex; k++)
+        if (c->t->face[k] >= 0 && c->vis[k] >= 0) {
+            vs[2 * (size_t)c->t->face[k]] += c->vis[k];
+            vs[2 * (size_t)c->t->face[k] + 1] += 1;
+        }
+    for (size_t f = 0; f < nf; f++) {
+        if (!(vs[2 * f + 1] > 0)) continue;
+        rs_v3 cen, n;
+        double area;
+        rs_mesh_face(c->in->mesh, f, &cen, &n, &area);
+        double cs = rs_v3_dot(n, c->in->sun);
+        size_t ch = a->face_chart[f];
+        int ok = 1;
+        for (int q = 0; q < 3; q++) ok &= isfinite(c->in->esun[3 * f + q]) && c->in->esun[3 * f + q] >= 0;
+        if (!ok || !(cs > 0)) continue;
+        for (int q = 0; q < 3; q++) num[3 * ch + q] += area * c->in->esun[3 * f + q];
+        den[ch] += area * cs * vs[2 * f] / vs[2 * f + 1];
+    }
+    for (size_t ch = 0; ch < a->ncharts; ch++)
+        for (int q = 0; q < 3; q++) c->U[3 * ch + q] = den[ch] > 0 ? num[3 * ch + q] / den[ch] : 0;
+    free(vs);
+    free(num);
+    free(den);
+    return 0;
+}
+
+typedef struct {
+    size_t texels, seen, penumbra, unseen;
+} tex_counts;
+
+/* Second pass: rho = pi L / E, or the facet's albedo. */
+static void pass_albedo(tex_ctx *c, tex_counts *n)
+{
+    rs_tex_pages *t = c->t;
+    const tex_inputs *in = c->in;
+    int S = t->side;
+    size_t texels = 0, seen = 0, pen = 0;
+    long rows = (long)t->npages * S;
+#pragma omp parallel for schedule(dynamic, 8) reduction(+ : texels, seen, pen)
+    for (long row = 0; row < rows; row++)
+        for (int x = 0; x < S; x++) {
+            size_t k = (size_t)row * S + (size_t)x;
+            if (t->face[k] < 0) continue;
+            uint32_t f = (uint32_t)t->face[k];
+            size_t ch = t->atlas->face_chart[f];
+            double b[3];
+            rs_tex_point(t, f, x, (int)(row % S), b);
+            double cs = rs_v3_dot(rs_scene_normal(c->scene, f), in->sun), E[3], Esun = 0, Etot = 0;
+            for (int q = 0; q < 3; q++) {
+                E[q] = 0;
+                for (int v = 0; v < 3; v++) E[q] += b[v] * c->Dc[9 * (size_t)f + 3 * v + q];
+                double s = c->vis[k] > 0 && cs > 0 ? c->U[3 * ch + q] * cs * c->vis[k] : 0;
+                E[q] += s;
+                Esun += (c->vis[k] >= 0 && cs > 0 ? c->U[3 * ch + q] * cs : 0) / 3;
+                Etot += E[q] / 3;
+            }
+            texels++;
+            int ok = (t->flags[k] & TEX_SEEN) && in->estimable[f] > 0;
+            t->flags[k] &= (uint8_t)~TEX_SEEN;
+            for (int q = 0; q < 3; q++) ok &= E[q] > 0 && isfinite(E[q]);
+            if (c->vis[k] > 0 && c->vis[k] < 1) {
+                t->flags[k] |= RS_TEX_PENUMBRA;
+                pen++;
+            }
+            if (!ok) {
+                for (int q = 0; q < 3; q++) t->rgb[3 * k + q] = (float)in->rho[3 * f + q];
+                t->flags[k] |= RS_TEX_UNSEEN;
+                t->sigma[k] = 0;
+                continue;
+            }
+            seen++;
+            for (int q = 0; q < 3; q++) t->rgb[3 * k + q] = (float)(M_PI * c->L[3 * k + q] / E[q]);
+            /* one shadow ray's worth of the sun, for a texel the edge crosses */
+            t->sigma[k] = (t->flags[k] & RS_TEX_PENUMBRA) ? (float)(Esun / (2.0 * SUN_RAYS) / Etot) : 0;
+        }
+    n->texels = texels;
+    n->seen = seen;
+    n->penumbra = pen;
+    n->unseen = texels - seen;
+}
+
+/* The texture's pages: albedo_texture.exr (R G B, linear) and .png (sRGB) from the pages' own
+ * array, and albedo_texture_flags.exr (flags, sigma); albedo_texture_P.* with several pages.
+ * names[p] gets each PNG's name. */
+static int write_pages(const rs_config *cfg, const rs_tex_pages *t, char names[][64], rs_err *err)
+{
+    int S = t->side;
+    rs_image *fl = rs_image_new(S, S, 2);
+    if (!fl) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for a %d x %d texture page", S, S);
+    static const char *const rgbn[] = {"R", "G", "B"}, *const fln[] = {"flags", "sigma"};
+    for (int p = 0; p < t->npages; p++) {
+        size_t base = (size_t)p * S * S;
+        rs_image page = {S, S, 3, t->rgb + 3 * base}; /* borrowed */
+        for (size_t k = 0; k < (size_t)S * S; k++) {
+            fl->data[2 * k] = t->flags[base + k];
+            fl->data[2 * k + 1] = t->sigma[base + k];
+        }
+        char file[48];
+        if (t->npages == 1)
+            snprintf(file, sizeof file, "albedo_texture");
+        else
+            snprintf(file, sizeof file, "albedo_texture_%d", p);
+        snprintf(names[p], 64, "%s.png", file);
+        /* the three files on the threads there are: each writer is serial */
+        rs_err werr[3] = {{0}};
+        int wrc[3];
+#pragma omp parallel for schedule(static, 1)
+        for (int w = 0; w < 3; w++) {
+            char wpath[4096], wname[80];
+            snprintf(wname, sizeof wname, w == 0 ? "%s.exr" : w == 1 ? "%s_flags.exr" : "%s.png", file);
+            rs_work_path(cfg, wname, wpath, sizeof wpath);
+            wrc[w] = w == 0 ? rs_image_write_exr(&page, wpath, rgbn, 0, "rhoscan texture: albedo, linear", &werr[w])
+                : w == 1    ? rs_image_write_exr(fl, wpath, fln, 0,
+                                                 "rhoscan texture: flags 1 unseen (facet albedo), 2 penumbra, 4 edge, "
+                                                    "8 gutter; sigma relative",
+                                                 &werr[w])
+                            : rs_image_write_png(&page, wpath, 1.0f, &werr[w]);
+        }
+        for (int w = 0; w < 3; w++)
+            if (wrc[w] != 0) {
+                if (err) *err = werr[w];
+                rs_image_free(fl);
+                return -1;
+            }
+    }
+    rs_image_free(fl);
+    return 0;
+}
+
+static void report_texture(rs_report *rep, const rs_atlas *a, const tex_counts *n, size_t vertices)
+{
+    rs_json_set_num(rep->metrics, "texel_size_m", a->texel);
+    rs_json_set_int(rep->metrics, "charts", (long long)a->ncharts);
+    rs_json_set_int(rep->metrics, "pages", a->npages);
+    rs_json_set_int(rep->metrics, "page_side", a->side);
+    rs_json_set_num(rep->metrics, "chart_rect_texels", a->rect_texels);
+    rs_json_set_int(rep->metrics, "surface_texels", (long long)n->texels);
+    rs_json_set_int(rep->metrics, "seen_texels", (long long)n->seen);
+    rs_json_set_int(rep->metrics, "unseen_texels", (long long)n->unseen);
+    rs_json_set_int(rep->metrics, "penumbra_texels", (long long)n->penumbra);
+    rs_json_set_num(rep->metrics, "penumbra_share", n->texels ? (double)n->penumbra / n->texels : 0);
+    rs_json_set_int(rep->metrics, "export_vertices", (long long)vertices);
+}
+
+static int build_atlas(const rs_config *cfg, const tex_inputs *in, rs_atlas **out, rs_err *err)
+{
+    rs_atlas_opts ao = {0};
+    ao.texel =
+        rs_config_has(cfg, "texture", "texel_size") ? rs_config_real(cfg, "texture", "texel_size") : default_texel(in);
+    ao.max_texels = (double)rs_config_int(cfg, "texture", "max_texels");
+    ao.max_angle_deg = rs_config_real(cfg, "texture", "chart_angle_deg");
+    ao.gutter = (int)rs_config_int(cfg, "texture", "gutter");
+    int side = 64;
+    while (side * 2 <= rs_config_int(cfg, "texture", "max_side")) side *= 2; /* a power of two */
+    ao.max_side = side;
+    *out = rs_atlas_build(in->mesh, &ao, err);
+    return *out ? 0 : -1;
+}
+
+static int texture_compute(const rs_config *cfg, tex_inputs *in, rs_tex_pages *t, rs_report *rep, tex_counts *n,
+                           rs_err *err)
+{
+    tex_ctx c = {.in = in, .t = t, .sub_max = 3};
+    int rc = -1;
+    double t0 = rs_now();
+    rs_scene *scene = rs_scene_new(in->mesh, err);
+    if (!scene) return -1;
+    c.scene = scene;
+    c.Dc = corner_irradiance(in, t->atlas);
+    c.vis = t->sigma;
+    c.L = t->rgb;
+    if (!c.Dc) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu texels", t->ntex);
+        goto out;
+    }
+    rs_tex_raster(t);
+    rs_report_time(rep, "raster", rs_now() - t0);
+    t0 = rs_now();
+    pass_measure(&c);
+    if (chart_sun(&c) != 0) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+        goto out;
+    }
+    pass_albedo(&c, n);
+    rs_report_time(rep, "texels", rs_now() - t0);
+    t0 = rs_now();
+    rs_tex_dilate(t);
+    rs_report_time(rep, "dilate", rs_now() - t0);
+    rc = 0;
+out:
+    free(c.Dc);
+    free(c.U);
+    rs_scene_free(scene);
+    return rc;
+}
+
+int rs_texture_run(const rs_config *cfg, rs_report *rep, rs_err *err)
+{
+    tex_inputs in = {0};
+    rs_atlas *atlas = NULL;
+    rs_tex_pages t = {0};
+    tex_counts n = {0};
+    int rc = -1;
+    char(*names)[64] = NULL;
+    double t0 = rs_now();
+    if (read_inputs(cfg, &in, err) != 0 || build_atlas(cfg, &in, &atlas, err) != 0) goto out;
+    rs_report_time(rep, "atlas", rs_now() - t0);
+    rs_log_info("texture: %zu charts, %d page(s) of %d x %d texels of %.4g m", atlas->ncharts, atlas->npages,
+                atlas->side, atlas->side, atlas->texel);
+    if (rs_tex_pages_alloc(&t, in.mesh, atlas) != 0 || !(names = calloc((size_t)atlas->npages, sizeof *names))) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %d texture pages of %d x %d", atlas->npages,
+                   atlas->side, atlas->side);
+        goto out;
+    }
+    if (rs_v3_len(in.sun) < 0.5) rs_report_skip(rep, "sun shadows per texel", "irradiance.json names no sun direction");
+    if (texture_compute(cfg, &in, &t, rep, &n, err) != 0) goto out;
+    t0 = rs_now();
+    if (write_pages(cfg, &t, names, err) != 0) goto out;
+    const char *pn[1024];
+    for (int p = 0; p < atlas->npages && p < 1024; p++) pn[p] = names[p];
+    rs_tex_export e = {.cfg = cfg, .pages = &t, .png_names = pn};
+    memcpy(e.origin, in.origin, sizeof e.origin);
+    if (rs_tex_export_all(&e, err) != 0) goto out;
+    rs_report_time(rep, "write", rs_now() - t0);
+    report_texture(rep, atlas, &n, e.vertices);
+    rs_log_info("texture: %zu surface texels, %.1f %% seen, %.2f %% in a penumbra", n.texels,
+                n.texels ? 100.0 * n.seen / n.texels : 0, n.texels ? 100.0 * n.penumbra / n.texels : 0);
+    rc = 0;
+out:
+    free(names);
+    rs_tex_pages_free(&t);
+    rs_atlas_free(atlas);
+    tex_inputs_free(&in);
+    return rc;
+}
