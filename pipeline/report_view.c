@@ -131,7 +131,9 @@ static int false_colour(const grid *g, const double *v, double lo, double hi, rs
     size_t n = (size_t)g->w * g->h;
     unsigned char *rgb = malloc(3 * n);
     if (!rgb) return rs_err_set(err, RS_ERR_SYSTEM, name, 0, "out of memory for the report's image");
-#pragma omp parallel for schedule(static) if (n > 65536)
+    /* Serial at report sizes (at most 640 px wide): the loop takes a millisecond, less than
+     * OpenMP's threads then spin waiting for more work. */
+#pragma omp parallel for schedule(static) if (n > (1 << 22))
     for (size_t k = 0; k < n; k++) {
         if (isfinite(v[k]))
             map((v[k] - lo) / (hi - lo), rgb + 3 * k);
@@ -171,7 +173,7 @@ static int rgb_image(const grid *g, const rgb_src *s, const char *name, rs_repor
     unsigned char *rgb = malloc(3 * n);
     if (!rgb) return rs_err_set(err, RS_ERR_SYSTEM, name, 0, "out of memory for the report's image");
     srgb8(0); /* the table, before the threads */
-#pragma omp parallel for schedule(static) if (n > 65536)
+#pragma omp parallel for schedule(static) if (n > (1 << 22))
     for (int y = 0; y < g->h; y++)
         for (int x = 0; x < g->w; x++) {
             size_t k = (size_t)y * g->w + x;
