@@ -3,8 +3,10 @@
   - Blender 3.4 headless imports albedo.glb (Shading Flat and Smooth: its default setting fails
     on numpy's removed np.bool) and albedo.obj, and finds on the imported material an image
     texture node whose image loaded (pixels, the PNG's size);
-  - Open3D 0.16 reads albedo_vertex.ply with vertex colours equal to its uchar red green blue.
-Without blender or python3-open3d the test skips (77), and fails under CI=true.
+  - Open3D 0.16 reads albedo_vertex.ply with vertex colours equal to its uchar red green blue;
+  - CloudCompare 2.11 (command line, under xvfb-run) reads albedo_vertex.ply with its colours:
+    its vertices exported as ASCII carry R G B equal to the file's.
+Without blender, python3-open3d, cloudcompare or xvfb the test skips (77), and fails under CI=true.
 """
 import argparse
 import json
@@ -92,7 +94,32 @@ def main():
     if got.shape != want.shape or np.abs(got - want).max() > 1e-6:
         fail('open3d: vertex colours are not red green blue / 255')
     print('open3d: %d vertices, %d triangles, colours as written' % (len(got), len(m.triangles)))
+    cloudcompare_colours(work, v)
     print('PASS')
+
+
+def cloudcompare_colours(work, v):
+    """CloudCompare loads the vertex PLY as a mesh; its vertices, extracted and saved as ASCII,
+    must carry the file's colours (in the file's vertex order)."""
+    import numpy as np
+    cc, xvfb = shutil.which('CloudCompare'), shutil.which('xvfb-run')
+    if not cc or not xvfb:
+        need('cloudcompare' if not cc else 'xvfb')
+    out = os.path.join(work, 'cloudcompare_vertices.asc')
+    r = subprocess.run([xvfb, '-a', cc, '-SILENT', '-AUTO_SAVE', 'OFF', '-O', os.path.join(work, 'albedo_vertex.ply'),
+                        '-EXTRACT_VERTICES', '-C_EXPORT_FMT', 'ASC', '-ADD_HEADER', '-SAVE_CLOUDS', 'FILE', out],
+                       stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=300)
+    if r.returncode != 0 or not os.path.exists(out):
+        fail('CloudCompare could not read albedo_vertex.ply:\n' + r.stdout[-3000:])
+    with open(out) as f:
+        header = f.readline().split()
+    if header[-3:] != ['R', 'G', 'B']:
+        fail('CloudCompare read albedo_vertex.ply without colours (columns %s)' % header)
+    got = np.loadtxt(out, comments='//')[:, -3:]
+    want = np.stack([v['red'], v['green'], v['blue']], axis=1)
+    if got.shape != want.shape or np.abs(got - want).max() > 0:
+        fail('CloudCompare: colours differ from the file\'s red green blue')
+    print('cloudcompare: %d vertices with the file\'s colours' % len(got))
 
 
 if __name__ == '__main__':
