@@ -13,53 +13,50 @@
 #define VIEWPOINT_COMMENT "rhoscan_viewpoint"
 #define UP_COMMENT        "rhoscan_normals_up"
 
+/* The valid points one record at a time, in order (rs_ply_write_records): no table of the whole
+ * cloud is built, so writing cloud.ply costs a buffer, not another copy of the points. */
+typedef struct {
+    const rs_cloud *c;
+    size_t next; /* the point after the last one written */
+} cloud_cursor;
+
+static int cloud_record(void *ctx, const rs_ply_element *el, size_t k, double *v, rs_err *err)
+{
+    (void)el, (void)k, (void)err;
+    cloud_cursor *cur = ctx;
+    const rs_cloud *c = cur->c;
+    while (!c->valid[cur->next]) cur->next++;
+    size_t i = cur->next++;
+    int n = 0;
+    for (int j = 0; j < 3; j++) v[n++] = c->xyz[3 * i + j];
+    if (c->intensity) v[n++] = c->intensity[i];
+    if (c->rgb)
+        for (int j = 0; j < 3; j++) v[n++] = c->rgb[3 * i + j];
+    if (c->nscans > 0) {
+        /* Which scan the point belongs to: scans are contiguous runs, the rest is unorganized. */
+        double scan = -1, row = -1, col = -1;
+        for (int s = 0; s < c->nscans; s++) {
+            const rs_scan *sc = &c->scans[s];
+            size_t cells = (size_t)sc->cols * (size_t)sc->rows;
+            if (i >= sc->first && i < sc->first + cells) {
+                scan = s;
+                col = (double)((i - sc->first) / (size_t)sc->rows);
+                row = (double)((i - sc->first) % (size_t)sc->rows);
+                break;
+            }
+        }
+        v[n++] = scan, v[n++] = row, v[n++] = col;
+    }
+    return 0;
+}
+
 int rs_cloud_write_ply(const rs_cloud *c, const char *path, rs_err *err)
 {
     size_t nvalid = 0;
     for (size_t i = 0; i < c->npoints; i++) nvalid += c->valid[i] != 0;
-    int organized = c->nscans > 0;
-    int ncols = 3 + (c->intensity ? 1 : 0) + (c->rgb ? 3 : 0) + (organized ? 3 : 0);
-    double *cols = malloc((nvalid ? nvalid : 1) * (size_t)ncols * sizeof *cols);
     rs_ply *ply = rs_ply_new();
     int rc = -1;
-    if (!cols || !ply) {
-        rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory for %zu points", nvalid);
-        goto out;
-    }
-    /* Column j of the table holds property j for every written point. */
-    double *x = cols, *y = x + nvalid, *z = y + nvalid, *next = z + nvalid;
-    double *in = c->intensity ? next : NULL;
-    if (in) next += nvalid;
-    double *rgb = c->rgb ? next : NULL;
-    if (rgb) next += 3 * nvalid;
-    double *scan = organized ? next : NULL;
-    double *row = scan ? scan + nvalid : NULL, *col = scan ? scan + 2 * nvalid : NULL;
-
-    /* Which scan each point belongs to: scans are contiguous runs, the rest is unorganized. */
-    size_t k = 0;
-    for (size_t i = 0; i < c->npoints; i++) {
-        if (!c->valid[i]) continue;
-        x[k] = c->xyz[3 * i];
-        y[k] = c->xyz[3 * i + 1];
-        z[k] = c->xyz[3 * i + 2];
-        if (in) in[k] = c->intensity[i];
-        if (rgb)
-            for (int j = 0; j < 3; j++) rgb[j * nvalid + k] = c->rgb[3 * i + j];
-        if (scan) {
-            scan[k] = row[k] = col[k] = -1;
-            for (int s = 0; s < c->nscans; s++) {
-                const rs_scan *sc = &c->scans[s];
-                size_t n = (size_t)sc->cols * (size_t)sc->rows;
-                if (i >= sc->first && i < sc->first + n) {
-                    scan[k] = s;
-                    col[k] = (double)((i - sc->first) / (size_t)sc->rows);
-                    row[k] = (double)((i - sc->first) % (size_t)sc->rows);
-                    break;
-                }
-            }
-        }
-        k++;
-    }
+    if (!ply) goto nomem;
     for (int s = 0; s < c->nscans; s++) {
         const rs_scan *sc = &c->scans[s];
         if (rs_ply_add_comment(ply, SCAN_COMMENT " %d %d %d %.17g %.17g %.17g", s, sc->cols, sc->rows, sc->position[0],
@@ -75,27 +72,25 @@ int rs_cloud_write_ply(const rs_cloud *c, const char *path, rs_err *err)
         goto nomem;
     if (!c->has_viewpoint && c->normals_up && rs_ply_add_comment(ply, UP_COMMENT) != 0) goto nomem;
     rs_ply_element *el = rs_ply_add_element(ply, "vertex", nvalid);
-    if (!el || !rs_ply_add_scalar(el, "x", RS_PLY_FLOAT64, x) || !rs_ply_add_scalar(el, "y", RS_PLY_FLOAT64, y) ||
-        !rs_ply_add_scalar(el, "z", RS_PLY_FLOAT64, z))
+    if (!el || !rs_ply_declare_scalar(el, "x", RS_PLY_FLOAT64) || !rs_ply_declare_scalar(el, "y", RS_PLY_FLOAT64) ||
+        !rs_ply_declare_scalar(el, "z", RS_PLY_FLOAT64))
         goto nomem;
-    if (in && !rs_ply_add_scalar(el, "intensity", RS_PLY_FLOAT32, in)) goto nomem;
-    if (rgb &&
-        (!rs_ply_add_scalar(el, "red", RS_PLY_UINT8, rgb) ||
-         !rs_ply_add_scalar(el, "green", RS_PLY_UINT8, rgb + nvalid) ||
-         !rs_ply_add_scalar(el, "blue", RS_PLY_UINT8, rgb + 2 * nvalid)))
+    if (c->intensity && !rs_ply_declare_scalar(el, "intensity", RS_PLY_FLOAT32)) goto nomem;
+    if (c->rgb &&
+        (!rs_ply_declare_scalar(el, "red", RS_PLY_UINT8) || !rs_ply_declare_scalar(el, "green", RS_PLY_UINT8) ||
+         !rs_ply_declare_scalar(el, "blue", RS_PLY_UINT8)))
         goto nomem;
-    if (scan &&
-        (!rs_ply_add_scalar(el, "scan", RS_PLY_INT32, scan) || !rs_ply_add_scalar(el, "row", RS_PLY_INT32, row) ||
-         !rs_ply_add_scalar(el, "col", RS_PLY_INT32, col)))
+    if (c->nscans > 0 &&
+        (!rs_ply_declare_scalar(el, "scan", RS_PLY_INT32) || !rs_ply_declare_scalar(el, "row", RS_PLY_INT32) ||
+         !rs_ply_declare_scalar(el, "col", RS_PLY_INT32)))
         goto nomem;
-    rc = rs_ply_write(ply, path, 1, err);
-    goto out;
-nomem:
-    rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory building the PLY of %zu points", nvalid);
-out:
-    free(cols);
+    cloud_cursor cur = {c, 0};
+    rc = rs_ply_write_records(ply, path, 1, cloud_record, &cur, err);
     rs_ply_free(ply);
     return rc;
+nomem:
+    rs_ply_free(ply);
+    return rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory building the PLY header of %zu points", nvalid);
 }
 
 static const double *scalar(const rs_ply_element *el, const char *name)

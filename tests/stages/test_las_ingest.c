@@ -262,6 +262,44 @@ static void test_upward(void **state)
     rs_test_rmtree(dir);
 }
 
+/* Coincident points (a merged export, a stuck sensor) are dropped by the ingest, the first of
+ * each kept: 1000 distinct points on a plane, 300 repeats of them, and one point at x = -0 that
+ * repeats one at +0 (LAS stores both as the integer 0). */
+static void test_coincident(void **state)
+{
+    (void)state;
+    const char *dir = rs_test_tmpdir("las_ingest");
+    enum { DISTINCT = 1000, REPEATS = 300 };
+    double *xyz = malloc((DISTINCT + REPEATS + 2) * 3 * sizeof *xyz);
+    assert_non_null(xyz);
+    size_t n = 0;
+    for (int k = 0; k < DISTINCT; k++, n++)
+        xyz[3 * n] = (k % 40) * 0.1, xyz[3 * n + 1] = (k / 40) * 0.1 + 0.1, xyz[3 * n + 2] = 0.01 * (k % 7);
+    for (int k = 0; k < REPEATS; k++, n++)
+        for (int j = 0; j < 3; j++) xyz[3 * n + j] = xyz[3 * (size_t)(k * 3 % DISTINCT) + j];
+    xyz[3 * n] = 0, xyz[3 * n + 1] = 0, xyz[3 * n + 2] = 0, n++; /* +0 and its -0 twin */
+    xyz[3 * n] = -0.0, xyz[3 * n + 1] = 0, xyz[3 * n + 2] = 0, n++;
+    las_spec s = {.minor = 2, .format = 0, .scale = {1e-3, 1e-3, 1e-3}};
+    assert_int_equal(las_write(rs_test_path(dir, "dup.las"), &s, n, xyz, NULL, NULL, NULL), 0);
+    free(xyz);
+    char cmd[8192], *out = NULL;
+    snprintf(cmd, sizeof cmd,
+             "'%s/rhoscan' ingest '%s/configs/two_planes.ini' --set 'pipeline.workdir=%s/work' "
+             "--set 'ingest.scan=%s/dup.las' --set ingest.outlier_neighbours=0",
+             rs_test_bin_dir(), rs_test_source_dir(), dir, dir);
+    int rc = run(cmd, &out);
+    if (rc != 0) fail_msg("exit %d: %s", rc, out);
+    free(out);
+    const char *ingest = rs_test_path(dir, "work/ingest.json");
+    assert_int_equal((size_t)rs_test_json_number(ingest, "coincident_removed"), REPEATS + 1);
+    rs_err err = {0};
+    rs_cloud *c = rs_cloud_read_ply(rs_test_path(dir, "work/cloud.ply"), &err);
+    if (!c) fail_msg("%s", err.msg);
+    assert_int_equal(c->npoints, DISTINCT + 1);
+    rs_cloud_free(c);
+    rs_test_rmtree(dir);
+}
+
 /* The programs refuse a LAZ file and a LAS without points (exit 1, the file named). */
 static void test_refused(void **state)
 {
@@ -293,4 +331,5 @@ static void test_refused(void **state)
 }
 
 RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_pipeline), cmocka_unit_test(test_georeferenced),
-             cmocka_unit_test(test_georeferenced_albedo), cmocka_unit_test(test_upward), cmocka_unit_test(test_refused))
+             cmocka_unit_test(test_georeferenced_albedo), cmocka_unit_test(test_coincident),
+             cmocka_unit_test(test_upward), cmocka_unit_test(test_refused))
