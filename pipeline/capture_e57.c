@@ -226,6 +226,7 @@ static int stitch_pinholes(const rs_config *cfg, const char *section, rs_e57 *e,
     if (rs_stitch(&rig, frames, &opts, &cap->pano, gains, &stats, err) != 0) goto out;
     rs_log_info("%s: %d pinhole images stitched into a %d x %d panorama (%.1f %% of the sphere seen)", cap->path, m,
                 cap->pano->width, cap->pano->height, 100 * stats.coverage);
+    rs_gain_report_free(&stats.gain);
     cap->pose.position = rs_v3_make(centre[0], centre[1], centre[2]);
     static const double I[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
     memcpy(cap->pose.rot, I, sizeof I);

@@ -288,6 +288,7 @@ static void test_sky(void **state)
     assert_true(sky > (size_t)PANO_W * PANO_W / 20);
     assert_true(same < sky && same > 0.9 * sky);
     assert_true(e_model < e_flat);
+    rs_gain_report_free(&st.gain);
     rs_image_free(flat);
     rs_image_free(model);
 }
