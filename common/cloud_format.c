@@ -98,12 +98,9 @@ static rs_cloud *read_ptx(const char *path, const rs_cloud_read_opts *opts, rs_e
  * PCD is known by extension only, as XYZ text: its header is text that a text cloud's
  * comment lines could hold too. */
 static const cloud_format formats[] = {
-    {"PLY", ply_is_a, ".ply", read_ply, NULL},
-    {"E57", e57_is_a, ".e57", read_e57, NULL},
-    {"LAZ", laz_is_a, ".laz", read_las, NULL},
-    {"LAS", las_is_a, ".las", read_las, NULL},
-    {"PCD", NULL, ".pcd", read_pcd, NULL},
-    {"text", NULL, ".xyz .txt .csv .pts", read_text, NULL},
+    {"PLY", ply_is_a, ".ply", read_ply, NULL}, {"E57", e57_is_a, ".e57", read_e57, NULL},
+    {"LAZ", laz_is_a, ".laz", read_las, NULL}, {"LAS", las_is_a, ".las", read_las, NULL},
+    {"PCD", NULL, ".pcd", read_pcd, NULL},     {"text", NULL, ".xyz .txt .csv .pts", read_text, NULL},
     {"PTX", NULL, ".ptx", read_ptx, NULL},
 };
 enum { NFORMATS = sizeof formats / sizeof formats[0] };

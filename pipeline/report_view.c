@@ -131,7 +131,7 @@ static int false_colour(const grid *g, const double *v, double lo, double hi, rs
     size_t n = (size_t)g->w * g->h;
     unsigned char *rgb = malloc(3 * n);
     if (!rgb) return rs_err_set(err, RS_ERR_SYSTEM, name, 0, "out of memory for the report's image");
-    /* Serial at report sizes (at most 640 px wide): the loop takes a millisecond, less than
+        /* Serial at report sizes (at most 640 px wide): the loop takes a millisecond, less than
      * OpenMP's threads then spin waiting for more work. */
 #pragma omp parallel for schedule(static) if (n > (1 << 22))
     for (size_t k = 0; k < n; k++) {

@@ -18,10 +18,10 @@ int rs_texture_run(const rs_config *cfg, rs_report *rep, rs_err *err);     /* ->
  * and links only its own stage: the table below (stages.c) references every stage, so a
  * program that used it would load PCL, VTK and OpenCV at start (~0.3 s) whether it needs them
  * or not. */
-#define RS_STAGE_DEF_INGEST                                                                                         \
-    {                                                                                                               \
-        "ingest", rs_ingest_run, "ingest mesh", "", "cloud.ply",                                                    \
-            "read laser scans (PTX, PLY, PCD, XYZ text, LAS) into one point cloud"                                  \
+#define RS_STAGE_DEF_INGEST                                                             \
+    {                                                                                   \
+        "ingest", rs_ingest_run, "ingest mesh", "", "cloud.ply",                        \
+            "read laser scans (PTX, E57, PLY, PCD, XYZ text, LAS) into one point cloud" \
     }
 #define RS_STAGE_DEF_MESH                                                                           \
     {                                                                                               \
@@ -62,12 +62,12 @@ int rs_texture_run(const rs_config *cfg, rs_report *rep, rs_err *err);     /* ->
  * several: only the files every run writes are listed. The sun's direction comes from
  * irradiance.json, which is not listed: its timings would make the recorded input hashes differ
  * from run to run, and it changes only with irradiance.ply (the same run writes both). */
-#define RS_STAGE_DEF_TEXTURE                                                                           \
-    {                                                                                                  \
-        "texture", rs_texture_run, "texture capture rig",                                              \
-            "albedo.ply irradiance.ply facet_id.exr pano_stitched.exr capture_pose.txt",                 \
-            "albedo.glb albedo.obj albedo.mtl albedo_vertex.ply",                                      \
-            "per-texel albedo on a UV atlas; albedo.glb, albedo.obj, albedo_vertex.ply for viewers"     \
+#define RS_STAGE_DEF_TEXTURE                                                                        \
+    {                                                                                               \
+        "texture", rs_texture_run, "texture capture rig",                                           \
+            "albedo.ply irradiance.ply facet_id.exr pano_stitched.exr capture_pose.txt",            \
+            "albedo.glb albedo.obj albedo.mtl albedo_vertex.ply",                                   \
+            "per-texel albedo on a UV atlas; albedo.glb, albedo.obj, albedo_vertex.ply for viewers" \
     }
 
 /* Every stage in pipeline order, ended by {NULL} (stages.c): the driver's table. It references
