@@ -5,6 +5,7 @@
 #include <stdint.h>
 
 #include "common/cloud.h"
+#include "common/cloud_text.h"
 #include "tests/fuzz/fuzz_io.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
