@@ -115,20 +115,6 @@ double rs_calib_spread_ratio(int n, const rs_v3 *p)
     return ev[0] > 0 ? sqrt(fmax(ev[1], 0) / ev[0]) : 0;
 }
 
-void rs_calib_quat_to_rot(const double q[4], double r[9])
-{
-    double w = q[0], x = q[1], y = q[2], z = q[3];
-    r[0] = 1 - 2 * (y * y + z * z);
-    r[1] = 2 * (x * y - w * z);
-    r[2] = 2 * (x * z + w * y);
-    r[3] = 2 * (x * y + w * z);
-    r[4] = 1 - 2 * (x * x + z * z);
-    r[5] = 2 * (y * z - w * x);
-    r[6] = 2 * (x * z - w * y);
-    r[7] = 2 * (y * z + w * x);
-    r[8] = 1 - 2 * (x * x + y * y);
-}
-
 int rs_calib_align(int n, const rs_v3 *src, const rs_v3 *dst, int with_scale, double r[9], rs_v3 *t, double *s)
 {
     if (n < 3 || rs_calib_spread_ratio(n, src) < 1e-9 || rs_calib_spread_ratio(n, dst) < 1e-9) return -1;
@@ -148,7 +134,7 @@ int rs_calib_align(int n, const rs_v3 *src, const rs_v3 *dst, int with_scale, do
                      sxy - syx,       szx + sxz, syz + szy, -sxx - syy + szz};
     double ev[4], vec[16];
     rs_calib_sym_eigen(4, nm, ev, vec);
-    rs_calib_quat_to_rot((const double[4]){vec[0], vec[4], vec[8], vec[12]}, r);
+    rs_m3_from_quat(vec[0], vec[4], vec[8], vec[12], r);
     double scale = 1;
     if (with_scale) {
         double num = 0;

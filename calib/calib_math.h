@@ -15,8 +15,6 @@ void rs_calib_sym_eigen(int n, double *a, double *evals, double *evecs);
 void rs_calib_rot_exp(const double w[3], double r[9]);
 /* out = a b (3 x 3 row-major; out may alias neither). */
 void rs_calib_m3_mul(const double a[9], const double b[9], double out[9]);
-/* Rotation matrix (row-major) of the unit quaternion q = (w, x, y, z). */
-void rs_calib_quat_to_rot(const double q[4], double r[9]);
 /* Angle (radians) of the rotation a^T b: the distance between two rotations. */
 double rs_calib_rot_angle(const double a[9], const double b[9]);
 

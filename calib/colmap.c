@@ -351,7 +351,8 @@ static int image_header(rs_ctext *c, const rs_colmap_model *m, rs_colmap_image *
                           "field 9 (CAMERA_ID) = %ld: expected a camera of "
                           "cameras.txt",
                           im->camera_id);
-    rs_calib_quat_to_rot(im->q, im->rot_cam_world); /* COLMAP's QuaternionToRotationMatrix */
+    rs_m3_from_quat(im->q[0], im->q[1], im->q[2], im->q[3],
+                    im->rot_cam_world); /* COLMAP's QuaternionToRotationMatrix */
     im->centre = rs_v3_scale(rs_m3_mul_vt(im->rot_cam_world, im->t), -1);
     return 0;
 }

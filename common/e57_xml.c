@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "common/log.h"
+#include "common/vec.h"
 
 #define E57_MAX_DEPTH 64
 
@@ -374,14 +375,6 @@ int e57_pose(const e57_node *pose, const char *file, double R[9], double t[3], r
         y /= norm;
         z /= norm;
     }
-    R[0] = 1 - 2 * (y * y + z * z);
-    R[1] = 2 * (x * y - w * z);
-    R[2] = 2 * (x * z + w * y);
-    R[3] = 2 * (x * y + w * z);
-    R[4] = 1 - 2 * (x * x + z * z);
-    R[5] = 2 * (y * z - w * x);
-    R[6] = 2 * (x * z - w * y);
-    R[7] = 2 * (y * z + w * x);
-    R[8] = 1 - 2 * (x * x + y * y);
+    rs_m3_from_quat(w, x, y, z, R);
     return 0;
 }

@@ -118,6 +118,21 @@ static inline rs_v3 rs_m3_mul_vt(const double m[9], rs_v3 v)
     return rs_v3_make(m[0] * v.x + m[3] * v.y + m[6] * v.z, m[1] * v.x + m[4] * v.y + m[7] * v.z,
                       m[2] * v.x + m[5] * v.y + m[8] * v.z);
 }
+/* The rotation of the unit quaternion (w, x, y, z), row-major (Hamilton convention, as COLMAP's
+ * and E57's poses write it). */
+static inline void rs_m3_from_quat(double w, double x, double y, double z, double r[9])
+{
+    r[0] = 1 - 2 * (y * y + z * z);
+    r[1] = 2 * (x * y - w * z);
+    r[2] = 2 * (x * z + w * y);
+    r[3] = 2 * (x * y + w * z);
+    r[4] = 1 - 2 * (x * x + z * z);
+    r[5] = 2 * (y * z - w * x);
+    r[6] = 2 * (x * z - w * y);
+    r[7] = 2 * (y * z + w * x);
+    r[8] = 1 - 2 * (x * x + y * y);
+}
+
 static inline void rs_m3_identity(double m[9])
 {
     for (int i = 0; i < 9; i++) m[i] = (i % 4 == 0) ? 1.0 : 0.0;

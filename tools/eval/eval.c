@@ -14,7 +14,7 @@
 void rs_eval_opts_default(rs_eval_opts *o)
 {
     memset(o, 0, sizeof *o);
-    o->tol_m = 0.15;            /* as ../shared/tools/eval_albedo.py */
+    o->tol_m = 0.15;            /* as the shared reference set's eval_albedo.py */
     o->concave_threshold = 0.2; /* docs/ACCURACY.md says why */
     o->max_error = o->max_error_all = o->min_coverage = NAN;
 }
