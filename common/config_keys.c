@@ -37,6 +37,8 @@ const rs_cfg_key rs_cfg_keys[] = {
      "drop grid cells whose ranges differ by more than this fraction (depth discontinuity)"},
     {"mesh", "max_grazing_deg", RS_CFG_REAL, "85", 1, 90, NULL, "deg", "mesh",
      "drop grid triangles seen by the scanner at more than this angle from their normal"},
+    {"mesh", "input_refine", RS_CFG_BOOL, "false", 0, 0, NULL, "", "mesh",
+     "input_mesh: split its long edges down to the facet size a scan would get (facet_size, else from the panorama)"},
     {"mesh", "facets", RS_CFG_INT, NULL, 4, 100000000, NULL, "facets", "mesh",
      "simplify down to this many facets (with facet_size too: whichever comes first)"},
 

@@ -18,6 +18,7 @@
 #include "meshing/meshreport.h"
 #include "meshing/nadir.h"
 #include "meshing/overlap.h"
+#include "meshing/refine.h"
 #include "meshing/simplify.h"
 #include "meshing/unorganized.h"
 
@@ -131,6 +132,48 @@ out:
     return rc;
 }
 
+static int derive_facet_size(const rs_config *cfg, const rs_mesh *m, double *facet_m, double *edge_per_m, rs_err *err);
+
+/* [mesh] input_refine: the input's long edges split down to the facet size a scan would get
+ * ([mesh] facet_size, else the panorama's, growing with the distance from the camera), so that a
+ * model of a few large triangles per wall (CAD, BIM, a closed truth mesh) gets facets a panorama
+ * resolves. Without either size it stays as it is, and the report says why. */
+static int refine_input(const rs_config *cfg, rs_mesh **mesh, rs_report *rep, rs_err *err)
+{
+    if (!rs_config_bool(cfg, "mesh", "input_refine")) {
+        rs_report_skip(rep, "input mesh refinement", "[mesh] input_refine = false");
+        return 0;
+    }
+    rs_refine_opts ro = {0};
+    if (rs_config_has(cfg, "mesh", "facet_size")) {
+        ro.edge_m = rs_config_real(cfg, "mesh", "facet_size");
+    } else {
+        char pano[4096];
+        int width = 0;
+        int found = rs_capture_panorama_width(cfg, &width, pano, sizeof pano, err);
+        if (found < 0) return -1;
+        if (!found) {
+            rs_report_skip(rep, "input mesh refinement", "no [mesh] facet_size and no panorama to derive it from");
+            return 0;
+        }
+        double facet_m = 0;
+        if (derive_facet_size(cfg, *mesh, &facet_m, &ro.edge_per_metre, err) != 0) return -1;
+        rs_capture_position(cfg, ro.view_point);
+    }
+    rs_refine_stats st;
+    rs_mesh *fine = rs_mesh_refine(*mesh, &ro, &st, err);
+    if (!fine) return -1;
+    rs_mesh_free(*mesh);
+    *mesh = fine;
+    rs_log_info("input mesh refined: %zu -> %zu faces in %d passes (%zu edges split)", st.faces_in, st.faces_out,
+                st.passes, st.edges_split);
+    rs_json_set_int(rep->metrics, "refined_faces_in", (long long)st.faces_in);
+    rs_json_set_int(rep->metrics, "refined_edges_split", (long long)st.edges_split);
+    if (ro.edge_m > 0) rs_json_set_num(rep->metrics, "refine_edge_m", ro.edge_m);
+    if (ro.edge_per_metre > 0) rs_json_set_num(rep->metrics, "refine_edge_per_metre_of_distance", ro.edge_per_metre);
+    return 0;
+}
+
 /* Input meshes from this many faces show the progress of their checks. */
 #define INPUT_PROGRESS_FACES 1000000
 
@@ -188,6 +231,7 @@ static int run_input_mesh(const rs_config *cfg, const char *in_path, rs_report *
     if (deg.coincident)
         rs_log_warn("%s: dropped %zu faces of %zu that repeat the corners of another face (coincident duplicates)",
                     in_path, deg.coincident, m->nfaces);
+    if (refine_input(cfg, &out, rep, err) != 0) goto out;
     rs_json_set_str(rep->metrics, "source", "input_mesh");
     rs_json_set_int(rep->metrics, "faces_in", (long long)m->nfaces);
     rs_json_set_int(rep->metrics, "dropped_zero_area", (long long)dropped);

@@ -349,7 +349,7 @@ static void test_section_text(void **state)
     /* Table order, canonical numbers, absolute paths, unset keys without default left out. */
     assert_string_equal(mesh,
                         "[mesh]\ninput_mesh = /base/m.ply\npixels_per_facet = 6.5\n"
-                        "max_depth_ratio = 0.05\nmax_grazing_deg = 85\nsurface = poisson\nnormal_neighbours = 16\n"
+                        "max_depth_ratio = 0.05\nmax_grazing_deg = 85\ninput_refine = false\nsurface = poisson\nnormal_neighbours = 16\n"
                         "poisson_depth = 10\noverlap_tolerance = 0.03\nreport_points = 200000\n"
                         "fill_nadir = true\nnadir_max_rms = 0.02\ndenoise = true\ndenoise_iterations = 3\n"
                         "denoise_vertex_iterations = 10\ndenoise_sigma_r_deg = 1e+01\ndenoise_sigma_s = 1\n"
