@@ -215,6 +215,11 @@ static int clean(const rs_config *cfg, rs_cloud *c, rs_report *rep, rs_err *err)
         if (c->rgb) memcpy(c->rgb + 3 * at, vrgb + 3 * i, 3);
         c->valid[at] = 1;
     }
+    if (c->normal) { /* a centroid has no normal of the file's */
+        free(c->normal);
+        c->normal = NULL;
+        rs_log_info("voxel downsampling: the file's normals are not carried (the mesh stage estimates them)");
+    }
     rs_report_time(rep, "voxel", rs_now() - t0);
     rs_log_info("voxel downsampling (%g m): %zu -> %zu unorganized points", leaf, n, m);
     rs_json_set_num(rep->metrics, "voxel_size_m", leaf);
@@ -259,13 +264,19 @@ int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         rs_err_set_file(err, rs_config_file(cfg));
         goto out;
     }
+    int keep_withheld = strcmp(rs_config_string(cfg, "ingest", "las_withheld"), "keep") == 0;
+    uint64_t withheld_total = 0;
     for (int i = 0; i < nfiles; i++) {
         rs_config_path_at(cfg, "ingest", "scan", i, path, sizeof path);
         const char *kind;
+        uint64_t withheld = 0;
         rs_cloud_read_opts opts = {.columns = rs_config_string(cfg, "ingest", "columns"),
-                                   .las_keep = classes ? las_keep : NULL};
+                                   .las_keep = classes ? las_keep : NULL,
+                                   .las_keep_withheld = keep_withheld,
+                                   .las_withheld = &withheld};
         rs_cloud *c = rs_cloud_read_with(path, &opts, &kind, err);
         if (!c) goto out;
+        withheld_total += withheld;
         size_t valid = 0;
         for (size_t k = 0; k < c->npoints; k++) valid += c->valid[k] != 0;
         if (valid == 0) { /* every file must bring something: an empty one is a wrong path or export */
@@ -296,6 +307,11 @@ int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         if (ok != 0) goto out;
     }
     rs_report_time(rep, "read", rs_now() - t0);
+    if (withheld_total) {
+        rs_json_set_int(rep->metrics, "las_withheld_dropped", (long long)withheld_total);
+        rs_log_info("%llu LAS points flagged withheld: dropped ([ingest] las_withheld = keep keeps them)",
+                    (unsigned long long)withheld_total);
+    }
     if (rs_config_reals(cfg, "ingest", "scanner_position", all->viewpoint) == 0) all->has_viewpoint = 1;
 
     /* Before anything turns coordinates into floats (PCL here, the mesh later). */
