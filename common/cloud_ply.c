@@ -54,13 +54,12 @@ static int cloud_record(void *ctx, const rs_ply_element *el, size_t k, double *v
     return 0;
 }
 
-int rs_cloud_write_ply(const rs_cloud *c, const char *path, rs_err *err)
+/* cloud.ply's header: the comments, then x y z, intensity, colour, normals and the grid cell as
+ * the cloud has them (sh->... say which), for nvalid records. NULL when out of memory. */
+static rs_ply *cloud_header(const rs_cloud *c, size_t nvalid)
 {
-    size_t nvalid = 0;
-    for (size_t i = 0; i < c->npoints; i++) nvalid += c->valid[i] != 0;
     rs_ply *ply = rs_ply_new();
-    int rc = -1;
-    if (!ply) goto nomem;
+    if (!ply) return NULL;
     for (int s = 0; s < c->nscans; s++) {
         const rs_scan *sc = &c->scans[s];
         if (rs_ply_add_comment(ply, SCAN_COMMENT " %d %d %d %.17g %.17g %.17g", s, sc->cols, sc->rows, sc->position[0],
@@ -92,13 +91,34 @@ int rs_cloud_write_ply(const rs_cloud *c, const char *path, rs_err *err)
         (!rs_ply_declare_scalar(el, "scan", RS_PLY_INT32) || !rs_ply_declare_scalar(el, "row", RS_PLY_INT32) ||
          !rs_ply_declare_scalar(el, "col", RS_PLY_INT32)))
         goto nomem;
-    cloud_cursor cur = {c, 0};
-    rc = rs_ply_write_records(ply, path, 1, cloud_record, &cur, err);
-    rs_ply_free(ply);
-    return rc;
+    return ply;
 nomem:
     rs_ply_free(ply);
-    return rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory building the PLY header of %zu points", nvalid);
+    return NULL;
+}
+
+int rs_cloud_write_ply(const rs_cloud *c, const char *path, rs_err *err)
+{
+    size_t nvalid = 0;
+    for (size_t i = 0; i < c->npoints; i++) nvalid += c->valid[i] != 0;
+    rs_ply *ply = cloud_header(c, nvalid);
+    if (!ply)
+        return rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory building the PLY header of %zu points", nvalid);
+    cloud_cursor cur = {c, 0};
+    int rc = rs_ply_write_records(ply, path, 1, cloud_record, &cur, err);
+    rs_ply_free(ply);
+    return rc;
+}
+
+int rs_cloud_write_ply_stream(const rs_cloud *shape, size_t count, rs_ply_record_fn fn, void *ctx, const char *path,
+                              rs_err *err)
+{
+    rs_ply *ply = cloud_header(shape, count);
+    if (!ply)
+        return rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory building the PLY header of %zu points", count);
+    int rc = rs_ply_write_records(ply, path, 1, fn, ctx, err);
+    rs_ply_free(ply);
+    return rc;
 }
 
 static const double *scalar(const rs_ply_element *el, const char *name)
