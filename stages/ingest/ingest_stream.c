@@ -183,6 +183,7 @@ static void source_rewind(source *s)
 {
     close_file(s);
     s->file = -1;
+    s->n = 0; /* the last pass's chunk is not this one's */
 }
 
 /* "LASF" (not LAZ: the whole-cloud path refuses it) or "ASTM-E57" whose scans have no grid. */

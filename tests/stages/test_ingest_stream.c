@@ -3,7 +3,7 @@
  * coordinates (recentred), 16-bit colour first seen mid-file, a class filter, withheld points,
  * exact copies (also with a coincidence table of 64 points: many passes) and a second file
  * without colour; the withheld points are dropped by default and counted, kept on request.
- * E57 normals (testWithNormals.e57 of the shared set, skipped when absent) reach cloud.ply as nx
+ * bunnyDouble.e57 (two reader chunks) streamed equals the whole-cloud path. E57 normals (testWithNormals.e57 of the shared set, skipped when absent) reach cloud.ply as nx
  * ny nz, and a PLY cloud's normals are used by the mesh stage as given (no scanner position
  * needed; faces wound to them). */
 #include "tests/testutil.h"
@@ -146,6 +146,21 @@ static void test_e57_normals_in_cloud_ply(void **state)
                          c->normal[3 * i + j], want[i][j]);
     rs_cloud_free(b);
     rs_cloud_free(c);
+    /* bunnyDouble.e57 (30571 points: two chunks of the E57 reader) streamed and whole */
+    for (int k = 0; k < 2; k++) {
+        char cmd[8192], *out = NULL;
+        snprintf(cmd, sizeof cmd,
+                 "'%s/rhoscan' ingest '%s/configs/two_planes.ini' --set 'pipeline.workdir=%s/%s' --set "
+                 "'ingest.scan=%s/formats/e57/bunnyDouble.e57' --set ingest.outlier_neighbours=0 --set "
+                 "ingest.streaming=%s",
+                 rs_test_bin_dir(), rs_test_source_dir(), dir, k ? "whole" : "stream", rs_test_shared_dir(),
+                 k ? "false" : "true");
+        int rc = rs_test_run(cmd, &out);
+        if (rc != 0) fail_msg("exit %d: %s", rc, out);
+        if (!k && !strstr(out, "streamed")) fail_msg("bunnyDouble.e57 was not streamed: %s", out);
+        free(out);
+    }
+    same_file(rs_test_path(dir, "whole/cloud.ply"), rs_test_path(dir, "stream/cloud.ply"));
     rs_test_rmtree(dir);
 }
 
