@@ -52,6 +52,7 @@ typedef struct source {
     /* the current chunk of kept points, the cloud's attributes (zeros where a file has none) */
     size_t n, cap, raw_n; /* kept points in the chunk, room, records the chunk consumed */
     int survey;           /* pass 1: a LAS colour value above 255 marks the file's colour 16-bit */
+    int xyz_only;         /* the checking passes: only the coordinates are needed */
     double *xyz;
     float *in, *nrm;
     uint8_t *rgb;
@@ -111,6 +112,10 @@ static int next_las(source *s, rs_err *err)
         s->hist[ch->classification[i]]++;
         if (s->keep && !s->keep[ch->classification[i]]) continue;
         for (int j = 0; j < 3; j++) s->xyz[3 * m + j] = ch->xyz[3 * i + j] - s->shift[j];
+        if (s->xyz_only) {
+            m++;
+            continue;
+        }
         s->in[m] = ch->intensity[i];
         if (s->survey && ch->rgb && (ch->rgb[3 * i] > 255 || ch->rgb[3 * i + 1] > 255 || ch->rgb[3 * i + 2] > 255))
             s->info[s->file].wide = 1;
@@ -152,7 +157,8 @@ static int next_e57(source *s, rs_err *err)
         s->raw_n = p.n;
         for (size_t i = 0; i < p.n; i++) {
             if (!p.valid[i]) continue;
-            for (int j = 0; j < 3; j++) {
+            for (int j = 0; j < 3 && s->xyz_only; j++) s->xyz[3 * m + j] = p.xyz[3 * i + j] - s->shift[j];
+            for (int j = 0; j < 3 && !s->xyz_only; j++) {
                 s->xyz[3 * m + j] = p.xyz[3 * i + j] - s->shift[j];
                 s->rgb[3 * m + j] = p.rgb ? p.rgb[3 * i + j] : 0;
                 s->nrm[3 * m + j] = p.normal ? p.normal[3 * i + j] : 0;
@@ -508,6 +514,7 @@ static int check_points(const rs_config *cfg, source *s, rs_report *rep, coincid
     size_t nbuckets = (co->total + BUCKET_POINTS - 1) / BUCKET_POINTS;
     if (nbuckets < 1) nbuckets = 1;
     double t0 = rs_now();
+    s->xyz_only = 1;
     rs_progress *pr = nbuckets > 1 ? rs_progress_start("coincident points (a pass per hash bucket)", nbuckets) : NULL;
     for (size_t b = 0; b < nbuckets; b++) {
         if (coincident_pass(s, co, b, nbuckets, err) != 0) {
@@ -525,7 +532,9 @@ static int check_points(const rs_config *cfg, source *s, rs_report *rep, coincid
         rs_log_warn("%zu of %zu unorganized points repeat the coordinates of another point: dropped", dropped,
                     co->total);
     int collinear = 0;
-    if (co->distinct >= 3 && collinear_stream(s, co, &collinear, err) != 0) return -1;
+    int bad = co->distinct >= 3 && collinear_stream(s, co, &collinear, err) != 0;
+    s->xyz_only = 0;
+    if (bad) return -1;
     rs_log_info("streamed checks (%zu coincident pass%s, 2 for the spread): %.2f s", nbuckets,
                 nbuckets == 1 ? "" : "es", rs_now() - t0);
     if (rs_ingest_surface_check(cfg, co->total, co->distinct, collinear, err) != 0) return -1;
