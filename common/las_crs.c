@@ -179,7 +179,9 @@ static void node_args(const wkt *w, const wnode *n, char *buf, size_t size, doub
     while (i < n->close && isspace((unsigned char)w->t[i])) i++;
     if (i < n->close && w->t[i] == '"') {
         size_t e = skip_string(w, i);
-        if (buf) snprintf(buf, size, "%.*s", (int)(e - i - 2 > 0 ? e - i - 2 : 0), w->t + i + 1);
+        size_t len = e >= i + 2 ? e - i - 2 : 0; /* without the quotes (an unterminated one: to the end) */
+        if (len > 1000) len = 1000;
+        if (buf) snprintf(buf, size, "%.*s", (int)len, w->t + i + 1);
         i = e;
     } else if (i < n->close && isdigit((unsigned char)w->t[i]) && num) {
         *num = strtod(w->t + i, NULL); /* ID["EPSG",26915]: handled by the caller */
