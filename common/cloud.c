@@ -12,6 +12,7 @@ void rs_cloud_free(rs_cloud *c)
     free(c->xyz);
     free(c->intensity);
     free(c->rgb);
+    free(c->normal);
     free(c->valid);
     free(c->scans);
     free(c);
@@ -46,13 +47,26 @@ int rs_cloud_resize(rs_cloud *c, size_t total, int want_intensity, int want_rgb,
         memset(rgb + 3 * c->npoints, 0, 3 * (total - c->npoints));
         c->rgb = rgb;
     }
+    if (c->normal) { /* grown only: normals are a file's, never invented for points without */
+        float *nrm = realloc(c->normal, (total ? total : 1) * 3 * sizeof *nrm);
+        if (!nrm) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu points", total);
+        if (total > c->npoints) memset(nrm + 3 * c->npoints, 0, 3 * (total - c->npoints) * sizeof *nrm);
+        c->normal = nrm;
+    }
     return 0;
 }
 
 int rs_cloud_append(rs_cloud *dst, const rs_cloud *src, rs_err *err)
 {
     size_t n0 = dst->npoints, total = n0 + src->npoints;
+    /* Normals only when every point has one: a cloud without them gets the mesh stage's. */
+    if (src->normal && n0 == 0 && !dst->normal) dst->normal = calloc(3, sizeof *dst->normal);
+    if (!src->normal || (n0 > 0 && !dst->normal)) {
+        free(dst->normal);
+        dst->normal = NULL;
+    }
     if (rs_cloud_resize(dst, total, src->intensity != NULL, src->rgb != NULL, err) != 0) return -1;
+    if (dst->normal) memcpy(dst->normal + 3 * n0, src->normal, 3 * src->npoints * sizeof *src->normal);
     rs_scan *scans = realloc(dst->scans, (size_t)(dst->nscans + src->nscans + 1) * sizeof *scans);
     if (!scans) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
     dst->scans = scans;

@@ -22,6 +22,8 @@ typedef struct rs_cloud {
     double *xyz;      /* 3 * npoints, world frame, metres */
     float *intensity; /* npoints, NULL if none */
     uint8_t *rgb;     /* 3 * npoints, NULL if none */
+    float *normal;    /* 3 * npoints, unit normals the file gave (E57 nor:, PLY nx ny nz), world frame;
+                         NULL if none. The mesh stage uses them as they are, orientation included */
     uint8_t *valid;   /* npoints: 0 for no-return points (0 0 0 in PTX) */
     int nscans;       /* 0 for an unorganized cloud */
     rs_scan *scans;
@@ -36,14 +38,15 @@ typedef struct rs_cloud {
 void rs_cloud_free(rs_cloud *c); /* NULL is fine */
 
 /* Appends src's points and scans to dst (scan offsets shifted). Intensity and colour arrays
- * are created when only one side has them (zeros for the points that had none). */
+ * are created when only one side has them (zeros for the points that had none); normals are
+ * kept only when both sides have them (or dst is empty). */
 int rs_cloud_append(rs_cloud *dst, const rs_cloud *src, rs_err *err);
 /* Points that belong to no scan (an unorganized part of the cloud). */
 size_t rs_cloud_unorganized(const rs_cloud *c);
 
 /* For the readers: grows c's arrays to hold total points (c->npoints unchanged). Intensity
- * and colour arrays are grown when they exist and created when wanted; their entries from
- * c->npoints on are zero. */
+ * and colour arrays are grown when they exist and created when wanted, normals grown when they
+ * exist; their entries from c->npoints on are zero. */
 int rs_cloud_resize(rs_cloud *c, size_t total, int want_intensity, int want_rgb, rs_err *err);
 
 /* Georeferenced coordinates (some |coordinate| of a valid point or scanner above limit_m,

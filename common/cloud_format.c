@@ -81,7 +81,10 @@ static rs_cloud *read_text(const char *path, const rs_cloud_read_opts *opts, rs_
 /* LAZ too: rs_las_open refuses it, saying how to decompress it. */
 static rs_cloud *read_las(const char *path, const rs_cloud_read_opts *opts, rs_err *err)
 {
-    return rs_las_read(path, opts->las_keep, err);
+    uint64_t withheld = 0;
+    rs_cloud *c = rs_las_read_with(path, opts->las_keep, opts->las_keep_withheld, &withheld, err);
+    if (opts->las_withheld) *opts->las_withheld = withheld;
+    return c;
 }
 
 static rs_cloud *read_e57(const char *path, const rs_cloud_read_opts *opts, rs_err *err)

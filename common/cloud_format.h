@@ -13,6 +13,8 @@
 typedef struct rs_cloud_read_opts {
     const char *columns;     /* XYZ/CSV text: the column map of rs_cloud_read_text; NULL: "x y z" */
     const uint8_t *las_keep; /* LAS: 256 flags, the classes kept (rs_las_parse_classes); NULL: all */
+    int las_keep_withheld;   /* LAS: 1 keeps the points flagged withheld (default 0: dropped) */
+    uint64_t *las_withheld;  /* LAS, out (may be NULL): the withheld points dropped */
 } rs_cloud_read_opts;
 
 /* Reads a point-cloud file with the reader its magic bytes name, else its extension:

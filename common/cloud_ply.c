@@ -8,6 +8,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "common/log.h"
+
 #define SCAN_COMMENT      "rhoscan_scan"
 #define ORIGIN_COMMENT    "rhoscan_origin"
 #define VIEWPOINT_COMMENT "rhoscan_viewpoint"
@@ -32,6 +34,8 @@ static int cloud_record(void *ctx, const rs_ply_element *el, size_t k, double *v
     if (c->intensity) v[n++] = c->intensity[i];
     if (c->rgb)
         for (int j = 0; j < 3; j++) v[n++] = c->rgb[3 * i + j];
+    if (c->normal)
+        for (int j = 0; j < 3; j++) v[n++] = c->normal[3 * i + j];
     if (c->nscans > 0) {
         /* Which scan the point belongs to: scans are contiguous runs, the rest is unorganized. */
         double scan = -1, row = -1, col = -1;
@@ -50,13 +54,12 @@ static int cloud_record(void *ctx, const rs_ply_element *el, size_t k, double *v
     return 0;
 }
 
-int rs_cloud_write_ply(const rs_cloud *c, const char *path, rs_err *err)
+/* cloud.ply's header: the comments, then x y z, intensity, colour, normals and the grid cell as
+ * the cloud has them (sh->... say which), for nvalid records. NULL when out of memory. */
+static rs_ply *cloud_header(const rs_cloud *c, size_t nvalid)
 {
-    size_t nvalid = 0;
-    for (size_t i = 0; i < c->npoints; i++) nvalid += c->valid[i] != 0;
     rs_ply *ply = rs_ply_new();
-    int rc = -1;
-    if (!ply) goto nomem;
+    if (!ply) return NULL;
     for (int s = 0; s < c->nscans; s++) {
         const rs_scan *sc = &c->scans[s];
         if (rs_ply_add_comment(ply, SCAN_COMMENT " %d %d %d %.17g %.17g %.17g", s, sc->cols, sc->rows, sc->position[0],
@@ -80,17 +83,42 @@ int rs_cloud_write_ply(const rs_cloud *c, const char *path, rs_err *err)
         (!rs_ply_declare_scalar(el, "red", RS_PLY_UINT8) || !rs_ply_declare_scalar(el, "green", RS_PLY_UINT8) ||
          !rs_ply_declare_scalar(el, "blue", RS_PLY_UINT8)))
         goto nomem;
+    if (c->normal &&
+        (!rs_ply_declare_scalar(el, "nx", RS_PLY_FLOAT32) || !rs_ply_declare_scalar(el, "ny", RS_PLY_FLOAT32) ||
+         !rs_ply_declare_scalar(el, "nz", RS_PLY_FLOAT32)))
+        goto nomem;
     if (c->nscans > 0 &&
         (!rs_ply_declare_scalar(el, "scan", RS_PLY_INT32) || !rs_ply_declare_scalar(el, "row", RS_PLY_INT32) ||
          !rs_ply_declare_scalar(el, "col", RS_PLY_INT32)))
         goto nomem;
-    cloud_cursor cur = {c, 0};
-    rc = rs_ply_write_records(ply, path, 1, cloud_record, &cur, err);
-    rs_ply_free(ply);
-    return rc;
+    return ply;
 nomem:
     rs_ply_free(ply);
-    return rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory building the PLY header of %zu points", nvalid);
+    return NULL;
+}
+
+int rs_cloud_write_ply(const rs_cloud *c, const char *path, rs_err *err)
+{
+    size_t nvalid = 0;
+    for (size_t i = 0; i < c->npoints; i++) nvalid += c->valid[i] != 0;
+    rs_ply *ply = cloud_header(c, nvalid);
+    if (!ply)
+        return rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory building the PLY header of %zu points", nvalid);
+    cloud_cursor cur = {c, 0};
+    int rc = rs_ply_write_records(ply, path, 1, cloud_record, &cur, err);
+    rs_ply_free(ply);
+    return rc;
+}
+
+int rs_cloud_write_ply_stream(const rs_cloud *shape, size_t count, rs_ply_record_fn fn, void *ctx, const char *path,
+                              rs_err *err)
+{
+    rs_ply *ply = cloud_header(shape, count);
+    if (!ply)
+        return rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory building the PLY header of %zu points", count);
+    int rc = rs_ply_write_records(ply, path, 1, fn, ctx, err);
+    rs_ply_free(ply);
+    return rc;
 }
 
 static const double *scalar(const rs_ply_element *el, const char *name)
@@ -148,6 +176,7 @@ typedef struct ply_vertices {
     const double *rgb[3];           /* red, green, blue: all three or none */
     double rgb_scale;               /* to 0..255: float colours are taken as 0..1, integer ones as 0..255 */
     const double *scan, *row, *col; /* the grid cell of each vertex (cloud.ply) */
+    const double *nrm[3];           /* nx, ny, nz: all three or none */
 } ply_vertices;
 
 static int find_vertices(const rs_ply *ply, ply_vertices *v, const char *name, rs_err *err)
@@ -164,6 +193,8 @@ static int find_vertices(const rs_ply *ply, ply_vertices *v, const char *name, r
     if (!v->rgb[0] || !v->rgb[1] || !v->rgb[2]) v->rgb[0] = v->rgb[1] = v->rgb[2] = NULL;
     v->rgb_scale = v->rgb[0] && !(red_prop->type <= RS_PLY_UINT32) ? 255.0 : 1.0;
     v->scan = scalar(el, "scan"), v->row = scalar(el, "row"), v->col = scalar(el, "col");
+    v->nrm[0] = scalar(el, "nx"), v->nrm[1] = scalar(el, "ny"), v->nrm[2] = scalar(el, "nz");
+    if (!v->nrm[0] || !v->nrm[1] || !v->nrm[2]) v->nrm[0] = v->nrm[1] = v->nrm[2] = NULL;
     return 0;
 }
 
@@ -224,6 +255,8 @@ static int lay_out_points(rs_cloud *c, const ply_vertices *v, const char *name, 
         if (!c->nscans || v->scan[k] == -1) loose++;
     if (rs_cloud_resize(c, grid + loose, v->intensity != NULL, v->rgb[0] != NULL, err) != 0) return -1;
     c->npoints = grid + loose;
+    if (v->nrm[0] && !(c->normal = calloc(3 * (c->npoints ? c->npoints : 1), sizeof *c->normal)))
+        return rs_err_set(err, RS_ERR_SYSTEM, name, 0, "out of memory for %zu normals", c->npoints);
     memset(c->valid, 0, c->npoints);
     for (int s = 0; s < c->nscans; s++) {
         const rs_scan *sc = &c->scans[s];
@@ -278,6 +311,18 @@ static int place_vertices(rs_cloud *c, const ply_vertices *v, const char *name, 
                 double x = v->rgb[j][k] * v->rgb_scale;
                 c->rgb[3 * i + j] = (uint8_t)(x > 0 ? (x < 255 ? lround(x) : 255) : 0);
             }
+        if (c->normal) {
+            double nx = v->nrm[0][k], ny = v->nrm[1][k], nz = v->nrm[2][k], len = sqrt(nx * nx + ny * ny + nz * nz);
+            if (!(len > 1e-6) || !isfinite(len)) { /* one unusable normal: the mesh stage estimates them all */
+                rs_log_warn("%s: vertex %zu: normal (%g, %g, %g) is not a direction: the file's normals are not used",
+                            name, k, nx, ny, nz);
+                free(c->normal);
+                c->normal = NULL;
+                continue;
+            }
+            c->normal[3 * i] = (float)(nx / len), c->normal[3 * i + 1] = (float)(ny / len);
+            c->normal[3 * i + 2] = (float)(nz / len);
+        }
     }
     return 0;
 }

@@ -72,6 +72,7 @@ static int read_grid(rs_e57 *e, int i, rs_cloud *c, rs_progress *pr, const char 
             c->valid[k] = p.valid[j];
             if (p.intensity) c->intensity[k] = p.intensity[j];
             if (p.rgb) memcpy(c->rgb + 3 * k, p.rgb + 3 * j, 3);
+            if (c->normal) memcpy(c->normal + 3 * k, p.normal + 3 * j, 3 * sizeof *c->normal);
         }
         rs_progress_add(pr, p.n);
     }
@@ -103,6 +104,7 @@ static int read_loose(rs_e57 *e, int i, rs_cloud *c, rs_progress *pr, rs_err *er
             memset(c->valid + k, 1, p.n);
             if (p.intensity) memcpy(c->intensity + k, p.intensity, p.n * sizeof *c->intensity);
             if (p.rgb) memcpy(c->rgb + 3 * k, p.rgb, 3 * p.n);
+            if (c->normal) memcpy(c->normal + 3 * k, p.normal, 3 * p.n * sizeof *c->normal);
             c->npoints += p.n;
             rs_progress_add(pr, p.n);
             continue;
@@ -114,6 +116,7 @@ static int read_loose(rs_e57 *e, int i, rs_cloud *c, rs_progress *pr, rs_err *er
             c->valid[k] = 1;
             if (p.intensity) c->intensity[k] = p.intensity[j];
             if (p.rgb) memcpy(c->rgb + 3 * k, p.rgb + 3 * j, 3);
+            if (c->normal) memcpy(c->normal + 3 * k, p.normal + 3 * j, 3 * sizeof *c->normal);
         }
         rs_progress_add(pr, p.n);
     }
@@ -151,7 +154,16 @@ static rs_cloud *read_all(rs_e57 *e, const char *name, rs_err *err)
         return NULL;
     }
     uint64_t records = 0;
-    for (int i = 0; i < rs_e57_scan_count(e); i++) records += rs_e57_scan(e, i)->records;
+    int normals = 1; /* carried when every scan with points has them */
+    for (int i = 0; i < rs_e57_scan_count(e); i++) {
+        records += rs_e57_scan(e, i)->records;
+        if (rs_e57_scan(e, i)->records > 0 && !rs_e57_scan(e, i)->has_normals) normals = 0;
+    }
+    if (normals && !(c->normal = calloc(total ? 3 * total : 3, sizeof *c->normal))) {
+        rs_err_set(err, RS_ERR_SYSTEM, name, 0, "out of memory for %zu normals", total);
+        rs_cloud_free(c);
+        return NULL;
+    }
     rs_progress *pr = rs_progress_start("reading E57 points", (size_t)records);
     int ok = 1;
     for (int pass = 0; pass < 2 && ok; pass++) /* grids, then the unorganized scans */
@@ -171,6 +183,8 @@ static rs_cloud *read_all(rs_e57 *e, const char *name, rs_err *err)
     if (c->npoints < total && c->npoints > 0) {
         double *xyz = realloc(c->xyz, c->npoints * 3 * sizeof *xyz);
         if (xyz) c->xyz = xyz;
+        float *nrm = c->normal ? realloc(c->normal, c->npoints * 3 * sizeof *nrm) : NULL;
+        if (nrm) c->normal = nrm;
     }
     return c;
 }

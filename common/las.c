@@ -156,12 +156,98 @@ static int parse_header(const unsigned char *h, size_t n, rs_las_info *in, const
     return check_points(in, path, err);
 }
 
+/* The bytes of a VLR (or EVLR) body rhoscan reads: the GeoTIFF keys and the WKT. */
+typedef struct crs_vlrs {
+    uint8_t *geokeys, *ascii;
+    char *wkt;
+    size_t ngeokeys, nascii, nwkt;
+} crs_vlrs;
+
+/* Reads the body of record id at offset at (length len) when it is one of the CRS records. */
+static int keep_crs(rs_las *f, const unsigned char *user, int id, uint64_t at, uint64_t len, crs_vlrs *cv, rs_err *err)
+{
+    uint8_t **slot = NULL;
+    size_t *nslot = NULL;
+    if (memcmp(user, "LASF_Projection", 15) != 0 && !(memcmp(user, "liblas", 6) == 0 && id == 2112)) return 0;
+    if (id == 34735) slot = &cv->geokeys, nslot = &cv->ngeokeys;
+    if (id == 34737) slot = &cv->ascii, nslot = &cv->nascii;
+    if (id == 2112 && !cv->wkt) slot = (uint8_t **)&cv->wkt, nslot = &cv->nwkt;
+    if (!slot || *slot || len == 0 || len > (1u << 20) || at + len > f->info.file_size) return 0;
+    uint8_t *b = malloc((size_t)len + 1);
+    if (!b) return rs_err_set(err, RS_ERR_SYSTEM, f->path, 0, "out of memory");
+    if (fseeko(f->fp, (off_t)at, SEEK_SET) != 0 || fread(b, 1, (size_t)len, f->fp) != (size_t)len) {
+        free(b);
+        return rs_err_errno(err, f->path, "cannot read a coordinate-system VLR");
+    }
+    b[len] = 0;
+    *slot = b;
+    *nslot = (size_t)len;
+    return 0;
+}
+
+/* LAS 1.4's EVLRs (after the points), for a WKT kept there. */
+static int read_evlrs(rs_las *f, const unsigned char *h, size_t n, crs_vlrs *cv, rs_err *err)
+{
+    if (f->info.version_minor < 4 || n < HEADER_MAX) return 0;
+    uint64_t at = le64(h + 235);
+    uint32_t count = le32(h + 243);
+    for (uint32_t k = 0; k < count && at != 0; k++) {
+        unsigned char v[60];
+        if (at + 60 > f->info.file_size || fseeko(f->fp, (off_t)at, SEEK_SET) != 0 || fread(v, 1, 60, f->fp) != 60) {
+            rs_log_warn("%s: EVLR %u of %u at offset %llu runs past the file: the rest are not read", f->path, k + 1,
+                        count, (unsigned long long)at);
+            return 0;
+        }
+        uint64_t len = le64(v + 20);
+        if (keep_crs(f, v + 2, le16(v + 18), at + 60, len, cv, err) != 0) return -1;
+        if (len > f->info.file_size) break;
+        at += 60 + len;
+    }
+    return 0;
+}
+
+/* The coordinate system from the records kept: WKT when the global encoding's WKT bit (4) is
+ * set or there are no GeoTIFF keys, else the GeoTIFF keys. Units other than metres are
+ * converted; a geographic system (degrees) or an unknown unit is refused. */
+static int decide_crs(rs_las *f, const crs_vlrs *cv, rs_err *err)
+{
+    rs_las_info *in = &f->info;
+    rs_las_crs *crs = &in->crs;
+    memset(crs, 0, sizeof *crs);
+    crs->source = "";
+    crs->unit_m = crs->vunit_m = 1;
+    int use_wkt = cv->wkt && ((in->global_encoding & 16) || !cv->geokeys);
+    if (use_wkt ? rs_las_crs_wkt(cv->wkt, cv->nwkt, crs) != 0
+                : cv->geokeys &&
+                rs_las_crs_geokeys(cv->geokeys, cv->ngeokeys, (const char *)cv->ascii, cv->nascii, crs) != 0)
+        rs_log_warn("%s: its %s cannot be read: the coordinates are taken as metres", f->path,
+                    use_wkt ? "WKT coordinate system" : "GeoTIFF key directory");
+    if (crs->kind == RS_LAS_CRS_GEOGRAPHIC && in->npoints > 0) /* without points: "no points" says more */
+        return rs_err_set(err, RS_ERR_INPUT, f->path, 0,
+                          "its coordinate system (%s, from the %s) is geographic: the coordinates are longitude and "
+                          "latitude in degrees; expected a projected system in metres or feet (reproject it first, "
+                          "e.g. pdal translate with filters.reprojection)",
+                          crs->name[0] ? crs->name : "unnamed", crs->source);
+    if (crs->unknown_unit || !(crs->unit_m > 0) || !(crs->vunit_m > 0))
+        return rs_err_set(err, RS_ERR_INPUT, f->path, 0,
+                          "its coordinate system (%s, from the %s) has a linear unit rhoscan does not know (%s%s%d); "
+                          "expected metres, feet (9002), US survey feet (9003), Clarke's feet (9005) or kilometres",
+                          crs->name[0] ? crs->name : "unnamed", crs->source, crs->unit,
+                          crs->unit[0] ? ", code " : "code ", crs->unit_code);
+    in->unit_m[0] = in->unit_m[1] = crs->unit_m;
+    in->unit_m[2] = crs->vunit_m;
+    return 0;
+}
+
 /* The VLRs between the header and the point data: a "laszip encoded" one (record 22204) marks a
- * LAZ file whose format byte was cleared. A VLR list that runs past the point offset ends the
- * walk with a warning (the points are where the header says). */
-static int check_vlrs(rs_las *f, rs_err *err)
+ * LAZ file whose format byte was cleared; the GeoTIFF and WKT ones give the coordinate system.
+ * A VLR list that runs past the point offset ends the walk with a warning (the points are where
+ * the header says). */
+static int check_vlrs(rs_las *f, const unsigned char *h, size_t n, rs_err *err)
 {
     uint64_t at = f->info.header_size;
+    crs_vlrs cv = {0};
+    int rc = -1;
     for (uint32_t k = 0; k < f->info.nvlrs; k++) {
         unsigned char v[VLR_HEADER];
         if (at + VLR_HEADER > f->info.offset_to_points || fseeko(f->fp, (off_t)at, SEEK_SET) != 0 ||
@@ -169,14 +255,25 @@ static int check_vlrs(rs_las *f, rs_err *err)
             rs_log_warn("%s: VLR %u of %u at offset %llu does not fit before the point data (offset %u): the rest "
                         "are not read",
                         f->path, k + 1, f->info.nvlrs, (unsigned long long)at, f->info.offset_to_points);
-            return 0;
+            break;
         }
-        if (memcmp(v + 2, "laszip encoded", 14) == 0 && le16(v + 18) == 22204)
-            return rs_err_set(err, RS_ERR_INPUT, f->path, 0, "offset %llu: a \"laszip encoded\" VLR (record 22204): %s",
-                              (unsigned long long)at, LAZ_HOWTO);
-        at += VLR_HEADER + (uint64_t)le16(v + 20);
+        if (memcmp(v + 2, "laszip encoded", 14) == 0 && le16(v + 18) == 22204) {
+            rs_err_set(err, RS_ERR_INPUT, f->path, 0, "offset %llu: a \"laszip encoded\" VLR (record 22204): %s",
+                       (unsigned long long)at, LAZ_HOWTO);
+            goto out;
+        }
+        uint64_t len = le16(v + 20);
+        if (at + VLR_HEADER + len <= f->info.offset_to_points &&
+            keep_crs(f, v + 2, le16(v + 18), at + VLR_HEADER, len, &cv, err) != 0)
+            goto out;
+        at += VLR_HEADER + len;
     }
-    return 0;
+    rc = read_evlrs(f, h, n, &cv, err) != 0 || decide_crs(f, &cv, err) != 0 ? -1 : 0;
+out:
+    free(cv.geokeys);
+    free(cv.ascii);
+    free(cv.wkt);
+    return rc;
 }
 
 static int open_file(rs_las *f, const char *path, unsigned char *h, size_t *n, rs_err *err)
@@ -206,8 +303,9 @@ static int alloc_chunk(rs_las *f, rs_err *err)
     f->chunk.xyz = malloc(cap * 3 * sizeof *f->chunk.xyz);
     f->chunk.intensity = malloc(cap * sizeof *f->chunk.intensity);
     f->chunk.classification = malloc(cap);
+    f->chunk.withheld = malloc(cap);
     f->chunk.rgb = f->info.has_rgb ? malloc(cap * 3 * sizeof *f->chunk.rgb) : NULL;
-    if (!f->raw || !f->chunk.xyz || !f->chunk.intensity || !f->chunk.classification ||
+    if (!f->raw || !f->chunk.xyz || !f->chunk.intensity || !f->chunk.classification || !f->chunk.withheld ||
         (f->info.has_rgb && !f->chunk.rgb))
         return rs_err_set(err, RS_ERR_SYSTEM, f->path, 0, "out of memory for a chunk of %zu points", cap);
     return 0;
@@ -223,7 +321,7 @@ rs_las *rs_las_open(const char *path, rs_err *err)
     unsigned char h[HEADER_MAX];
     size_t n = 0;
     if (open_file(f, path, h, &n, err) != 0 || parse_header(h, n, &f->info, path, err) != 0 ||
-        check_vlrs(f, err) != 0 || alloc_chunk(f, err) != 0)
+        check_vlrs(f, h, n, err) != 0 || alloc_chunk(f, err) != 0)
         goto fail;
     if (fseeko(f->fp, (off_t)f->info.offset_to_points, SEEK_SET) != 0) {
         rs_err_errno(err, path, "cannot seek to the point data");
@@ -251,7 +349,7 @@ static int decode(rs_las *f, size_t n, double *xyz, rs_err *err)
     for (size_t i = 0; i < n; i++) {
         const unsigned char *p = f->raw + i * rec;
         for (int j = 0; j < 3; j++) {
-            double v = le32s(p + 4 * j) * in->scale[j] + in->offset[j];
+            double v = (le32s(p + 4 * j) * in->scale[j] + in->offset[j]) * in->unit_m[j];
             if (!(fabs(v) <= RS_CLOUD_MAX_M))
                 return rs_err_set(err, RS_ERR_INPUT, f->path, 0,
                                   "point %llu (offset %llu): coordinate %c = %g; expected at most %g m (scale or "
@@ -263,6 +361,7 @@ static int decode(rs_las *f, size_t n, double *xyz, rs_err *err)
         }
         c->intensity[i] = le16(p + 12);
         c->classification[i] = wide ? p[16] : p[15] & 0x1f;
+        c->withheld[i] = wide ? (p[15] >> 2) & 1 : p[15] >> 7;
         if (rgb)
             for (int j = 0; j < 3; j++) c->rgb[3 * i + j] = le16(p + rgb + 2 * j);
     }
@@ -309,6 +408,7 @@ void rs_las_close(rs_las *f)
     free(f->chunk.intensity);
     free(f->chunk.rgb);
     free(f->chunk.classification);
+    free(f->chunk.withheld);
     free(f);
 }
 
@@ -387,7 +487,8 @@ static void *alloc_big(size_t bytes)
 /* The chunks of f into c (allocated for every point), the classes kept by keep. The coordinates
  * are decoded straight into c (the points of a chunk from the first free slot on, then moved
  * down over the ones not kept): the chunk holds only the small fields. */
-static int fill(rs_las *f, rs_cloud *c, const uint8_t *keep, uint64_t *hist, rgb_state *rs, rs_err *err)
+static int fill(rs_las *f, rs_cloud *c, const uint8_t *keep, int keep_withheld, uint64_t *withheld, uint64_t *hist,
+                rgb_state *rs, rs_err *err)
 {
     const rs_las_info *in = rs_las_info_of(f);
     char what[160];
@@ -401,6 +502,10 @@ static int fill(rs_las *f, rs_cloud *c, const uint8_t *keep, uint64_t *hist, rgb
         if (!ch) goto out;
         if (ch->n == 0) break;
         for (size_t i = 0; i < ch->n; i++) {
+            if (ch->withheld[i] && !keep_withheld) {
+                (*withheld)++;
+                continue;
+            }
             hist[ch->classification[i]]++;
             if (keep && !keep[ch->classification[i]]) continue;
             if (kept != base + i) memcpy(c->xyz + 3 * kept, c->xyz + 3 * (base + i), 3 * sizeof *c->xyz);
@@ -420,6 +525,13 @@ out:
 
 rs_cloud *rs_las_read(const char *path, const uint8_t *keep, rs_err *err)
 {
+    return rs_las_read_with(path, keep, 0, NULL, err);
+}
+
+rs_cloud *rs_las_read_with(const char *path, const uint8_t *keep, int keep_withheld, uint64_t *withheld_out,
+                           rs_err *err)
+{
+    uint64_t withheld = 0;
     rs_las *f = rs_las_open(path, err);
     if (!f) return NULL;
     const rs_las_info *in = rs_las_info_of(f);
@@ -440,7 +552,15 @@ rs_cloud *rs_las_read(const char *path, const uint8_t *keep, rs_err *err)
         rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory for %llu points", (unsigned long long)in->npoints);
         goto fail;
     }
-    if (fill(f, c, keep, hist, &rs, err) != 0) goto fail;
+    if (fill(f, c, keep, keep_withheld, &withheld, hist, &rs, err) != 0) goto fail;
+    if (withheld_out) *withheld_out = withheld;
+    if (c->npoints == 0 && withheld > 0 && withheld == in->npoints) {
+        rs_err_set(err, RS_ERR_INPUT, path, 0,
+                   "every one of its %llu points is flagged withheld (not to be used); expected points to keep, or "
+                   "[ingest] las_withheld = keep",
+                   (unsigned long long)in->npoints);
+        goto fail;
+    }
     if (keep && c->npoints == 0 && in->npoints > 0) {
         char classes[512];
         list_classes(hist, classes, sizeof classes);
@@ -452,11 +572,17 @@ rs_cloud *rs_las_read(const char *path, const uint8_t *keep, rs_err *err)
     if (c->npoints < in->npoints && c->npoints > 0) /* shrink to the points kept; cannot fail in practice */
         rs_cloud_resize(c, c->npoints, 0, 0, err);
     c->normals_up = 1;
-    rs_log_info("%s: LAS %d.%d, point format %d (%u-byte records), %zu of %llu points kept%s", path, in->version_major,
-                in->version_minor, in->format, in->record_length, c->npoints, (unsigned long long)in->npoints,
+    char crs[320];
+    rs_las_crs_describe(&in->crs, crs, sizeof crs);
+    rs_log_info("%s: LAS %d.%d, point format %d (%u-byte records), %zu of %llu points kept%s; %llu withheld %s", path,
+                in->version_major, in->version_minor, in->format, in->record_length, c->npoints,
+                (unsigned long long)in->npoints,
                 !in->has_rgb  ? ""
                     : rs.wide ? ", 16-bit colour (high byte kept)"
-                              : ", 8-bit colour stored in 16-bit fields");
+                              : ", 8-bit colour stored in 16-bit fields",
+                (unsigned long long)withheld, keep_withheld ? "kept" : "dropped");
+    rs_log_info("%s: coordinate system: %s%s", path, crs,
+                in->unit_m[0] != 1 || in->unit_m[2] != 1 ? "; converted to metres" : "");
     free(hist);
     rs_las_close(f);
     return c;

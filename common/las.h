@@ -8,6 +8,7 @@
 
 #include "common/cloud.h"
 #include "common/err.h"
+#include "common/las_crs.h"
 
 /* What the public header block says, checked against the file (rs_las_open). */
 typedef struct rs_las_info {
@@ -23,15 +24,19 @@ typedef struct rs_las_info {
     double min[3], max[3];      /* the header's bounding box */
     int has_rgb;                /* formats 2, 3, 5, 7, 8 and 10 */
     uint64_t file_size;
+    rs_las_crs crs;   /* the coordinate system of the GeoTIFF keys or WKT, kind NONE without one */
+    double unit_m[3]; /* metres per file unit (x, y, z): the decoded coordinates are in metres */
 } rs_las_info;
 
 /* One chunk of decoded points, owned by the reader (valid until the next call). */
 typedef struct rs_las_chunk {
     size_t n;
-    double *xyz;             /* 3 n: integer * scale + offset, the file's frame and units */
+    double *xyz;             /* 3 n: (integer * scale + offset) * unit_m, the file's frame, metres */
     uint16_t *intensity;     /* n */
     uint16_t *rgb;           /* 3 n as stored (16-bit fields), NULL without colour */
     uint8_t *classification; /* n: the class number (formats 0-5: the low 5 bits of the field) */
+    uint8_t *withheld;       /* n: 1 when the withheld flag is set (formats 0-5: bit 7 of byte 15;
+                                6-10: bit 2 of the classification flags, byte 15) */
 } rs_las_chunk;
 
 typedef struct rs_las rs_las;
@@ -64,5 +69,9 @@ int rs_las_parse_classes(const char *text, uint8_t keep[256], rs_err *err);
  * which is kept is refused, naming the classes it has. The cloud's normals_up is set (no
  * scanner position is in a LAS file). Caller frees. */
 rs_cloud *rs_las_read(const char *path, const uint8_t *keep, rs_err *err);
+/* The same, keep_withheld 1 to keep the points flagged withheld (rs_las_read drops them, as the
+ * specification asks: "should not be included in processing"); *withheld (may be NULL) gets the
+ * count of withheld points dropped. */
+rs_cloud *rs_las_read_with(const char *path, const uint8_t *keep, int keep_withheld, uint64_t *withheld, rs_err *err);
 
 #endif

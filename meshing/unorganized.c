@@ -152,7 +152,7 @@ static rs_mesh *compact(const float *verts, size_t nverts, const uint32_t *tris,
 rs_mesh *rs_unorg_mesh(const rs_cloud *c, const rs_unorg_opts *o, rs_unorg_stats *st, rs_err *err)
 {
     memset(st, 0, sizeof *st);
-    if (!c->has_viewpoint && !c->normals_up) {
+    if (!c->has_viewpoint && !c->normals_up && !c->normal) {
         rs_err_set(err, RS_ERR_INPUT, NULL, 0,
                    "an unorganized cloud needs its scanner position to orient the surface: "
                    "expected [ingest] scanner_position = X Y Z (world frame, metres)");
@@ -184,7 +184,14 @@ rs_mesh *rs_unorg_mesh(const rs_cloud *c, const rs_unorg_opts *o, rs_unorg_stats
         k++;
     }
     if (spacing(xyz, n, &st->spacing_median_m, &st->spacing_p90_m, err) != 0) goto out;
-    if (rs_pcl_normals(xyz, n, o->normal_neighbours, vp, o->threads, nrm, err) != 0) goto out;
+    if (c->normal) { /* the file's own (E57 nor:, PLY nx ny nz), oriented as given */
+        k = 0;
+        for (size_t i = first; i < c->npoints; i++)
+            if (c->valid[i]) memcpy(nrm + 3 * k++, c->normal + 3 * i, 3 * sizeof *nrm);
+        st->normals_given = 1;
+    } else if (rs_pcl_normals(xyz, n, o->normal_neighbours, vp, o->threads, nrm, err) != 0) {
+        goto out;
+    }
     for (size_t i = 0; i < n; i++)
         st->points_no_normal += nrm[3 * i] == 0 && nrm[3 * i + 1] == 0 && nrm[3 * i + 2] == 0;
 

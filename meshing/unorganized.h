@@ -25,6 +25,7 @@ typedef struct rs_unorg_stats {
     size_t faces_pieces;                    /* Poisson: faces of small pieces left by the trim, removed */
     double cell_m;                          /* Poisson: the octree's finest cell */
     size_t points_no_normal;                /* too few neighbours for a normal */
+    int normals_given;                      /* the cloud's own normals were used (not estimated) */
 } rs_unorg_stats;
 
 /* Meshes the valid points of c outside its scan grids, seen from c->viewpoint, or from above

@@ -224,6 +224,10 @@ static int stitch_pinholes(const rs_config *cfg, const char *section, rs_e57 *e,
                            .estimate_gain = m > 1};
     rs_stitch_stats stats;
     if (rs_stitch(&rig, frames, &opts, &cap->pano, gains, &stats, err) != 0) goto out;
+    rs_log_warn("%s: the E57 pinhole camera frame is taken as x right, y down, z forward (OpenCV's), an assumption no "
+                "shared file confirms; CloudCompare reads it as looking along -z with y up (docs/FORMATS.md, E57 image "
+                "conventions): check the stitched panorama against the scan",
+                cap->path);
     rs_log_info("%s: %d pinhole images stitched into a %d x %d panorama (%.1f %% of the sphere seen)", cap->path, m,
                 cap->pano->width, cap->pano->height, 100 * stats.coverage);
     rs_gain_report_free(&stats.gain);

@@ -16,8 +16,9 @@ typedef struct las_spec {
     unsigned extra; /* extra bytes per record (after the format's fields) */
     unsigned pad;   /* bytes between the header and the first point */
     double scale[3], offset[3];
-    int legacy_zero;     /* 1.4: leave the 32-bit count 0 (only the 64-bit one) */
-    uint64_t count_over; /* when non-zero: the count written in the header instead of n */
+    int legacy_zero;         /* 1.4: leave the 32-bit count 0 (only the 64-bit one) */
+    uint64_t count_over;     /* when non-zero: the count written in the header instead of n */
+    const uint8_t *withheld; /* n flags, or NULL: the withheld bit of each record */
 } las_spec;
 
 static const unsigned las_min_record[11] = {20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67};
@@ -103,6 +104,7 @@ static inline int las_write(const char *path, const las_spec *s, size_t n, const
     unsigned len = las_min_record[s->format] + s->extra;
     for (size_t i = 0; i < n && ok; i++) {
         las_record(s, xyz + 3 * i, intensity ? intensity[i] : 0, rgb ? rgb + 3 * i : NULL, cls ? cls[i] : 0, rec);
+        if (s->withheld && s->withheld[i]) rec[15] |= s->format >= 6 ? 0x04 : 0x80;
         ok = fwrite(rec, 1, len, f) == len;
     }
     return fclose(f) == 0 && ok ? 0 : -1;

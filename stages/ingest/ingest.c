@@ -15,6 +15,7 @@
 #include "common/las.h"
 #include "common/log.h"
 #include "common/pcl_bridge.h"
+#include "stages/ingest/ingest_stream.h"
 
 /* Indices of the valid points outside every scan grid, as floats for PCL. */
 static float *loose_points(const rs_cloud *c, size_t *n, size_t **index)
@@ -87,8 +88,7 @@ static int drop_coincident(rs_cloud *c, rs_report *rep, size_t *distinct, rs_err
     return 0;
 }
 
-/* Across a line, unorganized points spread less than this share of their length have no surface. */
-#define MIN_SPREAD 1e-5
+#define MIN_SPREAD RS_INGEST_MIN_SPREAD
 
 /* 1 when the valid unorganized points lie on one line: their covariance has rank 1, i.e. the sum
  * of its 2 x 2 principal minors (about lambda1 lambda2) is below MIN_SPREAD^2 trace^2. */
@@ -113,11 +113,8 @@ static int collinear_points(const rs_cloud *c)
     return !(minors > MIN_SPREAD * MIN_SPREAD * trace * trace);
 }
 
-/* The unorganized points must be able to carry a surface: three distinct points, not on a line. */
-static int check_unorganized(const rs_config *cfg, rs_cloud *c, rs_report *rep, rs_err *err)
+int rs_ingest_surface_check(const rs_config *cfg, size_t npoints, size_t distinct, int collinear, rs_err *err)
 {
-    size_t distinct = 0;
-    if (drop_coincident(c, rep, &distinct, err) != 0) return -1;
     char scan[4096];
     const char *file = rs_config_file(cfg);
     if (rs_config_path_count(cfg, "ingest", "scan") == 1 &&
@@ -127,13 +124,21 @@ static int check_unorganized(const rs_config *cfg, rs_cloud *c, rs_report *rep, 
         return rs_err_set(err, RS_ERR_INPUT, file, 0,
                           "[ingest] scan: the %zu unorganized points are at %zu distinct position%s: expected a scan "
                           "of a surface (at least 3 distinct points, not on one line)",
-                          rs_cloud_unorganized(c), distinct, distinct == 1 ? "" : "s");
-    if (collinear_points(c))
+                          npoints, distinct, distinct == 1 ? "" : "s");
+    if (collinear)
         return rs_err_set(err, RS_ERR_INPUT, file, 0,
                           "[ingest] scan: the %zu unorganized points lie on one line (across it they spread less "
                           "than %g of its length): expected a scan of a surface",
-                          distinct, MIN_SPREAD);
+                          distinct, RS_INGEST_MIN_SPREAD);
     return 0;
+}
+
+/* The unorganized points must be able to carry a surface: three distinct points, not on a line. */
+static int check_unorganized(const rs_config *cfg, rs_cloud *c, rs_report *rep, rs_err *err)
+{
+    size_t distinct = 0;
+    if (drop_coincident(c, rep, &distinct, err) != 0) return -1;
+    return rs_ingest_surface_check(cfg, rs_cloud_unorganized(c), distinct, distinct >= 3 && collinear_points(c), err);
 }
 
 /* Statistical outlier removal, then voxel downsampling, of the unorganized points. Scan grids
@@ -215,6 +220,11 @@ static int clean(const rs_config *cfg, rs_cloud *c, rs_report *rep, rs_err *err)
         if (c->rgb) memcpy(c->rgb + 3 * at, vrgb + 3 * i, 3);
         c->valid[at] = 1;
     }
+    if (c->normal) { /* a centroid has no normal of the file's */
+        free(c->normal);
+        c->normal = NULL;
+        rs_log_info("voxel downsampling: the file's normals are not carried (the mesh stage estimates them)");
+    }
     rs_report_time(rep, "voxel", rs_now() - t0);
     rs_log_info("voxel downsampling (%g m): %zu -> %zu unorganized points", leaf, n, m);
     rs_json_set_num(rep->metrics, "voxel_size_m", leaf);
@@ -248,6 +258,8 @@ int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     char dir[4096];
     if (rs_workdir(cfg, dir, sizeof dir, err) != 0) return -1;
 
+    if (rs_ingest_can_stream(cfg))
+        return rs_ingest_stream(cfg, rep, rs_work_path(cfg, "cloud.ply", path, sizeof path), err);
     double t0 = rs_now();
     rs_cloud *all = calloc(1, sizeof *all);
     if (!all) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
@@ -259,13 +271,19 @@ int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         rs_err_set_file(err, rs_config_file(cfg));
         goto out;
     }
+    int keep_withheld = strcmp(rs_config_string(cfg, "ingest", "las_withheld"), "keep") == 0;
+    uint64_t withheld_total = 0;
     for (int i = 0; i < nfiles; i++) {
         rs_config_path_at(cfg, "ingest", "scan", i, path, sizeof path);
         const char *kind;
+        uint64_t withheld = 0;
         rs_cloud_read_opts opts = {.columns = rs_config_string(cfg, "ingest", "columns"),
-                                   .las_keep = classes ? las_keep : NULL};
+                                   .las_keep = classes ? las_keep : NULL,
+                                   .las_keep_withheld = keep_withheld,
+                                   .las_withheld = &withheld};
         rs_cloud *c = rs_cloud_read_with(path, &opts, &kind, err);
         if (!c) goto out;
+        withheld_total += withheld;
         size_t valid = 0;
         for (size_t k = 0; k < c->npoints; k++) valid += c->valid[k] != 0;
         if (valid == 0) { /* every file must bring something: an empty one is a wrong path or export */
@@ -296,6 +314,11 @@ int rs_ingest_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         if (ok != 0) goto out;
     }
     rs_report_time(rep, "read", rs_now() - t0);
+    if (withheld_total) {
+        rs_json_set_int(rep->metrics, "las_withheld_dropped", (long long)withheld_total);
+        rs_log_info("%llu LAS points flagged withheld: dropped ([ingest] las_withheld = keep keeps them)",
+                    (unsigned long long)withheld_total);
+    }
     if (rs_config_reals(cfg, "ingest", "scanner_position", all->viewpoint) == 0) all->has_viewpoint = 1;
 
     /* Before anything turns coordinates into floats (PCL here, the mesh later). */

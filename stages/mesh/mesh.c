@@ -466,6 +466,7 @@ static void report_unorganized(rs_report *rep, const char *source, int poisson, 
     rs_json_set_num(rep->metrics, "spacing_median_m", us->spacing_median_m);
     rs_json_set_num(rep->metrics, "spacing_p90_m", us->spacing_p90_m);
     rs_json_set_int(rep->metrics, "points_no_normal", (long long)us->points_no_normal);
+    if (us->normals_given) rs_json_set_str(rep->metrics, "normals", "from the scan file");
     rs_json_set_int(rep->metrics, "faces_reconstructed", (long long)us->faces_raw);
     if (poisson) {
         rs_json_set_num(rep->metrics, "poisson_cell_m", us->cell_m);

@@ -147,6 +147,14 @@ enum { NCASES = sizeof cases / sizeof cases[0] };
 
 #define TOL 5e-4 + 1e-9
 
+/* Metres per file unit: the README gives the files' own values, the reader converts feet. */
+static double unit_of(const char *name)
+{
+    if (strcmp(name, "autzen.las") == 0) return 0.3048;            /* GeoTIFF 3076 = 9002, foot */
+    if (strcmp(name, "test1_4.las") == 0) return 0.30480060960122; /* WKT UNIT["US survey foot"] */
+    return 1;
+}
+
 static const char *las_path(const char *name)
 {
     static char path[4][2048];
@@ -179,10 +187,12 @@ static void check_case(const las_case *k)
             lo[j] = fmin(lo[j], c->xyz[3 * i + j]), hi[j] = fmax(hi[j], c->xyz[3 * i + j]);
             if (c->rgb && c->rgb[3 * i + j] > mx[j]) mx[j] = c->rgb[3 * i + j];
         }
+    double u = unit_of(k->name);
     for (int j = 0; j < 3; j++)
-        if (fabs(lo[j] - k->lo[j]) > TOL || fabs(hi[j] - k->hi[j]) > TOL || fabs(c->xyz[j] - k->first[j]) > TOL)
-            fail_msg("%s axis %d: bbox %.4f .. %.4f, first %.4f; expected %.3f .. %.3f, first %.3f", k->name, j, lo[j],
-                     hi[j], c->xyz[j], k->lo[j], k->hi[j], k->first[j]);
+        if (fabs(lo[j] - u * k->lo[j]) > TOL || fabs(hi[j] - u * k->hi[j]) > TOL ||
+            fabs(c->xyz[j] - u * k->first[j]) > TOL)
+            fail_msg("%s axis %d: bbox %.4f .. %.4f, first %.4f; expected %.3f .. %.3f, first %.3f (x %.9g m)", k->name,
+                     j, lo[j], hi[j], c->xyz[j], u * k->lo[j], u * k->hi[j], u * k->first[j], u);
     if (k->intensity >= 0 && c->intensity[0] != (float)k->intensity)
         fail_msg("%s: intensity %g, expected %d", k->name, c->intensity[0], k->intensity);
     assert_int_equal(c->rgb != NULL, k->rgb[0] >= 0);
@@ -257,5 +267,38 @@ static void test_classes(void **state)
     rs_cloud_free(c);
 }
 
+/* The coordinate systems the files carry (GeoTIFF keys in the libLAS and TerraScan files, WKT in
+ * Global Mapper's and PDAL's), as their VLRs give them. */
+static void test_coordinate_systems(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *file, *source, *name, *unit;
+        int epsg;
+        double unit_m;
+    } want[] = {
+        {"1.0_0.las", "GeoTIFF keys", "NAD83 / UTM zone 15N", "metre", 26915, 1},
+        {"point10.las", "GeoTIFF keys", "NAD83 / UTM zone 10N", "metre", 26910, 1},
+        {"autzen.las", "GeoTIFF keys", "NAD83(HARN) / Oregon Lambert (ft)", "foot", 2994, 0.3048},
+        {"test1_4.las", "WKT", "NAD83(HARN) / New Mexico Central (ftUS)", "US survey foot", 0, 1200.0 / 3937.0},
+        {"v4d8.las", "WKT", "JGD2011 / Japan Plane Rectangular CS VIII", "metre", 6676, 1},
+        {"simple1_1.las", "", "", "", 0, 1},
+    };
+    for (size_t k = 0; k < sizeof want / sizeof want[0]; k++) {
+        rs_err err = {0};
+        rs_las *f = rs_las_open(las_path(want[k].file), &err);
+        if (!f) fail_msg("%s: %s", want[k].file, err.msg);
+        const rs_las_crs *crs = &rs_las_info_of(f)->crs;
+        if (strcmp(crs->source, want[k].source) != 0 || strcmp(crs->name, want[k].name) != 0 ||
+            strcmp(crs->unit, want[k].unit) != 0 || (want[k].epsg && crs->epsg != want[k].epsg) ||
+            fabs(crs->unit_m - want[k].unit_m) > 1e-9 || fabs(rs_las_info_of(f)->unit_m[2] - want[k].unit_m) > 1e-9)
+            fail_msg("%s: \"%s\" from \"%s\", EPSG %d, unit \"%s\" = %.15g m", want[k].file, crs->name, crs->source,
+                     crs->epsg, crs->unit, crs->unit_m);
+        assert_int_equal(crs->kind, want[k].source[0] ? RS_LAS_CRS_PROJECTED : RS_LAS_CRS_NONE);
+        rs_las_close(f);
+    }
+}
+
 RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_documented_values), cmocka_unit_test(test_extra_bytes_same_points),
-             cmocka_unit_test(test_laz_and_empty), cmocka_unit_test(test_classes))
+             cmocka_unit_test(test_laz_and_empty), cmocka_unit_test(test_classes),
+             cmocka_unit_test(test_coordinate_systems))
