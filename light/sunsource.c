@@ -244,7 +244,11 @@ int rs_sunsource_search(rs_sunsource *sun, const rs_scene *scene, const rs_skyen
     double margin = rs_sunshadow_margin(mesh, observed, cam, pano_height);
     rs_sunshadow_pairs pairs;
     int rc = rs_sunshadow_pairs_build(mesh, observed, margin, 3 * margin, 8, &pairs, err);
-    if (rc == 0) rc = rs_sunsearch_run(scene, env, &pairs, E, radiance, observed, &sun->found, err);
+    rs_v3 prior = rs_v3_norm(sky_dir);
+    int has_prior = rs_v3_len(sky_dir) > 0 && isfinite(prior.x);
+    if (rc == 0)
+        rc = rs_sunsearch_run(scene, env, &pairs, E, radiance, observed, has_prior ? &prior : NULL,
+                              RS_SUNSOURCE_AGREE_DEG, &sun->found, err);
     rs_sunshadow_pairs_free(&pairs);
     free(E);
     if (rc < 0) return -1;

@@ -33,17 +33,35 @@
 #define RS_SUNSEARCH_MIN_GLOW 2.0
 
 typedef struct rs_sunsearch {
-    rs_v3 dir;         /* unit, world, toward the sun */
-    double score;      /* its median log contrast */
-    double edge_score; /* its edge score (sunsearch.c), what picked it */
-    size_t pairs;      /* lit-shadowed pairs behind it */
-    int candidates;    /* directions scored */
+    rs_v3 dir;            /* unit, world, toward the sun */
+    double score;         /* its log contrast: the median, or the sun cluster's (upper_cluster) */
+    double median_score;  /* the median log contrast over every lit-shadowed pair there */
+    double edge_score;    /* its edge score (sunsearch.c), what picked it */
+    size_t pairs;         /* lit-shadowed pairs behind it (the cluster's consensus with upper_cluster) */
+    int ridge;            /* 1: the best was beyond the prior's cone, and this direction inside it is tied with it */
+    int candidates;       /* directions scored */
+    int upper_cluster;    /* 1: the best median was below RS_SUNSEARCH_MIN_SCORE (leaks can outvote it), so
+                             every direction was scored by the sun's cluster of contrasts instead
+                             (rs_sunshadow_upper_cluster), and the edge score forgave predicted edges
+                             the radiance does not show */
+    double dir_sigma_deg; /* the direction's uncertainty: RMS angle of the best direction over a
+                             bootstrap of blocks of pairs, on a 1 degree grid within 6 degrees */
 } rs_sunsearch;
 
-/* E and L: 3 per facet (E_sky + G without a sun, and the observed radiance). Returns 0 with
- * the best direction, 1 when no direction had RS_SUNSEARCH_MIN_PAIRS pairs, -1 out of memory
- * (err set). */
+/* E and L: 3 per facet (E_sky + G without a sun, and the observed radiance). prior (or NULL):
+ * where the visible sky puts the sun; when the best direction lies more than prior_deg from it,
+ * a direction within prior_deg whose edge score is statistically tied with the best (a ridge of
+ * directions that put the long shadow lines in the same place) replaces it (ridge). Returns 0
+ * with the best direction, 1 when no direction had RS_SUNSEARCH_MIN_PAIRS pairs, -1 out of
+ * memory (err set). */
 int rs_sunsearch_run(const rs_scene *scene, const rs_skyenv *env, const rs_sunshadow_pairs *pairs, const double *E,
-                     const double *L, const uint8_t *observed, rs_sunsearch *out, rs_err *err);
+                     const double *L, const uint8_t *observed, const rs_v3 *prior, double prior_deg, rs_sunsearch *out,
+                     rs_err *err);
+
+/* The same scored by the median contrast alone, never by the sun's cluster: the search as it
+ * was before leaks were guarded against, for tests that show the difference. */
+int rs_sunsearch_run_median_only(const rs_scene *scene, const rs_skyenv *env, const rs_sunshadow_pairs *pairs,
+                                 const double *E, const double *L, const uint8_t *observed, rs_sunsearch *out,
+                                 rs_err *err);
 
 #endif
