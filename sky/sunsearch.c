@@ -310,6 +310,33 @@ static int ridge_in_cone(const search_ctx *c, const cone *k, double tau, rs_v3 *
     return 1;
 }
 
+/* Of the pair facets with albedo above RS_SUNSHADOW_ABOVE_ONE without the sun, those that
+ * direction s lights and those it shadows (one ray from the centroid). -1 out of memory. */
+static int above_one_counts(const search_ctx *c, rs_v3 s, size_t *lit, size_t *dark)
+{
+    *lit = *dark = 0;
+    double excess_log = log(RS_SUNSHADOW_ABOVE_ONE / M_PI);
+    rs_ray *rays = malloc((c->nfacets + 1) * sizeof *rays);
+    uint8_t *occl = malloc(c->nfacets + 1);
+    if (!rays || !occl) {
+        free(rays);
+        free(occl);
+        return -1;
+    }
+    size_t nr = 0;
+    for (size_t k = 0; k < c->nfacets; k++)
+        if (rs_v3_dot(c->nrm[k], s) > 0.1 && c->log_ratio[c->facets[k]] > excess_log)
+            rays[nr++] = (rs_ray){.org = c->org[k], .dir = s, .tnear = 0, .tfar = INFINITY};
+    rs_scene_occluded(c->scene, rays, occl, nr);
+    for (size_t r = 0; r < nr; r++) {
+        *lit += !occl[r];
+        *dark += occl[r] != 0;
+    }
+    free(rays);
+    free(occl);
+    return 0;
+}
+
 static int search_run(const rs_scene *scene, const rs_skyenv *env, const rs_sunshadow_pairs *pairs, const double *E,
                       const double *L, const uint8_t *observed, int allow_upper, const cone *k, rs_sunsearch *out,
                       rs_err *err)
@@ -396,7 +423,10 @@ static int search_run(const rs_scene *scene, const rs_skyenv *env, const rs_suns
     if (rc == 1 && k->prior && rs_v3_dot(out->dir, *k->prior) < k->cos_cone &&
         ridge_in_cone(&c, k, tau, dirs, med, edge, np, median, out) < 0)
         rc = -1;
-    if (rc == 1 && direction_spread(&c, out->dir, tau, dirs, med, edge, np, &out->dir_sigma_deg) != 0) rc = -1;
+    if (rc == 1 &&
+        (direction_spread(&c, out->dir, tau, dirs, med, edge, np, &out->dir_sigma_deg) != 0 ||
+         above_one_counts(&c, out->dir, &out->above_one_lit, &out->above_one_dark) != 0))
+        rc = -1;
     if (rc >= 0) rc = rc == 1 ? 0 : 1;
 done:
     free(c.slot);

@@ -32,12 +32,20 @@
  * no sun casts shadows, while an albedo edge could still look like one. */
 #define RS_SUNSEARCH_MIN_GLOW 2.0
 
+/* Albedo above 1 without the sun on facets a direction lights is light missing from the model;
+ * a dim sun the cameras saw cannot make it. With at least this many such facets, and four times
+ * as many lit as shadowed by it, a direction farther from the visible sky's sun than the cues'
+ * agreement allows is taken all the same (light/sunsource.c). */
+#define RS_SUNSEARCH_MIN_ABOVE_ONE 30
+
 typedef struct rs_sunsearch {
-    rs_v3 dir;            /* unit, world, toward the sun */
-    double score;         /* its log contrast: the median, or the sun cluster's (upper_cluster) */
-    double median_score;  /* the median log contrast over every lit-shadowed pair there */
-    double edge_score;    /* its edge score (sunsearch.c), what picked it */
-    size_t pairs;         /* lit-shadowed pairs behind it (the cluster's consensus with upper_cluster) */
+    rs_v3 dir;           /* unit, world, toward the sun */
+    double score;        /* its log contrast: the median, or the sun cluster's (upper_cluster) */
+    double median_score; /* the median log contrast over every lit-shadowed pair there */
+    double edge_score;   /* its edge score (sunsearch.c), what picked it */
+    size_t pairs;        /* lit-shadowed pairs behind it (the cluster's consensus with upper_cluster) */
+    size_t above_one_lit, above_one_dark; /* pair facets with albedo above RS_SUNSHADOW_ABOVE_ONE without
+                                             the sun that it lights, that it shadows: missing light */
     int ridge;            /* 1: the best was beyond the prior's cone, and this direction inside it is tied with it */
     int candidates;       /* directions scored */
     int upper_cluster;    /* 1: the best median was below RS_SUNSEARCH_MIN_SCORE (leaks can outvote it), so

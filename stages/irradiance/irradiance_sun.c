@@ -209,6 +209,9 @@ static void report_search(const rs_sunsource *sun, rs_json *metrics)
     rs_json_set_num(o, "median_log_contrast", f->median_score);
     rs_json_set_str(o, "contrast_estimator", f->upper_cluster ? "sun cluster" : "median");
     rs_json_set_bool(o, "ridge_toward_sky_estimate", f->ridge);
+    rs_json_set_int(o, "albedo_above_one_lit", (long long)f->above_one_lit);
+    rs_json_set_int(o, "albedo_above_one_shadowed", (long long)f->above_one_dark);
+    rs_json_set_bool(o, "missing_light", sun->missing_light);
     rs_json_set_int(o, "pairs", (long long)f->pairs);
     rs_json_set_int(o, "candidates", f->candidates);
     rs_json_set_num(o, "off_sky_estimate_deg", sun->found_off_deg);
