@@ -244,12 +244,19 @@ int rs_sunsource_search(rs_sunsource *sun, const rs_scene *scene, const rs_skyen
     double margin = rs_sunshadow_margin(mesh, observed, cam, pano_height);
     rs_sunshadow_pairs pairs;
     int rc = rs_sunshadow_pairs_build(mesh, observed, margin, 3 * margin, 8, &pairs, err);
-    if (rc == 0) rc = rs_sunsearch_run(scene, env, &pairs, E, radiance, observed, &sun->found, err);
+    rs_v3 prior = rs_v3_norm(sky_dir);
+    int has_prior = rs_v3_len(sky_dir) > 0 && isfinite(prior.x);
+    if (rc == 0)
+        rc = rs_sunsearch_run(scene, env, &pairs, E, radiance, observed, has_prior ? &prior : NULL,
+                              RS_SUNSOURCE_AGREE_DEG, &sun->found, err);
     rs_sunshadow_pairs_free(&pairs);
     free(E);
     if (rc < 0) return -1;
     sun->found_off_deg = acos(fmax(-1, fmin(1, rs_v3_dot(rs_v3_norm(sky_dir), sun->found.dir)))) * 180 / M_PI;
-    if (rc == 0 && sun->found.score >= RS_SUNSEARCH_MIN_SCORE && sun->found_off_deg <= RS_SUNSOURCE_AGREE_DEG) {
+    const rs_sunsearch *f = &sun->found;
+    sun->missing_light = f->above_one_lit >= RS_SUNSEARCH_MIN_ABOVE_ONE && f->above_one_lit >= 4 * f->above_one_dark;
+    if (rc == 0 && f->score >= RS_SUNSEARCH_MIN_SCORE &&
+        (sun->found_off_deg <= RS_SUNSOURCE_AGREE_DEG || sun->missing_light)) {
         sun->active = sun->from_shadows = sun->searched = 1;
         sun->dir_world = sun->found.dir;
         sun->dir_from = "shadows";

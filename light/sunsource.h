@@ -50,6 +50,7 @@ typedef struct rs_sunsource {
     int searched;         /* the direction came from rs_sunsource_search */
     rs_sunsearch found;   /* its result */
     double found_off_deg; /* its angle to the sky's own estimate (rs_sunsource_search) */
+    int missing_light;    /* it lights enough facets whose albedo is above 1 without it (RS_SUNSEARCH_MIN_ABOVE_ONE) */
     double margin;        /* its margin (m) */
     double clip_level;    /* luminance from which a capture pixel is the clipped disc */
     double halo_factor;   /* pixels within cone_rad above this x the median sky go too */
@@ -95,7 +96,9 @@ int rs_sunsource_visibility(const rs_sunsource *sun, const rs_scene *scene, int 
                             const rs_facet_gather *fg, float *vis, rs_err *err);
 
 /* With sun->search, after the gather: the direction from the shadows (sunsearch.h) among the
- * directions the map filled. It is taken only within RS_SUNSOURCE_AGREE_DEG of sky_dir, the
+ * directions the map filled. It is taken only within RS_SUNSOURCE_AGREE_DEG of sky_dir (or
+ * farther when it lights at least RS_SUNSEARCH_MIN_ABOVE_ONE facets whose albedo without it is
+ * above 1, four times as many as it shadows: missing_light), the
  * direction whose clear-sky distribution explains the visible sky best (the model fill's
  * search): two independent cues must agree, so that shadows cast by a dim sun the cameras did
  * see cannot put a second one behind the building. When taken, activates sun with from_shadows

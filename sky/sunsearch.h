@@ -32,18 +32,44 @@
  * no sun casts shadows, while an albedo edge could still look like one. */
 #define RS_SUNSEARCH_MIN_GLOW 2.0
 
+/* Albedo above 1 without the sun on facets a direction lights is light missing from the model;
+ * a dim sun the cameras saw cannot make it. With at least this many such facets, and four times
+ * as many lit as shadowed by it, a direction farther from the visible sky's sun than the cues'
+ * agreement allows is taken all the same (light/sunsource.c). */
+#define RS_SUNSEARCH_MIN_ABOVE_ONE 30
+
 typedef struct rs_sunsearch {
-    rs_v3 dir;         /* unit, world, toward the sun */
-    double score;      /* its median log contrast */
-    double edge_score; /* its edge score (sunsearch.c), what picked it */
-    size_t pairs;      /* lit-shadowed pairs behind it */
-    int candidates;    /* directions scored */
+    rs_v3 dir;           /* unit, world, toward the sun */
+    double score;        /* its log contrast: the median, or the sun cluster's (upper_cluster) */
+    double median_score; /* the median log contrast over every lit-shadowed pair there */
+    double edge_score;   /* its edge score (sunsearch.c), what picked it */
+    size_t pairs;        /* lit-shadowed pairs behind it (the cluster's consensus with upper_cluster) */
+    size_t above_one_lit, above_one_dark; /* pair facets with albedo above RS_SUNSHADOW_ABOVE_ONE without
+                                             the sun that it lights, that it shadows: missing light */
+    int ridge;            /* 1: the best was beyond the prior's cone, and this direction inside it is tied with it */
+    int candidates;       /* directions scored */
+    int upper_cluster;    /* 1: the best median was below RS_SUNSEARCH_MIN_SCORE (leaks can outvote it), so
+                             every direction was scored by the sun's cluster of contrasts instead
+                             (rs_sunshadow_upper_cluster), and the edge score forgave predicted edges
+                             the radiance does not show */
+    double dir_sigma_deg; /* the direction's uncertainty: RMS angle of the best direction over a
+                             bootstrap of blocks of pairs, on a 1 degree grid within 6 degrees */
 } rs_sunsearch;
 
-/* E and L: 3 per facet (E_sky + G without a sun, and the observed radiance). Returns 0 with
- * the best direction, 1 when no direction had RS_SUNSEARCH_MIN_PAIRS pairs, -1 out of memory
- * (err set). */
+/* E and L: 3 per facet (E_sky + G without a sun, and the observed radiance). prior (or NULL):
+ * where the visible sky puts the sun; when the best direction lies more than prior_deg from it,
+ * a direction within prior_deg whose edge score is statistically tied with the best (a ridge of
+ * directions that put the long shadow lines in the same place) replaces it (ridge). Returns 0
+ * with the best direction, 1 when no direction had RS_SUNSEARCH_MIN_PAIRS pairs, -1 out of
+ * memory (err set). */
 int rs_sunsearch_run(const rs_scene *scene, const rs_skyenv *env, const rs_sunshadow_pairs *pairs, const double *E,
-                     const double *L, const uint8_t *observed, rs_sunsearch *out, rs_err *err);
+                     const double *L, const uint8_t *observed, const rs_v3 *prior, double prior_deg, rs_sunsearch *out,
+                     rs_err *err);
+
+/* The same scored by the median contrast alone, never by the sun's cluster: the search as it
+ * was before leaks were guarded against, for tests that show the difference. */
+int rs_sunsearch_run_median_only(const rs_scene *scene, const rs_skyenv *env, const rs_sunshadow_pairs *pairs,
+                                 const double *E, const double *L, const uint8_t *observed, rs_sunsearch *out,
+                                 rs_err *err);
 
 #endif

@@ -257,13 +257,91 @@ static int lit_facets_dni(const rs_sunshadow_input *in, const cell_index *g, con
     return 0;
 }
 
-/* The estimate from the nu used lit facets (lit, dl as lit_facets_dni leaves them): the median
- * D per channel, its standard error between blocks, and what E's uncertainty makes of it.
- * -1: out of memory. */
-static int dni_statistics(const rs_sunshadow_input *in, const rs_v3 *cen, const uint32_t *lit, const float *dl,
-                          size_t nu, rs_sunshadow *out)
+void rs_sunshadow_upper_cluster(const float *v, size_t n, size_t min_count, float *scratch, rs_sunshadow_cluster *out)
 {
-    float *col = malloc(nu * sizeof *col), *blk = malloc(nu * sizeof *blk), *tmp = malloc(nu * sizeof *tmp);
+    memset(out, 0, sizeof *out);
+    out->n = n;
+    float *pos = scratch, *work = scratch + n;
+    size_t k = 0;
+    for (size_t i = 0; i < n; i++)
+        if (v[i] <= 0) work[k++] = -v[i];
+    double s0 = k ? 1.4826 * rs_select_kth(work, k, k / 2) : 0, t = 3 * s0;
+    size_t np = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (v[i] > t) pos[np++] = v[i];
+        out->negative_tail += v[i] < -t;
+    }
+    out->null_noise = s0;
+    out->positive = np;
+    if (np == 0 || np < min_count || np <= 3 * out->negative_tail) return;
+    /* The mode of the positive values: the median within +- 2.5 MADs of the last one, iterated. */
+    for (size_t i = 0; i < np; i++) work[i] = pos[i];
+    double m = rs_select_kth(work, np, np / 2), s = 0;
+    for (size_t i = 0; i < np; i++) work[i] = (float)fabs(pos[i] - m);
+    s = 1.4826 * rs_select_kth(work, np, np / 2);
+    for (int it = 0; it < 20 && s > 0; it++) {
+        size_t w = 0;
+        for (size_t i = 0; i < np; i++)
+            if (fabs(pos[i] - m) <= 2.5 * s) work[w++] = pos[i];
+        if (w < min_count || w == 0) break;
+        double m2 = rs_select_kth(work, w, w / 2);
+        for (size_t i = 0, j = 0; i < np; i++)
+            if (fabs(pos[i] - m) <= 2.5 * s) work[j++] = (float)fabs(pos[i] - m2);
+        double s2 = 1.4826 * rs_select_kth(work, w, w / 2);
+        int done = fabs(m2 - m) <= 1e-6 * fabs(m2) + 1e-12;
+        m = m2;
+        if (s2 > 0) s = s2;
+        if (done) break;
+    }
+    /* The consensus: every value within 3 of those MADs of the mode (below 3 s0 too). */
+    size_t c = 0;
+    for (size_t i = 0; i < n; i++)
+        if (fabs(v[i] - m) <= 3 * s) work[c++] = v[i];
+    if (c == 0 || c < min_count) return;
+    out->location = rs_select_kth(work, c, c / 2);
+    for (size_t i = 0, j = 0; i < n; i++)
+        if (fabs(v[i] - m) <= 3 * s) work[j++] = (float)fabs(v[i] - out->location);
+    out->spread = 1.4826 * rs_select_kth(work, c, c / 2);
+    out->consensus = c;
+    out->valid = 1;
+}
+
+/* Which of the nu paired lit facets give the DNI (dl as lit_facets_dni leaves them): all of
+ * them, whose median per channel it was before; or, when the median lies outside the sun's
+ * cluster by more than half its spread (leaks outvote the real pairs), the cluster's consensus.
+ * Those facets are compacted to the front of lit and dl; returns their count. */
+static size_t consensus_facets(const rs_sunshadow_input *in, uint32_t *lit, float *dl, size_t nu, float *col,
+                               float *scratch, rs_sunshadow *out)
+{
+    for (size_t k = 0; k < nu; k++) {
+        double d[3] = {dl[4 * k], dl[4 * k + 1], dl[4 * k + 2]};
+        col[k] = (float)luminance(d);
+        scratch[k] = col[k];
+    }
+    out->median_lum = rs_select_kth(scratch, nu, nu / 2);
+    out->consensus = nu;
+    if (in->median_only) return nu;
+    rs_sunshadow_cluster cl;
+    rs_sunshadow_upper_cluster(col, nu, RS_SUNSHADOW_MIN_LIT, scratch, &cl);
+    if (!cl.valid || !(fabs(out->median_lum - cl.location) > 0.5 * cl.spread)) return nu;
+    size_t c = 0;
+    for (size_t k = 0; k < nu; k++) {
+        if (!(fabs(col[k] - cl.location) <= 3 * cl.spread)) continue;
+        memmove(dl + 4 * c, dl + 4 * k, 4 * sizeof *dl);
+        lit[c++] = lit[k];
+    }
+    out->upper_cluster = 1;
+    out->consensus = c;
+    return c;
+}
+
+/* The estimate from the nu used lit facets (lit, dl as lit_facets_dni leaves them): the median
+ * D per channel over the consensus (consensus_facets), its standard error between blocks, and
+ * what E's uncertainty makes of it. -1: out of memory. */
+static int dni_statistics(const rs_sunshadow_input *in, const rs_v3 *cen, uint32_t *lit, float *dl, size_t nu,
+                          rs_sunshadow *out)
+{
+    float *col = malloc(nu * sizeof *col), *blk = malloc(2 * nu * sizeof *blk), *tmp = malloc(nu * sizeof *tmp);
     key_facet *bk = malloc(nu * sizeof *bk);
     if (!col || !blk || !tmp || !bk) {
         free(col);
@@ -272,6 +350,7 @@ static int dni_statistics(const rs_sunshadow_input *in, const rs_v3 *cen, const 
         free(bk);
         return -1;
     }
+    nu = consensus_facets(in, lit, dl, nu, col, blk, out);
     for (int ch = 0; ch < 3; ch++) {
         for (size_t k = 0; k < nu; k++) col[k] = dl[4 * k + ch];
         out->dni[ch] = fmax(0, rs_select_kth(col, nu, nu / 2));
@@ -308,6 +387,34 @@ static int dni_statistics(const rs_sunshadow_input *in, const rs_v3 *cen, const 
     return 0;
 }
 
+/* Albedo above 1 without the sun on the lit candidates lit[0..nlit): each such facet needs at
+ * least (pi L - E) / cos_i of DNI per channel (its albedo is at most 1). Counts them and sets
+ * the floor (their median need per channel, and its luminance) when there are at least
+ * RS_SUNSHADOW_MIN_LIT. -1: out of memory. */
+static int albedo_floor(const rs_sunshadow_input *in, const rs_v3 *nrm, const uint32_t *lit, size_t nlit,
+                        double floor_rgb[3], rs_sunshadow *out)
+{
+    float *need = malloc((4 * nlit + 1) * sizeof *need);
+    if (!need) return -1;
+    size_t n = 0;
+    for (size_t k = 0; k < nlit; k++) {
+        uint32_t f = lit[k];
+        const double *L = in->L + 3 * (size_t)f, *E = in->E + 3 * (size_t)f;
+        double cosi = rs_v3_dot(nrm[f], in->sun_dir), yl = luminance(L), ye = luminance(E);
+        if (!(M_PI * yl > RS_SUNSHADOW_ABOVE_ONE * ye)) continue;
+        for (int ch = 0; ch < 3; ch++) need[ch * nlit + n] = (float)((M_PI * L[ch] - E[ch]) / cosi);
+        need[3 * nlit + n] = (float)((M_PI * yl - ye) / cosi);
+        n++;
+    }
+    out->above_one = n;
+    if (n >= RS_SUNSHADOW_MIN_LIT) {
+        for (int ch = 0; ch < 3; ch++) floor_rgb[ch] = fmax(0, rs_select_kth(need + ch * nlit, n, n / 2));
+        out->floor_lum = rs_select_kth(need + 3 * nlit, n, n / 2);
+    }
+    free(need);
+    return 0;
+}
+
 int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out, rs_err *err)
 {
     memset(out, 0, sizeof *out);
@@ -324,9 +431,16 @@ int rs_sunshadow_estimate(const rs_sunshadow_input *in, rs_sunshadow *out, rs_er
     if (index_build(&g, cen, nf, in->radius) != 0 || select_candidates(in, &g, cen, nrm, st, lit, &nlit, out) != 0)
         goto out;
     out->lit = nlit;
+    double floor_rgb[3] = {0, 0, 0};
+    if (!in->median_only && albedo_floor(in, nrm, lit, nlit, floor_rgb, out) != 0) goto out;
     if (lit_facets_dni(in, &g, cen, nrm, st, lit, nlit, dl, &nused) != 0) goto out;
     out->lit_used = nused;
     rc = nused < RS_SUNSHADOW_MIN_LIT ? 1 : dni_statistics(in, cen, lit, dl, nused, out);
+    if (rc == 0 && out->floor_lum > out->dni_lum) { /* the pairs say less than the albedo allows */
+        for (int ch = 0; ch < 3; ch++) out->dni[ch] = floor_rgb[ch];
+        out->dni_lum = luminance(out->dni);
+        out->floored = 1;
+    }
 out:
     free(g.key);
     free(g.facet);

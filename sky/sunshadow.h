@@ -31,7 +31,27 @@ typedef struct rs_sunshadow_input {
     const double *E_sigma;   /* nf: standard uncertainty of E's luminance (the sky fill's); NULL: none */
     double margin;           /* m: a facet this close to one of another kind is left out */
     double radius;           /* m: partners within this distance (> margin) */
+    int median_only;         /* 1: the median over every lit facet, as before the upper cluster (for tests) */
 } rs_sunshadow_input;
+
+/* The sun's cluster among values that leaks can outvote: per lit facet (or pair) a DNI or a
+ * log contrast that is about 0 where the model let the sun through a gap it lacks (the lit end
+ * is really in shadow) and about the sun's value where the shadow is real. The null cluster's
+ * noise s0 is read from the values at or below 0 (1.4826 x their median magnitude); the sun's
+ * cluster is the mode of the values above 3 s0 (medians within +- 2.5 MADs, iterated), its
+ * consensus the values within 3 MADs of it. It is valid when it holds at least min_count values
+ * and more than three times as many as the mirror tail below -3 s0 (a symmetric spread, no sun,
+ * has as many of each). */
+typedef struct rs_sunshadow_cluster {
+    int valid;
+    double location; /* the median of the consensus */
+    double spread;   /* 1.4826 x its median absolute deviation */
+    double null_noise;
+    size_t consensus, positive, negative_tail, n;
+} rs_sunshadow_cluster;
+
+/* v[0..n) is not changed; scratch holds n floats. */
+void rs_sunshadow_upper_cluster(const float *v, size_t n, size_t min_count, float *scratch, rs_sunshadow_cluster *out);
 
 typedef struct rs_sunshadow {
     double dni[3];         /* per channel, the panorama's radiance unit x sr; >= 0 */
@@ -42,7 +62,20 @@ typedef struct rs_sunshadow {
     size_t lit, shadowed;  /* observed facets in full sun and in full shadow beyond the margin */
     size_t lit_used;       /* lit facets that found a shadowed partner */
     size_t blocks;
+    /* How the DNI was chosen: the median over every paired lit facet, or, when it lies outside
+     * the sun's cluster (leaks outvote it), the cluster's consensus (rs_sunshadow_upper_cluster). */
+    int upper_cluster; /* 1: the cluster's consensus gave the DNI */
+    double median_lum; /* the median over every paired lit facet, luminance */
+    size_t consensus;  /* lit facets behind the DNI */
+    /* Albedo above 1 without the sun on lit facets: missing light. Each such facet needs a DNI of
+     * at least (pi Y_L - Y_E) / cos_i (its albedo is at most 1); their median is a floor. */
+    size_t above_one; /* lit, observed facets with pi Y_L / Y_E > RS_SUNSHADOW_ABOVE_ONE */
+    double floor_lum; /* the median need over them (0 with fewer than RS_SUNSHADOW_MIN_LIT) */
+    int floored;      /* 1: the DNI was raised to the floor */
 } rs_sunshadow;
+
+/* Albedo (pi L / E, luminance) without the sun above which a lit facet lacks light. */
+#define RS_SUNSHADOW_ABOVE_ONE 1.05
 
 /* The margin for a capture at cam with panoramas of the given height: the median over observed
  * facets of 4 pixel footprints at the facet's distance plus twice its longest edge. */

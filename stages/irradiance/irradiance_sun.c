@@ -102,11 +102,13 @@ int rs_irradiance_search_sun(rs_irradiance_state *s, rs_report *rep, rs_err *err
     rs_report_time(rep, "sun_search", rs_now() - t0);
     if (sun->searched)
         rs_log_info("irradiance: no camera saw a sun and nothing placed one; the shadows put it at azimuth %.2f, "
-                    "elevation %.2f deg (median log contrast %.3f over %zu lit-shadowed pairs, %d directions tried; "
-                    "%.1f deg from where the visible sky puts it)",
+                    "elevation %.2f deg +- %.2f (%s log contrast %.3f over %zu lit-shadowed pairs, median %.3f; %d "
+                    "directions tried; %.1f deg from where the visible sky puts it%s)",
                     atan2(sun->dir_world.y, sun->dir_world.x) * 180 / M_PI,
-                    asin(fmin(1, sun->dir_world.z)) * 180 / M_PI, sun->found.score, sun->found.pairs,
-                    sun->found.candidates, sun->found_off_deg);
+                    asin(fmin(1, sun->dir_world.z)) * 180 / M_PI, sun->found.dir_sigma_deg,
+                    sun->found.upper_cluster ? "sun cluster's" : "median", sun->found.score, sun->found.pairs,
+                    sun->found.median_score, sun->found.candidates, sun->found_off_deg,
+                    sun->found.ridge ? ", on the ridge of directions as good as the best, nearest the sky's" : "");
     else if (sun->found.score >= RS_SUNSEARCH_MIN_SCORE)
         rs_report_skip(rep, "sun from the shadows",
                        "the shadows' best direction (median log contrast %.3f) is "
@@ -128,9 +130,13 @@ static void log_sun_from_shadows(const rs_sunsource *sun, rs_report *rep)
     if (sun->shadow_rc == 0)
         rs_log_info("irradiance: sun from the shadows: DNI %.4g +- %.2g (statistical %.2g, from the sky fill "
                     "%.2g; colour %.3g %.3g %.3g) from %zu lit facets paired with shadowed ones within %.2f m on "
-                    "their plane (%zu blocks; margin %.2f m)",
+                    "their plane (%zu blocks; margin %.2f m); %s over %zu of them (median over all %.4g); %zu lit "
+                    "facets with albedo above %.2f without it%s",
                     sun->dni, e->sigma_lum, e->sigma_stat_lum, e->sigma_sys_lum, sun->rgb[0], sun->rgb[1], sun->rgb[2],
-                    e->lit_used, 3 * sun->margin, e->blocks, sun->margin);
+                    e->lit_used, 3 * sun->margin, e->blocks, sun->margin,
+                    e->upper_cluster ? "the sun cluster's median (leaks outvoted the median)" : "the median",
+                    e->consensus, e->median_lum, e->above_one, RS_SUNSHADOW_ABOVE_ONE,
+                    e->floored ? ", whose need raised the DNI" : "");
     else if (sun->shadow_rc == 2)
         rs_report_skip(rep, "sun from the shadows",
                        "the searched sun's DNI %.3g is within 5 standard errors "
@@ -170,8 +176,54 @@ int rs_irradiance_explicit_sun(const rs_irradiance_opts *o, rs_irradiance_state 
     return 0;
 }
 
+/* Why a searched sun was or was not added, from what the search and the estimate left. */
+static const char *search_decision(const rs_sunsource *sun)
+{
+    if (!sun->found.candidates)
+        return "not searched: the visible sky is overcast (no circumsolar glow), or no direction is hidden";
+    if (!sun->searched)
+        return sun->found.score >= RS_SUNSEARCH_MIN_SCORE
+            ? "not added: the shadows' best direction is too far from where the visible sky puts the sun"
+            : "not added: no direction the cameras did not see casts shadows that match the radiance";
+    if (sun->shadow_rc == 2) return "not added: its DNI is within 5 standard errors of 0";
+    if (sun->shadow_rc == 1) return "not added: too few lit facets paired with shadowed ones";
+    if (sun->shadow_rc == 0 && sun->dni > 0) return "added";
+    return "not estimated yet";
+}
+
+/* The search for a sun nobody placed, under metrics "sun_search" (nothing when it was not due):
+ * the direction found, its uncertainty (a bootstrap over blocks of pairs), the scores, the
+ * estimator, and why a sun was or was not added. */
+static void report_search(const rs_sunsource *sun, rs_json *metrics)
+{
+    if (!sun->search) return;
+    const rs_sunsearch *f = &sun->found;
+    rs_json *o = rs_json_set_obj(metrics, "sun_search");
+    rs_json_set_bool(o, "added", sun->searched && sun->shadow_rc == 0 && sun->dni > 0);
+    rs_json_set_str(o, "why", search_decision(sun));
+    if (!f->candidates) return;
+    rs_json_set_num(o, "azimuth_deg", atan2(f->dir.y, f->dir.x) * 180 / M_PI);
+    rs_json_set_num(o, "elevation_deg", asin(fmax(-1, fmin(1, f->dir.z))) * 180 / M_PI);
+    rs_json_set_num(o, "direction_sigma_deg", f->dir_sigma_deg);
+    rs_json_set_num(o, "log_contrast", f->score);
+    rs_json_set_num(o, "median_log_contrast", f->median_score);
+    rs_json_set_str(o, "contrast_estimator", f->upper_cluster ? "sun cluster" : "median");
+    rs_json_set_bool(o, "ridge_toward_sky_estimate", f->ridge);
+    rs_json_set_int(o, "albedo_above_one_lit", (long long)f->above_one_lit);
+    rs_json_set_int(o, "albedo_above_one_shadowed", (long long)f->above_one_dark);
+    rs_json_set_bool(o, "missing_light", sun->missing_light);
+    rs_json_set_int(o, "pairs", (long long)f->pairs);
+    rs_json_set_int(o, "candidates", f->candidates);
+    rs_json_set_num(o, "off_sky_estimate_deg", sun->found_off_deg);
+    if (sun->searched && sun->shadow_rc != 1) {
+        rs_json_set_num(o, "direct_normal_irradiance", sun->shadow.dni_lum);
+        rs_json_set_num(o, "direct_normal_irradiance_sigma", sun->shadow.sigma_lum);
+    }
+}
+
 void rs_irradiance_report_sun(const rs_sunsource *sun, rs_json *metrics)
 {
+    report_search(sun, metrics);
     if (!sun->active) return;
     rs_json *o = rs_json_set_obj(metrics, "explicit_sun");
     rs_json_set_num(o, "direct_normal_irradiance", sun->dni);
@@ -185,7 +237,14 @@ void rs_irradiance_report_sun(const rs_sunsource *sun, rs_json *metrics)
             rs_json_set_int(e, "search_pairs", (long long)sun->found.pairs);
             rs_json_set_int(e, "search_candidates", sun->found.candidates);
             rs_json_set_num(e, "search_off_sky_estimate_deg", sun->found_off_deg);
+            rs_json_set_num(e, "search_direction_sigma_deg", sun->found.dir_sigma_deg);
         }
+        rs_json_set_str(e, "dni_estimator", sun->shadow.upper_cluster ? "sun cluster" : "median");
+        rs_json_set_num(e, "median_over_paired_facets", sun->shadow.median_lum);
+        rs_json_set_int(e, "consensus_facets", (long long)sun->shadow.consensus);
+        rs_json_set_int(e, "albedo_above_one_facets", (long long)sun->shadow.above_one);
+        rs_json_set_num(e, "albedo_floor", sun->shadow.floor_lum);
+        rs_json_set_bool(e, "raised_to_albedo_floor", sun->shadow.floored);
         rs_json_set_num(e, "sigma", sun->shadow.sigma_lum);
         rs_json_set_num(e, "sigma_statistical", sun->shadow.sigma_stat_lum);
         rs_json_set_num(e, "sigma_from_sky_fill", sun->shadow.sigma_sys_lum);

@@ -6,7 +6,7 @@
  *   rendered from it with a known albedo; a second run, given only the sun's direction, finds
  *   the DNI within 2 % and the sunlit ground's E_sky with it. Given nothing, the shadows give
  *   the direction within 2 degrees; with no sun at all, or a sky whose glow puts the sun
- *   elsewhere, the search adds none. */
+ *   elsewhere (unless the sunlit facets' albedo without it is above 1), the search adds none. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -197,7 +197,7 @@ static void test_fallback(void **state)
 #define WALL_X     3.0
 #define WALL_H     6.0
 
-static const double albedo[3] = {0.5, 0.4, 0.3};
+static double albedo[3] = {0.5, 0.4, 0.3}; /* the ground's; test_cues_disagree darkens it */
 
 /* The sky: 1, or with glow the CIE clear sky (standard type 12: Perez a..e = -1, -0.32, 10,
  * -3, 0.45) around the sun at azimuth glow_az, 1 at the zenith: the circumsolar glow tells the
@@ -401,21 +401,43 @@ static void test_no_sun_to_find(void **state)
     rs_test_rmtree(dir);
 }
 
-/* Shadows of a sun at azimuth 0 under a sky whose glow says azimuth 180 (the cues disagree):
- * no sun is added, and the summary says why. */
+/* Shadows of a sun at azimuth 0 under a sky whose glow says azimuth 180 (the cues disagree).
+ * On dark ground (albedo 0.1, 0.08, 0.06: below 1 without the sun even where it shines) nothing
+ * says that light is missing: no sun is added, and the summary says why. On the brighter ground
+ * (0.5 0.4 0.3) the sunlit facets come out with albedo above 1 without it, light no sky the
+ * cameras saw can give: the sun is added where the shadows put it. */
 static void test_cues_disagree(void **state)
 {
     (void)state;
-    const char *dir = rs_test_tmpdir("sunshadow");
-    double *esky1;
-    rs_mesh *m = hidden_sun_scene(dir, DNI, 0, M_PI, 0, &esky1);
-    rs_test_rhoscan(dir, "");
-    const char *buf = rs_test_read_text(rs_test_path(dir, "work/irradiance.json"));
-    assert_null(strstr(buf, "\"explicit_sun\""));
-    assert_non_null(strstr(buf, "from where the visible sky puts the sun"));
-    free(esky1);
-    rs_mesh_free(m);
-    rs_test_rmtree(dir);
+    const double bright[3] = {0.5, 0.4, 0.3}, dark[3] = {0.1, 0.08, 0.06};
+    for (int variant = 0; variant < 2; variant++) {
+        for (int ch = 0; ch < 3; ch++) albedo[ch] = variant ? bright[ch] : dark[ch];
+        const char *dir = rs_test_tmpdir("sunshadow");
+        double *esky1;
+        rs_mesh *m = hidden_sun_scene(dir, DNI, 0, M_PI, 0, &esky1);
+        rs_test_rhoscan(dir, "");
+        const char *json = rs_test_path(dir, "work/irradiance.json");
+        const char *buf = rs_test_read_text(json);
+        print_message("%s ground: %s\n", variant ? "bright" : "dark",
+                      strstr(buf, "\"explicit_sun\"") ? "sun added" : "no sun");
+        if (!variant) {
+            assert_null(strstr(buf, "\"explicit_sun\""));
+            assert_non_null(strstr(buf, "from where the visible sky puts the sun"));
+        } else {
+            const struct cJSON *doc = rs_test_json_file(json);
+            assert_string_equal(rs_test_json_str(doc, "direction_from"), "shadows");
+            double d[3], el = SUN_EL_DEG * M_PI / 180;
+            rs_test_json_vec3(doc, "explicit_sun/direction", d);
+            double ang = acos(fmin(1, d[0] * cos(el) + d[2] * sin(el))) * 180 / M_PI;
+            print_message("missing light: the sun added %.2f deg from the true one\n", ang);
+            assert_true(ang < 2);
+            assert_non_null(strstr(buf, "\"missing_light\":\ttrue"));
+        }
+        free(esky1);
+        rs_mesh_free(m);
+        rs_test_rmtree(dir);
+    }
+    for (int ch = 0; ch < 3; ch++) albedo[ch] = bright[ch];
 }
 
 RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_estimator), cmocka_unit_test(test_fallback),
