@@ -9,8 +9,9 @@
 #define HUBER_K   1.345 /* Huber's constant, in units of the residuals' robust spread */
 #define T_LO      -0.9  /* t's range: E + t S stays positive for sigma <= 1 */
 #define T_HI      12.0
-#define T_STEPS   128
+#define T_STEPS   96
 #define MIN_BLOCK 10    /* informative pairs for a block's own estimate */
+#define BLOCK_MAX 256   /* the pairs a block's own fit reads at most */
 #define FIT_MAX   20000 /* the pairs a fit reads at most (every stride-th): the grid costs T_STEPS passes */
 
 typedef struct {
@@ -144,7 +145,8 @@ static size_t channel(const rs_skyscale_input *in, const uint32_t *block, int ch
         size_t m = 0;
         for (size_t lo = 0, hi; lo < n; lo = hi) {
             for (hi = lo; hi < n && p[hi].block == p[lo].block;) hi++;
-            if (hi - lo >= MIN_BLOCK) scratch[m++] = fit_t(p + lo, hi - lo, (hi - lo + FIT_MAX - 1) / FIT_MAX, scale);
+            if (hi - lo >= MIN_BLOCK)
+                scratch[m++] = fit_t(p + lo, hi - lo, (hi - lo + BLOCK_MAX - 1) / BLOCK_MAX, scale);
         }
         if (m >= 4) {
             double med = median(scratch, m);

@@ -83,7 +83,9 @@ static int estimate(const rs_irradiance_state *s, rs_skyscale *sc, rs_err *err)
         }
         use[f] = s->observed[f] && !fg->relay && (fg->rays > 0 || fg->sky_sh);
     }
+    double t0 = rs_now();
     if (rs_sunshadow_pairs_build(s->mesh, use, 0, PAIR_RADIUS_M, PAIR_MAX, &pp, err) != 0) goto out;
+    rs_log_debug("fill_from_facets: %zu pairs in %.2f s", pp.n, rs_now() - t0);
     if (!(block = pair_blocks(s->mesh, &pp))) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory checking the hidden sky against the facets");
         goto out;
