@@ -112,6 +112,13 @@ out:
 int rs_irradiance_skyscale(const rs_irradiance_opts *o, rs_irradiance_state *s, rs_report *rep, rs_err *err)
 {
     if (o->fill_from_facets == RS_FILL_FROM_FACETS_OFF) return 0;
+    if (s->sun.active && s->sun.from_shadows) {
+        /* The shadows' DNI divides by the E that the fill gives and is read from the same
+         * same-plane ratios: the evidence would count twice. A joint fit is not built. */
+        rs_report_skip(rep, "hidden sky from the facets",
+                       "a sun from the shadows was estimated from the same same-plane ratios");
+        return 0;
+    }
     double t0 = rs_now();
     rs_skyscale sc;
     int rc = estimate(s, &sc, err);

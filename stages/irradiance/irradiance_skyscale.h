@@ -12,7 +12,8 @@
  * `auto` when |t| is at least 2 of its standard uncertainties, adds t x fill_sigma_rgb to each
  * gathered facet's E_sky (and its luminance to filled_lum). The fill's uncertainty is left as it
  * was: the correction removes one smooth mode of its error, not the others. Reports the estimate
- * in irradiance.json (fill_from_facets) and the skip when not applied. Returns 0, -1 out of
+ * in irradiance.json (fill_from_facets) and the skip when not applied. Skipped when the sun
+ * came from the shadows (its DNI rests on the same ratios). Returns 0, -1 out of
  * memory (err set). */
 int rs_irradiance_skyscale(const rs_irradiance_opts *o, rs_irradiance_state *s, rs_report *rep, rs_err *err);
 
