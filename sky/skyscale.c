@@ -90,7 +90,7 @@ static int cmp_block(const void *a, const void *b)
  * curvature's, counted over independent facets, and the spread between blocks), then the prior
  * N(0, 1) folded in. Returns the informative pairs. */
 static size_t channel(const rs_skyscale_input *in, const uint32_t *block, int ch, pair_pt *p, double *scratch,
-                      double *t_out, double *sigma_out, double *mad_out)
+                      double *t_out, double *sigma_out, double *mad_out, int *at_bound)
 {
     size_t n = 0;
     for (size_t q = 0; q < in->npairs; q++) {
@@ -157,6 +157,7 @@ static size_t channel(const rs_skyscale_input *in, const uint32_t *block, int ch
     }
     double sd = fmax(sig_curv, sig_blocks), v = sd * sd;
     (void)core;
+    if (at_bound) *at_bound = t < T_LO + (T_HI - T_LO) / T_STEPS || t > T_HI - (T_HI - T_LO) / T_STEPS;
     *t_out = t / (1 + v); /* the prior N(0, 1) and the data N(t, sd^2) */
     *sigma_out = sd / sqrt(1 + v);
     return n;
@@ -178,7 +179,7 @@ int rs_skyscale_estimate(const rs_skyscale_input *in, rs_skyscale *out, rs_err *
         return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory checking the hidden sky against the facets");
     }
     double mad;
-    out->pairs = channel(in, in->block, 3, p, scratch, &out->t_lum, &out->sigma_lum, &out->resid_mad);
+    out->pairs = channel(in, in->block, 3, p, scratch, &out->t_lum, &out->sigma_lum, &out->resid_mad, &out->at_bound);
     for (size_t q = 0; q < in->npairs; q++) {
         uint32_t i = in->a[q], j = in->b[q];
         double gi = lum(in->E + 3 * i) > 0 ? lum(in->S + 3 * i) / lum(in->E + 3 * i) : 0;
@@ -187,7 +188,8 @@ int rs_skyscale_estimate(const rs_skyscale_input *in, rs_skyscale *out, rs_err *
     }
     for (size_t f = 0; f < in->nf; f++) out->facets += seen[f];
     int rc = out->pairs >= RS_SKYSCALE_MIN_PAIRS ? 0 : 1;
-    for (int c = 0; rc == 0 && c < 3; c++) channel(in, in->block, c, p, scratch, &out->t[c], &out->sigma[c], &mad);
+    for (int c = 0; rc == 0 && c < 3; c++)
+        channel(in, in->block, c, p, scratch, &out->t[c], &out->sigma[c], &mad, NULL);
     free(p);
     free(scratch);
     free(seen);

@@ -42,6 +42,8 @@ typedef struct rs_skyscale {
                                counted) */
     double t_lum, sigma_lum; /* the same on luminance: what decides whether it is applied */
     double resid_mad;        /* robust spread of the pairs' log-ratio residuals at t_lum */
+    int at_bound;            /* the data's luminance t lies at the edge of its range [-0.9, 12]: the one
+                     mode does not explain the pairs (auto does not apply it) */
     size_t pairs;            /* informative pairs (luminance) */
     size_t facets;           /* facets in them */
 } rs_skyscale;

@@ -130,6 +130,7 @@ int rs_irradiance_skyscale(const rs_irradiance_opts *o, rs_irradiance_state *s, 
     rs_json_set_num(j, "t_lum", sc.t_lum);
     rs_json_set_num(j, "sigma_lum", sc.sigma_lum);
     rs_json_set_num(j, "residual_spread", sc.resid_mad);
+    rs_json_set_bool(j, "at_bound", sc.at_bound);
     rs_json *jt = rs_json_set_arr(j, "t"), *js = rs_json_set_arr(j, "sigma");
     for (int ch = 0; ch < 3; ch++) {
         rs_json_push_num(jt, sc.t[ch]);
@@ -138,6 +139,8 @@ int rs_irradiance_skyscale(const rs_irradiance_opts *o, rs_irradiance_state *s, 
     const char *why = NULL;
     if (rc == 1)
         why = "too few same-plane pairs of observed facets see different shares of the filled sky";
+    else if (o->fill_from_facets == RS_FILL_FROM_FACETS_AUTO && sc.at_bound)
+        why = "the one mode of the fill's error does not explain the facets (its fit lies at the edge of its range)";
     else if (o->fill_from_facets == RS_FILL_FROM_FACETS_AUTO && !(fabs(sc.t_lum) >= APPLY_Z * sc.sigma_lum))
         why = "the facets do not tell the hidden sky's brightness from the fill's (|t| below 2 sigma)";
     rs_json_set_bool(j, "applied", why == NULL);

@@ -116,6 +116,7 @@ static void test_wrong_hidden_sky_moves_to_truth(void **state)
     assert_int_equal(rc, 0);
     for (int ch = 0; ch < 3; ch++) assert_true(fabs(sc.t[ch] - 2.0) < 0.25);
     assert_true(fabs(sc.t_lum) > 2 * sc.sigma_lum);
+    assert_false(sc.at_bound);
     assert_true(sc.sigma_lum > 0 && sc.sigma_lum < 0.5);
     assert_true(after < 0.2 * before);
 }
