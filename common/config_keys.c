@@ -219,6 +219,11 @@ const rs_cfg_key rs_cfg_keys[] = {
      "horizon where no camera saw sky or a bright pixel, and when nothing places it and no sky pixel is bright, its "
      "direction too, searched among those no camera saw for shadows that match the radiance; on: always (a clipped "
      "sun's disc leaves the panoramas); off: never"},
+    {"sky", "fill_from_facets", RS_CFG_ENUM, "auto", 0, 0, "auto|on|off", "", "irradiance",
+     "the filled (hidden) sky's brightness from the observed facets that see it: same-plane pairs that see "
+     "different shares of the fill's uncertain light fit one correction per channel, in units of that uncertainty "
+     "(prior N(0, 1)), added to E_sky. auto: applied when it is at least 2 of its standard uncertainties; on: "
+     "always when 50 pairs inform it; off: never"},
     {"sky", "sun_clip_level", RS_CFG_REAL, NULL, 0, 1e30, NULL, "pano", "irradiance",
      "with sun_irradiance: luminance from which sky pixels are the clipped disc; default 0.9 x the brightest near the "
      "sun"},

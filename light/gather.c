@@ -228,7 +228,10 @@ static void add_sky(const rs_skyenv *env, size_t pix, double weight, rs_facet_ga
     out->esky_lum += lum;
     if (env->filled[pix]) {
         out->filled_lum += lum;
-        if (env->fill_sigma_px) out->fill_sigma_lum += lum * env->fill_sigma_px[pix];
+        if (env->fill_sigma_px) {
+            out->fill_sigma_lum += lum * env->fill_sigma_px[pix];
+            for (int ch = 0; ch < 3; ch++) out->fill_sigma_rgb[ch] += weight * L[ch] * env->fill_sigma_px[pix];
+        }
     }
 }
 
@@ -417,6 +420,7 @@ static int gather_round(const rs_gather_ctx *g, rs_gather_scratch *s, facet_stat
             out->esky_lum += acc.esky_lum / done;
             out->filled_lum += acc.filled_lum / done;
             out->fill_sigma_lum += acc.fill_sigma_lum / done;
+            for (int ch = 0; ch < 3; ch++) out->fill_sigma_rgb[ch] += acc.fill_sigma_rgb[ch] / done;
         }
         st->done[pass] += done - first;
     }
@@ -467,6 +471,9 @@ int rs_skysh_facet(const rs_skysh *sh, rs_v3 n, rs_facet_gather *out)
     out->esky_lum = rs_skyenv_luminance3(out->esky);
     out->filled_lum = e[3] + es[3];
     out->fill_sigma_lum = fmax(0, e[4]) + es[4];
+    /* the harmonics carry the uncertain light's luminance only: its colour taken as E_sky's */
+    for (int ch = 0; ch < 3; ch++)
+        out->fill_sigma_rgb[ch] = out->esky_lum > 0 ? out->fill_sigma_lum * out->esky[ch] / out->esky_lum : 0;
     out->sees_nothing = 1;
     out->sky_sh = 1;
     out->sh_sigma = bound * rs_skyenv_luminance3(e);
@@ -505,6 +512,7 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
         out->esky_lum *= inv;
         out->filled_lum *= inv;
         out->fill_sigma_lum *= inv;
+        for (int ch = 0; ch < 3; ch++) out->fill_sigma_rgb[ch] *= inv;
     }
     double w = M_PI / ((double)N * (1 << rounds)); /* cosine-weighted: E = pi * mean radiance */
     for (int ch = 0; ch < 3; ch++) out->gseen[ch] *= w;

@@ -24,6 +24,9 @@ typedef struct rs_facet_gather {
     double fill_sigma_lum;       /* standard uncertainty of filled_lum: its light times each filled
                                   direction's fill uncertainty (env->fill_sigma_px), summed: a fill
                                   errs smoothly over neighbouring directions, not at random */
+    double fill_sigma_rgb[3];    /* the same per channel, from the sky map's filled pixels alone (a
+                                  sun from the shadows adds to fill_sigma_lum, not here): the
+                                  light skyscale.h rescales */
     /* Monte Carlo noise, from the rays' own spread (luminance). Cosine rays: the sum and sum of
      * squares of each ray's value Y (E = mean Y): escapes carry their MIS-weighted sky, hits read
      * from the panorama pi L; hits through K carry 0 here, their pi L_j is added by the caller,

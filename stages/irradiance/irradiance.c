@@ -22,6 +22,7 @@
 #include "pipeline/capture_load.h"
 #include "sky/solar.h"
 #include "stages/irradiance/irradiance_out.h"
+#include "stages/irradiance/irradiance_skyscale.h"
 #include "stages/irradiance/irradiance_state.h"
 #include "stages/irradiance/irradiance_sun.h"
 #include "stages/stages.h"
@@ -97,6 +98,10 @@ static int read_opts(const rs_config *cfg, rs_irradiance_opts *o, rs_err *err)
     o->fill_name = rs_config_string(cfg, "sky", "fill");
     o->sky_panorama = rs_config_has(cfg, "sky", "panorama");
     o->ground_from_scan = strcmp(rs_config_string(cfg, "sky", "ground_albedo_from"), "scan") == 0;
+    const char *ff = rs_config_string(cfg, "sky", "fill_from_facets");
+    o->fill_from_facets = strcmp(ff, "on") == 0 ? RS_FILL_FROM_FACETS_ON
+        : strcmp(ff, "off") == 0                ? RS_FILL_FROM_FACETS_OFF
+                                                : RS_FILL_FROM_FACETS_AUTO;
     o->ncaptures = rs_config_sections(cfg, "capture", o->captures, RS_SKYENV_MAX_OTHERS + 1);
     if (sky_fill_options(cfg, o, err) != 0) return -1;
     return rs_irradiance_sun_options(cfg, &o->sun, err);
@@ -450,6 +455,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         regather_around_searched_sun(&o, &s, rep, err) != 0)
         goto out;
     if (s.sun.active && rs_irradiance_explicit_sun(&o, &s, rep, err) != 0) goto out;
+    if (rs_irradiance_skyscale(&o, &s, rep, err) != 0) goto out;
     double fill_rate = rs_skyfill_rate_used(&s.info.fill, s.so.fill.method);
     rs_irradiance_report(&o, &s, fill_rate, rep);
     rc = rs_irradiance_write(cfg, &s, fill_rate, rep, err);

@@ -14,6 +14,8 @@
 #include "sky/skyenv.h"
 #include "sky/skysh.h"
 
+enum { RS_FILL_FROM_FACETS_OFF, RS_FILL_FROM_FACETS_AUTO, RS_FILL_FROM_FACETS_ON };
+
 typedef struct rs_irradiance_opts {
     const char *config_file; /* for messages about its keys */
     /* [irradiance] */
@@ -30,6 +32,7 @@ typedef struct rs_irradiance_opts {
     const char *solar_when;            /* [sky] datetime when it placed the sun (no azimuth given), else NULL */
     double solar_az_deg, solar_el_deg; /* with solar_when: the NOAA solar position */
     rs_sunsource_opts sun;
+    int fill_from_facets; /* [sky] fill_from_facets (irradiance_skyscale.h) */
     /* The config's capture sections ("capture" and "capture.NAME"), in file order. */
     const char *captures[RS_SKYENV_MAX_OTHERS + 1];
     int ncaptures; /* all of them, also those beyond the array */
