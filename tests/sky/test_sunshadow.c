@@ -250,7 +250,10 @@ static rs_mesh *hidden_sun_scene(const char *dir, double dni, int keep_direction
     write_pano(dir, NULL, NULL, dni > 0, glow_az);
     rs_fx_write_scene_ini(dir, "0 0 1.6", 128, 16, SCENE_TAIL SUN_GIVEN);
     char sets[256];
-    snprintf(sets, sizeof sets, "--set sky.sun_irradiance=%g%s", dni, model_fill ? " --set sky.fill=model" : "");
+    /* This run only makes the truth (the ground's radiance from its E): its panorama's ground is
+     * a placeholder, so the hidden sky's brightness must not be read from the facets. */
+    snprintf(sets, sizeof sets, "--set sky.sun_irradiance=%g --set sky.fill_from_facets=off%s", dni,
+             model_fill ? " --set sky.fill=model" : "");
     rs_test_rhoscan(dir, sets);
     size_t nf;
     double *e = rs_test_read_irradiance(dir, 1, &nf);
