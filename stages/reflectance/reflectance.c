@@ -5,7 +5,9 @@
  *   paper:           E_i = E_sky,i + sum_j K_ij L_j with the paper's dense point-to-point K.
  * With [reflectance] pool_accuracy > 0 (not paper), an observed facet's E is its sun's part plus
  * the weighted mean of the rest over its neighbours of the same plane (pool.h): less Monte Carlo
- * noise, and albedo.ply carries that E.
+ * noise, and albedo.ply carries that E. With [reflectance] albedo_pool_sigmas > 0 (not paper), the
+ * albedo itself is then pooled with same-plane neighbours that agree within their noise (albpool.h):
+ * the radiance's noise falls, steps and resolved textures stay, albedo_sigma_rel says by how much.
  * Facets the camera does not see still light their neighbours: their radiance is modelled as
  * rho_fill (E_sky + G) / pi, rho_fill being [reflectance] unobserved_albedo or the
  * area-weighted mean albedo of the estimable facets facing the same way (up, down or sideways),
@@ -739,7 +741,11 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     }
     rs_report_time(rep, "solve", rs_now() - t0);
     if (in.pool && pool_outputs(&pool, &fb, &in, &ro, err) != 0) goto out;
-    if (o.albedo_pool > 0 && o.method != RS_REFL_PAPER && albedo_pool(mesh, &o, &fb, &in, &ro, &n, err) != 0) goto out;
+    if (o.albedo_pool > 0 && o.method != RS_REFL_PAPER) {
+        t0 = rs_now();
+        if (albedo_pool(mesh, &o, &fb, &in, &ro, &n, err) != 0) goto out;
+        rs_report_time(rep, "albedo_pool", rs_now() - t0);
+    }
     if (rs_greycard_report(cfg, nf, in.esky, ro.G, ro.rho, ro.estimable, rep->metrics, err) != 0) goto out;
     count_facets(&in, &ro, &n);
     if (n.diverged)
