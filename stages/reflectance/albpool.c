@@ -108,7 +108,9 @@ int rs_albpool_run(const rs_mesh *mesh, const rs_albpool_in *in, rs_albpool_out 
         for (size_t i = 0; i < nf; i++) {
             memcpy(out->rho + 3 * i, in->rho + 3 * i, 3 * sizeof *out->rho);
             out->s_rad[i] = in->s_rad[i], out->s_mc[i] = in->s_mc[i], out->s_bias[i] = 0, out->neff[i] = 1;
-            if (!kept || !w || !in->usable[i]) continue;
+            /* a facet whose noise is unknown (not finite) keeps its own albedo, and no neighbour takes it
+             * (agrees() fails on NaN) */
+            if (!kept || !w || !in->usable[i] || !isfinite(noise2(in, i))) continue;
             facet_stats st = pool_facet(&p, in, i, kept, w, out);
             usable++;
             pooled += out->neff[i] > 1.0001;
