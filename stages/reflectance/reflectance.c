@@ -111,6 +111,7 @@ typedef struct {
     int nresiduals;
     /* the albedo pooled within planes (albpool.h): its uncertainty's parts, NULL when not */
     const double *pool_s_rad, *pool_s_mc, *pool_s_bias, *pool_neff;
+    double pool_sigmas; /* its test */
 } refl_out;
 
 static uint8_t fill_class_of(rs_v3 n)
@@ -355,6 +356,12 @@ static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in
                        "albedo_bound80_rel = %.4f x albedo_sigma_rel: |relative error| below it with 80 %% "
                        "probability (two-sided, normal); albedo_sigma = albedo_sigma_rel x mean albedo",
                        in->sigma_floor, RS_NORMAL_Z80);
+    if (out->pool_neff)
+        rs_ply_add_comment(ply,
+                           "albedo pooled within planes (albedo_pool_sigmas %g): albedo_sigma_rel's radiance term is "
+                           "the pooled one, its Monte Carlo term is taken as correlated, and albedo_pool_bias_rel is "
+                           "added; pi L / (E_sky + G) is the facet's own, unpooled albedo",
+                           out->pool_sigmas);
     char path[4096];
     rc = rs_ply_write(ply, rs_work_path(cfg, "albedo.ply", path, sizeof path), 1, err);
     goto done;
@@ -633,7 +640,7 @@ static int albedo_pool(const rs_mesh *mesh, const refl_opts *o, refl_facets *fb,
     if (rs_albpool_run(mesh, &ai, &n->ap) != 0) goto oom;
     out->rho = fb->rho_pooled;
     out->pool_s_rad = fb->ap_s_rad, out->pool_s_mc = fb->ap_s_mc, out->pool_s_bias = fb->ap_s_bias;
-    out->pool_neff = fb->ap_neff;
+    out->pool_neff = fb->ap_neff, out->pool_sigmas = o->albedo_pool;
     n->albedo_pooled = 1;
     rs_log_info("reflectance: albedo pooled within planes (test %g sigmas): %zu facets pooled, %.1f effective facets "
                 "per albedo, %.0f %% of the candidates kept, shrinkage %.2f",
