@@ -5,7 +5,9 @@
  *   paper:           E_i = E_sky,i + sum_j K_ij L_j with the paper's dense point-to-point K.
  * With [reflectance] pool_accuracy > 0 (not paper), an observed facet's E is its sun's part plus
  * the weighted mean of the rest over its neighbours of the same plane (pool.h): less Monte Carlo
- * noise, and albedo.ply carries that E.
+ * noise, and albedo.ply carries that E. With [reflectance] albedo_pool_sigmas > 0 (not paper), the
+ * albedo itself is then pooled with same-plane neighbours that agree within their noise (albpool.h):
+ * the radiance's noise falls, steps and resolved textures stay, albedo_sigma_rel says by how much.
  * Facets the camera does not see still light their neighbours: their radiance is modelled as
  * rho_fill (E_sky + G) / pi, rho_fill being [reflectance] unobserved_albedo or the
  * area-weighted mean albedo of the estimable facets facing the same way (up, down or sideways),
@@ -27,6 +29,7 @@
 #include "stages/reflectance/greycard.h"
 #include "common/image.h"
 #include "common/log.h"
+#include "stages/reflectance/albpool.h"
 #include "stages/reflectance/paper.h"
 #include "stages/reflectance/pool.h"
 #include "stages/stages.h"
@@ -49,6 +52,7 @@ static const char *const refl_method_name[RS_REFL_METHODS] = {"interreflection",
 typedef struct {
     rs_refl_method method;
     double pool_accuracy;    /* > 0: pool the irradiance within the plane (pool.h; not paper) */
+    double albedo_pool;      /* > 0: pool the albedo within same-material planes, this test (albpool.h) */
     long paper_max_facets;   /* paper: larger meshes are refused */
     double sigma_floor;      /* albedo_sigma_floor */
     double min_irradiance;   /* share of the median E below which a facet is not estimable */
@@ -67,6 +71,7 @@ static int refl_opts_read(const rs_config *cfg, refl_opts *o, rs_err *err)
                           "[reflectance] method = %s: expected interreflection, direct or paper", method);
     o->method = (rs_refl_method)m;
     o->pool_accuracy = rs_config_real(cfg, "reflectance", "pool_accuracy");
+    o->albedo_pool = rs_config_real(cfg, "reflectance", "albedo_pool_sigmas");
     o->paper_max_facets = rs_config_int(cfg, "reflectance", "paper_max_facets");
     o->sigma_floor = rs_config_real(cfg, "reflectance", "albedo_sigma_floor");
     o->min_irradiance = rs_config_real(cfg, "reflectance", "min_irradiance");
@@ -104,6 +109,9 @@ typedef struct {
     const char *origin;    /* rhoscan_origin "OX OY OZ", "" when none */
     double residuals[200]; /* the largest relative change of each sweep (solve_residuals) */
     int nresiduals;
+    /* the albedo pooled within planes (albpool.h): its uncertainty's parts, NULL when not */
+    const double *pool_s_rad, *pool_s_mc, *pool_s_bias, *pool_neff;
+    double pool_sigmas; /* its test */
 } refl_out;
 
 static uint8_t fill_class_of(rs_v3 n)
@@ -260,6 +268,30 @@ static int above_one(const refl_out *out, size_t f)
     return out->rho[3 * f] > 1 || out->rho[3 * f + 1] > 1 || out->rho[3 * f + 2] > 1;
 }
 
+/* Relative uncertainty of rho = pi L / E, for estimable facets: L's observation noise, E's fill
+ * and Monte Carlo errors, and the floor, in quadrature (independent sources). With the albedo
+ * pooled: the pooled radiance noise, the Monte Carlo part taken as correlated, and the pooling's
+ * bias over a resolved texture (albpool.h) instead of the facet's own L and Monte Carlo terms. */
+static void albedo_sigma_rel(const refl_in *in, const refl_out *out, double *sig)
+{
+    for (size_t i = 0; i < in->nf; i++) {
+        double E = lum3(in->esky + 3 * i) + lum3(out->G + 3 * i);
+        if (!(out->estimable[i] && E > 0)) {
+            sig[i] = 0;
+            continue;
+        }
+        double fill = in->esky_sigma[i] / E, v = in->sigma_floor * in->sigma_floor + fill * fill;
+        if (out->pool_neff) {
+            double r = out->pool_s_rad[i], m = out->pool_s_mc[i], b = out->pool_s_bias[i];
+            v += r * r + m * m + b * b;
+        } else {
+            double r = in->L_sigma_rel[i], m = in->mc_sigma[i] / E;
+            v += r * r + m * m;
+        }
+        sig[i] = sqrt(v);
+    }
+}
+
 static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in *in, const refl_out *out, rs_err *err)
 {
     size_t nf = in->nf;
@@ -282,16 +314,12 @@ static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in
         !rs_ply_add_scalar(faces, "irradiance_mc_sigma", RS_PLY_FLOAT32, in->mc_sigma) ||
         !rs_ply_add_scalar(faces, "radiance_sigma_rel", RS_PLY_FLOAT32, in->L_sigma_rel))
         goto oom;
-    /* Relative uncertainty of rho = pi L / E, for estimable facets: L's observation noise, E's
-     * fill and Monte Carlo errors, and the floor, in quadrature (independent sources). */
-    for (size_t i = 0; i < nf; i++) {
-        double E = lum3(in->esky + 3 * i) + lum3(out->G + 3 * i);
-        double rE2 = (in->esky_sigma[i] * in->esky_sigma[i] + in->mc_sigma[i] * in->mc_sigma[i]) / (E * E);
-        tmp[i] = out->estimable[i] && E > 0
-            ? sqrt(in->sigma_floor * in->sigma_floor + in->L_sigma_rel[i] * in->L_sigma_rel[i] + rE2)
-            : 0;
-    }
+    albedo_sigma_rel(in, out, tmp);
     if (!rs_ply_add_scalar(faces, "albedo_sigma_rel", RS_PLY_FLOAT32, tmp)) goto oom;
+    if (out->pool_neff &&
+        (!rs_ply_add_scalar(faces, "albedo_pool_facets", RS_PLY_FLOAT32, out->pool_neff) ||
+         !rs_ply_add_scalar(faces, "albedo_pool_bias_rel", RS_PLY_FLOAT32, out->pool_s_bias)))
+        goto oom;
     for (size_t i = 0; i < nf; i++) tmp[i] *= RS_NORMAL_Z80;
     if (!rs_ply_add_scalar(faces, "albedo_bound80_rel", RS_PLY_FLOAT32, tmp)) goto oom;
     for (size_t i = 0; i < nf; i++) tmp[i] /= RS_NORMAL_Z80;
@@ -328,6 +356,12 @@ static int write_albedo(const rs_config *cfg, const rs_mesh *mesh, const refl_in
                        "albedo_bound80_rel = %.4f x albedo_sigma_rel: |relative error| below it with 80 %% "
                        "probability (two-sided, normal); albedo_sigma = albedo_sigma_rel x mean albedo",
                        in->sigma_floor, RS_NORMAL_Z80);
+    if (out->pool_neff)
+        rs_ply_add_comment(ply,
+                           "albedo pooled within planes (albedo_pool_sigmas %g): albedo_sigma_rel's radiance term is "
+                           "the pooled one, its Monte Carlo term is taken as correlated, and albedo_pool_bias_rel is "
+                           "added; pi L / (E_sky + G) is the facet's own, unpooled albedo",
+                           out->pool_sigmas);
     char path[4096];
     rc = rs_ply_write(ply, rs_work_path(cfg, "albedo.ply", path, sizeof path), 1, err);
     goto done;
@@ -389,6 +423,8 @@ typedef struct {
     uint8_t *estimable;
     /* pooled, what albedo.ply carries (pool_outputs) */
     double *esky_pooled, *G_pooled, *mc_pooled;
+    /* the albedo pooled within planes (albedo_pool) */
+    double *rho_pooled, *ap_s_rad, *ap_s_mc, *ap_s_bias, *ap_neff, *ap_in_mc;
     char origin[256]; /* mesh.ply's rhoscan_origin comment ("" when not georeferenced) */
 } refl_facets;
 
@@ -419,7 +455,8 @@ static void refl_facets_free(refl_facets *fb)
 {
     double *d[] = {fb->area,       fb->L,        fb->L_sigma_rel, fb->esky,        fb->gseen,    fb->sky_filled,
                    fb->esky_sigma, fb->mc_sigma, fb->esun,        fb->inv_dist,    fb->rho,      fb->G,
-                   fb->Lfill,      fb->E,        fb->scratch,     fb->esky_pooled, fb->G_pooled, fb->mc_pooled};
+                   fb->Lfill,      fb->E,        fb->scratch,     fb->esky_pooled, fb->G_pooled, fb->mc_pooled,
+                   fb->rho_pooled, fb->ap_s_rad, fb->ap_s_mc,     fb->ap_s_bias,   fb->ap_neff,  fb->ap_in_mc};
     for (size_t k = 0; k < sizeof d / sizeof *d; k++) free(d[k]);
     free(fb->orient);
     free(fb->observed);
@@ -480,6 +517,8 @@ out:
 
 /* The figures of reflectance.json. */
 typedef struct {
+    int albedo_pooled;                    /* the albedo was pooled (albpool.h): */
+    rs_albpool_out ap;                    /*   its summary */
     int pooled;                           /* the irradiance was pooled: */
     double pool_mean;                     /*   mean facets per pooled mean */
     size_t pool_pooled, pool_asked;       /*   facets pooled with others, of the observed ones */
@@ -573,6 +612,44 @@ static int pool_outputs(const rs_pool *pool, refl_facets *fb, refl_in *in, refl_
     return 0;
 }
 
+/* The albedo pooled within same-material planes (albpool.h); out->rho then is the pooled one. */
+static int albedo_pool(const rs_mesh *mesh, const refl_opts *o, refl_facets *fb, const refl_in *in, refl_out *out,
+                       refl_counts *n, rs_err *err)
+{
+    size_t nf = fb->nf;
+    if (!(fb->rho_pooled = facet_doubles(3 * nf)) || !(fb->ap_s_rad = facet_doubles(nf)) ||
+        !(fb->ap_s_mc = facet_doubles(nf)) || !(fb->ap_s_bias = facet_doubles(nf)) ||
+        !(fb->ap_neff = facet_doubles(nf)) || !(fb->ap_in_mc = facet_doubles(nf)))
+        goto oom;
+    for (size_t i = 0; i < nf; i++) {
+        double E = lum3(in->esky + 3 * i) + lum3(out->G + 3 * i);
+        fb->ap_in_mc[i] = E > 0 ? in->mc_sigma[i] / E : 0;
+    }
+    rs_albpool_in ai = {.nf = nf,
+                        .rho = out->rho,
+                        .usable = out->estimable,
+                        .s_rad = in->L_sigma_rel,
+                        .s_mc = fb->ap_in_mc,
+                        .floor = o->sigma_floor,
+                        .sigmas = o->albedo_pool};
+    n->ap = (rs_albpool_out){.rho = fb->rho_pooled,
+                             .s_rad = fb->ap_s_rad,
+                             .s_mc = fb->ap_s_mc,
+                             .s_bias = fb->ap_s_bias,
+                             .neff = fb->ap_neff};
+    if (rs_albpool_run(mesh, &ai, &n->ap) != 0) goto oom;
+    out->rho = fb->rho_pooled;
+    out->pool_s_rad = fb->ap_s_rad, out->pool_s_mc = fb->ap_s_mc, out->pool_s_bias = fb->ap_s_bias;
+    out->pool_neff = fb->ap_neff, out->pool_sigmas = o->albedo_pool;
+    n->albedo_pooled = 1;
+    rs_log_info("reflectance: albedo pooled within planes (test %g sigmas): %zu facets pooled, %.1f effective facets "
+                "per albedo, %.0f %% of the candidates kept, shrinkage %.2f",
+                o->albedo_pool, n->ap.pooled, n->ap.mean_neff, 100 * n->ap.mean_kept_share, n->ap.mean_shrink);
+    return 0;
+oom:
+    return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory pooling the albedo of %zu facets", nf);
+}
+
 static void count_facets(const refl_in *in, const refl_out *out, refl_counts *n)
 {
     for (size_t f = 0; f < in->nf; f++) {
@@ -589,6 +666,12 @@ static void report_reflectance(rs_report *rep, const refl_in *in, const refl_out
     if (n->pooled) {
         rs_json_set_num(rep->metrics, "pool_mean_facets", n->pool_mean);
         rs_json_set_int(rep->metrics, "pool_facets_pooled", (long long)n->pool_pooled);
+    }
+    if (n->albedo_pooled) {
+        rs_json_set_int(rep->metrics, "albedo_pool_facets_pooled", (long long)n->ap.pooled);
+        rs_json_set_num(rep->metrics, "albedo_pool_mean_facets", n->ap.mean_neff);
+        rs_json_set_num(rep->metrics, "albedo_pool_kept_share", n->ap.mean_kept_share);
+        rs_json_set_num(rep->metrics, "albedo_pool_mean_shrinkage", n->ap.mean_shrink);
     }
     if (n->paper) rs_json_set_num(rep->metrics, "paper_pairs_tested", n->paper_pairs);
     rs_json_set_str(rep->metrics, "method", refl_method_name[in->method]);
@@ -665,6 +748,11 @@ int rs_reflectance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     }
     rs_report_time(rep, "solve", rs_now() - t0);
     if (in.pool && pool_outputs(&pool, &fb, &in, &ro, err) != 0) goto out;
+    if (o.albedo_pool > 0 && o.method != RS_REFL_PAPER) {
+        t0 = rs_now();
+        if (albedo_pool(mesh, &o, &fb, &in, &ro, &n, err) != 0) goto out;
+        rs_report_time(rep, "albedo_pool", rs_now() - t0);
+    }
     if (rs_greycard_report(cfg, nf, in.esky, ro.G, ro.rho, ro.estimable, rep->metrics, err) != 0) goto out;
     count_facets(&in, &ro, &n);
     if (n.diverged)
