@@ -187,6 +187,9 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"irradiance", "occluder_margin", RS_CFG_REAL, "2", 0, 1000, NULL, "m", "irradiance",
      "the free-space grid covers the model's bounding box grown by this in x, y and downward (not upward): "
      "unknown space inside it blocks light, beyond it the sky is open"},
+    {"irradiance", "occluder_depth", RS_CFG_REAL, "0.5", 0, 1000, NULL, "m", "irradiance",
+     "unknown space blocks only within this distance of a scanned facet (the body behind a wall, the top of a slab, "
+     "the back of a pillar); farther away it is taken as open (the ground in a building's scan shadow)"},
     {"irradiance", "occluder_near", RS_CFG_REAL, "1.5", 0, 100, NULL, "cells", "irradiance",
      "occluder hits nearer than this many cells to a ray's origin are ignored, so that a facet is not shadowed "
      "by the unknown cells next to its own"},

@@ -106,6 +106,11 @@ int rs_freespace_init(rs_freespace *fs, const rs_mesh *m, const rs_freespace_opt
     return 0;
 }
 
+void rs_freespace_label(const rs_freespace *fs, const rs_mesh *m, uint32_t *label)
+{
+    for (size_t f = 0; f < m->nfaces; f++) sample_facet((rs_freespace *)fs, m, f, label);
+}
+
 void rs_freespace_release(rs_freespace *fs)
 {
     free(fs->bits);

@@ -28,6 +28,7 @@ typedef struct rs_freespace {
     size_t ncells;    /* n[0] n[1] n[2] */
     double carved;    /* rays carved */
     double carve_len; /* cells visited by carving */
+    size_t opened;    /* unknown cells rs_freespace_occluders took as open (beyond its depth) */
 } rs_freespace;
 
 typedef struct rs_freespace_opts {
@@ -56,10 +57,19 @@ typedef struct rs_freespace_counts {
 } rs_freespace_counts;
 void rs_freespace_count(const rs_freespace *fs, rs_freespace_counts *c);
 
-/* The occluders: a mesh of the merged known/unknown faces (two triangles per rectangle, wound to
- * face the known side) and per triangle the proxy facet of m (nearest by a breadth-first search
- * over the grid from the occupied cells, which know the facets sampled into them). *occ and
- * *proxy are the caller's to free; *occ is NULL when there is no face. -1 out of memory. */
-int rs_freespace_occluders(const rs_freespace *fs, const rs_mesh *m, rs_mesh **occ, uint32_t **proxy, rs_err *err);
+/* label[cell] = the facet of m sampled into it (the later one in file order where several are);
+ * other cells keep what they held. */
+void rs_freespace_label(const rs_freespace *fs, const rs_mesh *m, uint32_t *label);
+
+/* The occluders: first every unknown cell farther than depth (m, a city-block distance over the
+ * grid) from every cell a facet of m lies in is taken as open (marked free, counted in
+ * fs->opened): unknown space blocks only near what was scanned, the body behind a wall, the top
+ * of a slab, the back of a pillar, not the open ground in a building's scan shadow. Then a mesh of
+ * the merged known/unknown faces (two triangles per rectangle, wound to face the known side) and
+ * per triangle the proxy facet of m (the nearest by a breadth-first search over the grid from
+ * the facets' cells). *occ and *proxy are the caller's to free; *occ is NULL when there is no
+ * face. -1 out of memory. */
+int rs_freespace_occluders(rs_freespace *fs, const rs_mesh *m, double depth, rs_mesh **occ, uint32_t **proxy,
+                           rs_err *err);
 
 #endif

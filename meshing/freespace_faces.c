@@ -5,9 +5,10 @@
 #include <string.h>
 #include "meshing/freespace.h"
 
-/* Every cell's nearest facet (UINT32_MAX where none is reachable): the facets sampled into the
- * occupied cells, spread through the grid in breadth-first order (6-neighbours). */
-static uint32_t *proxy_labels(const rs_freespace *fs, const rs_mesh *m)
+/* Every cell's nearest facet (UINT32_MAX where none is reachable): the facets' own cells,
+ * spread through the grid in breadth-first order (6-neighbours); dist[]: the steps taken (a
+ * city-block distance in cells, 254 at most, 255 unreached). */
+static uint32_t *proxy_labels(const rs_freespace *fs, const rs_mesh *m, uint8_t *dist)
 {
     size_t n = fs->ncells;
     uint32_t *label = malloc(n * sizeof *label);
@@ -18,26 +19,11 @@ static uint32_t *proxy_labels(const rs_freespace *fs, const rs_mesh *m)
         return NULL;
     }
     memset(label, 0xff, n * sizeof *label);
-    /* Facets in the order of the file, so that the later one of two in a cell wins, always. */
-    rs_freespace tmp = *fs;
-    for (size_t f = 0; f < m->nfaces; f++) {
-        rs_v3 v[3];
-        for (int k = 0; k < 3; k++) v[k] = rs_mesh_vert(m, m->tris[3 * f + k]);
-        rs_v3 c = rs_v3_scale(rs_v3_add(v[0], rs_v3_add(v[1], v[2])), 1.0 / 3);
-        double q[3] = {c.x, c.y, c.z};
-        int ok = 1;
-        size_t idx = 0, mul = 1;
-        for (int a = 0; a < 3; a++) {
-            double g = floor((q[a] - tmp.lo[a]) / tmp.cell);
-            if (!(g >= 0 && g < tmp.n[a])) ok = 0;
-            if (ok) idx += (size_t)g * mul;
-            mul *= (size_t)tmp.n[a];
-        }
-        if (ok) label[idx] = (uint32_t)f;
-    }
+    rs_freespace_label(fs, m, label);
     size_t head = 0, tail = 0;
+    memset(dist, 255, n);
     for (size_t idx = 0; idx < n; idx++)
-        if (label[idx] != UINT32_MAX) queue[tail++] = (uint32_t)idx;
+        if (label[idx] != UINT32_MAX) queue[tail++] = (uint32_t)idx, dist[idx] = 0;
     size_t sx = 1, sy = (size_t)fs->n[0], sz = (size_t)fs->n[0] * fs->n[1];
     while (head < tail) {
         size_t idx = queue[head++];
@@ -53,6 +39,7 @@ static uint32_t *proxy_labels(const rs_freespace *fs, const rs_mesh *m)
         for (int q = 0; q < cnt; q++)
             if (label[nb[q]] == UINT32_MAX) {
                 label[nb[q]] = label[idx];
+                dist[nb[q]] = dist[idx] < 254 ? (uint8_t)(dist[idx] + 1) : 254;
                 queue[tail++] = (uint32_t)nb[q];
             }
     }
@@ -140,17 +127,27 @@ static int plane_faces(const rs_freespace *fs, const uint32_t *label, int ax, in
     return 0;
 }
 
-int rs_freespace_occluders(const rs_freespace *fs, const rs_mesh *m, rs_mesh **occ, uint32_t **proxy, rs_err *err)
+int rs_freespace_occluders(rs_freespace *fs, const rs_mesh *m, double depth, rs_mesh **occ, uint32_t **proxy,
+                           rs_err *err)
 {
     *occ = NULL;
     *proxy = NULL;
-    uint32_t *label = proxy_labels(fs, m);
+    uint8_t *dist = malloc(fs->ncells);
+    uint32_t *label = dist ? proxy_labels(fs, m, dist) : NULL;
     int maxn = fs->n[0] * fs->n[1] > fs->n[1] * fs->n[2] ? fs->n[0] * fs->n[1] : fs->n[1] * fs->n[2];
     if (fs->n[0] * fs->n[2] > maxn) maxn = fs->n[0] * fs->n[2];
     int8_t *mask = malloc((size_t)maxn);
     face_list fl = {0};
     int rc = -1;
     if (!label || !mask) goto oom;
+    /* Unknown space farther than depth from every facet is taken as open (known). */
+    double dmax = depth / fs->cell;
+    fs->opened = 0;
+    for (size_t idx = 0; idx < fs->ncells; idx++)
+        if (dist[idx] > dmax && (fs->bits[idx >> 2] >> (2 * (idx & 3)) & 3) == 0) {
+            fs->bits[idx >> 2] |= (uint8_t)(1 << (2 * (idx & 3)));
+            fs->opened++;
+        }
     for (int ax = 0; ax < 3; ax++)
         for (int p = 1; p < fs->n[ax]; p++)
             if (plane_faces(fs, label, ax, p, mask, &fl) != 0) goto oom;
@@ -172,6 +169,7 @@ oom:
     rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the occluders of %zu cells", fs->ncells);
 out:
     free(label);
+    free(dist);
     free(mask);
     free(fl.verts);
     free(fl.proxy);

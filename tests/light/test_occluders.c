@@ -83,7 +83,7 @@ static void test_room_missing_wall(void **state)
     rs_mesh *occ = NULL;
     uint32_t *proxy = NULL;
     rs_err err;
-    assert_int_equal(rs_freespace_occluders(&fs, m, &occ, &proxy, &err), 0);
+    assert_int_equal(rs_freespace_occluders(&fs, m, 4.0, &occ, &proxy, &err), 0);
     assert_non_null(occ);
     assert_true(occ->nfaces < 2000); /* merged into rectangles, not one pair per cell face */
     assert_int_equal(rs_scene_set_occluders(sc, occ, proxy, 1.5 * fs.cell, &err), 0);
@@ -115,7 +115,7 @@ static void test_room_missing_wall(void **state)
         room_map(&fs, m, sc, k ? 0.0 : 2.0);
         scan_from(&fs, sc, rs_v3_make(2, 2, 1.5), 360, 1);
         assert_int_equal(rs_freespace_state(&fs, rs_v3_make(2, 3.9, 1.5)), RS_FS_FREE);
-        assert_int_equal(rs_freespace_occluders(&fs, m, &occ, &proxy, &err), 0);
+        assert_int_equal(rs_freespace_occluders(&fs, m, 4.0, &occ, &proxy, &err), 0);
         if (occ) assert_int_equal(rs_scene_set_occluders(sc, occ, proxy, 1.5 * fs.cell, &err), 0);
         rs_scene_occluded(sc, &out, &blocked, 1);
         assert_int_equal(blocked, 0);
@@ -186,7 +186,7 @@ static void test_walkway_slab(void **state)
     scan_from(&fs, rsc, rs_v3_make(3, 5, 1.6), 720, 1);  /* the camera: its sky too */
     rs_mesh *occ = NULL;
     uint32_t *proxy = NULL;
-    assert_int_equal(rs_freespace_occluders(&fs, m, &occ, &proxy, &err), 0);
+    assert_int_equal(rs_freespace_occluders(&fs, m, 4.0, &occ, &proxy, &err), 0);
     assert_non_null(occ);
     rs_skyenv env;
     rs_capture cap = rs_fx_sun_pixel_capture(256, 128, 1.0f, 1.0f, 0, 0);
