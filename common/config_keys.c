@@ -184,6 +184,28 @@ const rs_cfg_key rs_cfg_keys[] = {
      "those facets take E_sky from the sky map's order-2 harmonics, without rays, where the harmonics' relative "
      "error (measured on the map at 256 normals, 1.5 x the worst near the facet's) is below this (0: never)"},
 
+    {"irradiance", "occluders", RS_CFG_ENUM, "off", 0, 0, "off|freespace|file", "", "irradiance",
+     "close the open scanned shell for the light: freespace builds a map of the space the scanners' and the camera's "
+     "rays crossed and blocks every gather, sun and search ray that enters space none crossed (within the model's "
+     "box grown by occluder_margin), writing the faces to occluders.ply; file takes them from occluders_file; off: "
+     "rays that leave the mesh see the sky"},
+    {"irradiance", "occluder_cell", RS_CFG_REAL, "0.25", 0.005, 100, NULL, "m", "irradiance",
+     "edge of a free-space cell (grown until the grid has at most occluder_max_cells cells)"},
+    {"irradiance", "occluder_margin", RS_CFG_REAL, "2", 0, 1000, NULL, "m", "irradiance",
+     "the free-space grid covers the model's bounding box grown by this in x, y and downward (not upward): "
+     "unknown space inside it blocks light, beyond it the sky is open"},
+    {"irradiance", "occluder_depth", RS_CFG_REAL, "0.5", 0, 1000, NULL, "m", "irradiance",
+     "unknown space blocks only within this distance of a scanned facet (the body behind a wall, the top of a slab, "
+     "the back of a pillar); farther away it is taken as open (the ground in a building's scan shadow)"},
+    {"irradiance", "occluder_near", RS_CFG_REAL, "1.5", 0, 100, NULL, "cells", "irradiance",
+     "occluder hits nearer than this many cells to a ray's origin are ignored, so that a facet is not shadowed "
+     "by the unknown cells next to its own"},
+    {"irradiance", "occluder_max_cells", RS_CFG_INT, "16777216", 4096, 268435456, NULL, "cells", "irradiance",
+     "the free-space grid's largest cell count (2 bits each; the proxy search takes 8 bytes each while it runs)"},
+    {"irradiance", "occluders_file", RS_CFG_PATH, NULL, 0, 0, NULL, "", "irradiance",
+     "with occluders = file: a PLY of occluder faces (vertex x y z, face vertex_indices, int proxy: the mesh.ply "
+     "facet whose radiance stands for the face's unseen surface), as occluders.ply is written"},
+
     {"sky", "panorama", RS_CFG_PATH, NULL, 0, 0, NULL, "", "irradiance",
      "sky-only panorama (EXR or HDR, linear) used for every direction it sees as sky"},
     {"sky", "position", RS_CFG_VEC3, NULL, 0, 0, NULL, "m", "irradiance",

@@ -21,6 +21,7 @@
 #include "light/skyground.h"
 #include "pipeline/capture_load.h"
 #include "sky/solar.h"
+#include "stages/irradiance/irradiance_close.h"
 #include "stages/irradiance/irradiance_out.h"
 #include "stages/irradiance/irradiance_skyscale.h"
 #include "stages/irradiance/irradiance_state.h"
@@ -426,6 +427,8 @@ static void release_state(rs_irradiance_state *s)
     rs_image_free(s->ids);
     rs_skyenv_release(&s->env);
     rs_scene_free(s->scene);
+    rs_mesh_free(s->occ);
+    free(s->occ_proxy);
     rs_capture_release(&s->cap);
     rs_capture_release(&s->sky);
     free(s->sky_mask);
@@ -443,7 +446,9 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     rs_irradiance_state s;
     memset(&s, 0, sizeof s);
     int rc = -1;
-    if (load_inputs(cfg, &s, rep, err) != 0 || build_sky_map(cfg, &o, &s, rep, err) != 0) goto out;
+    if (load_inputs(cfg, &s, rep, err) != 0 || build_sky_map(cfg, &o, &s, rep, err) != 0 ||
+        rs_irradiance_close(cfg, &s, rep, err) != 0)
+        goto out;
     if (!(s.fg = calloc(s.nf, sizeof *s.fg))) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu facets", s.nf);
         goto out;

@@ -58,6 +58,9 @@ typedef struct rs_irradiance_state {
     rs_capture cap;    /* [capture]; the explicit sun's disc taken out */
     rs_image *ids;     /* facet_id.exr: the facet under each of cap's pixels, -1 none */
     rs_scene *scene;
+    rs_mesh *occ;                            /* [irradiance] occluders: their faces (NULL without), attached to scene */
+    uint32_t *occ_proxy;                     /* per occluder face: the facet standing for it */
+    double occ_cell;                         /* the free-space cell, m (occluder_near's unit) */
     rs_capture sky;                          /* [sky] panorama (pano NULL without one) */
     uint8_t *sky_mask;                       /* its pixels that see sky */
     rs_capture others[RS_SKYENV_MAX_OTHERS]; /* further captures ([capture.NAME]) */

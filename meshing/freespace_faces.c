@@ -1,0 +1,177 @@
+/* freespace_faces: the occluder faces of a free-space grid (freespace.h): known/unknown faces
+ * merged greedily into rectangles per grid plane, and each rectangle's proxy facet, the nearest
+ * scanned one by a breadth-first search from the occupied cells. */
+#include <stdlib.h>
+#include <string.h>
+#include "meshing/freespace.h"
+
+/* Every cell's nearest facet (UINT32_MAX where none is reachable): the facets' own cells,
+ * spread through the grid in breadth-first order (6-neighbours); dist[]: the steps taken (a
+ * city-block distance in cells, 254 at most, 255 unreached). */
+static uint32_t *proxy_labels(const rs_freespace *fs, const rs_mesh *m, uint8_t *dist)
+{
+    size_t n = fs->ncells;
+    uint32_t *label = malloc(n * sizeof *label);
+    uint32_t *queue = malloc(n * sizeof *queue);
+    if (!label || !queue) {
+        free(label);
+        free(queue);
+        return NULL;
+    }
+    memset(label, 0xff, n * sizeof *label);
+    rs_freespace_label(fs, m, label);
+    size_t head = 0, tail = 0;
+    memset(dist, 255, n);
+    for (size_t idx = 0; idx < n; idx++)
+        if (label[idx] != UINT32_MAX) queue[tail++] = (uint32_t)idx, dist[idx] = 0;
+    size_t sx = 1, sy = (size_t)fs->n[0], sz = (size_t)fs->n[0] * fs->n[1];
+    while (head < tail) {
+        size_t idx = queue[head++];
+        int i = (int)(idx % sy), j = (int)((idx / sy) % fs->n[1]), k = (int)(idx / sz);
+        size_t nb[6];
+        int cnt = 0;
+        if (i > 0) nb[cnt++] = idx - sx;
+        if (i + 1 < fs->n[0]) nb[cnt++] = idx + sx;
+        if (j > 0) nb[cnt++] = idx - sy;
+        if (j + 1 < fs->n[1]) nb[cnt++] = idx + sy;
+        if (k > 0) nb[cnt++] = idx - sz;
+        if (k + 1 < fs->n[2]) nb[cnt++] = idx + sz;
+        for (int q = 0; q < cnt; q++)
+            if (label[nb[q]] == UINT32_MAX) {
+                label[nb[q]] = label[idx];
+                dist[nb[q]] = dist[idx] < 254 ? (uint8_t)(dist[idx] + 1) : 254;
+                queue[tail++] = (uint32_t)nb[q];
+            }
+    }
+    free(queue);
+    return label;
+}
+
+typedef struct face_list {
+    float *verts;
+    uint32_t *proxy;
+    size_t nrect, cap;
+} face_list;
+
+/* Appends the rectangle [u0, u1) x [v0, v1) of cells in the plane ax = p (cell units) as two
+ * triangles facing sign along ax, with proxy pr. */
+static int add_rect(face_list *fl, const rs_freespace *fs, int ax, int p, int u0, int u1, int v0, int v1, int sign,
+                    uint32_t pr)
+{
+    if (fl->nrect == fl->cap) {
+        size_t cap = fl->cap ? 2 * fl->cap : 1024;
+        float *v = realloc(fl->verts, cap * 12 * sizeof *v);
+        if (!v) return -1;
+        fl->verts = v;
+        uint32_t *q = realloc(fl->proxy, cap * 2 * sizeof *q);
+        if (!q) return -1;
+        fl->proxy = q;
+        fl->cap = cap;
+    }
+    int au = (ax + 1) % 3, av = (ax + 2) % 3;
+    int cu[4] = {u0, u1, u1, u0}, cv[4] = {v0, v0, v1, v1};
+    float *out = fl->verts + 12 * fl->nrect;
+    for (int c = 0; c < 4; c++) {
+        int k = sign > 0 ? c : (4 - c) % 4; /* (u, v, ax) is right-handed: u, v ccw faces +ax */
+        out[3 * c + ax] = (float)(fs->lo[ax] + p * fs->cell);
+        out[3 * c + au] = (float)(fs->lo[au] + cu[k] * fs->cell);
+        out[3 * c + av] = (float)(fs->lo[av] + cv[k] * fs->cell);
+    }
+    fl->proxy[2 * fl->nrect] = fl->proxy[2 * fl->nrect + 1] = pr;
+    fl->nrect++;
+    return 0;
+}
+
+static int known(const rs_freespace *fs, int c[3])
+{
+    return rs_freespace_cell(fs, c[0], c[1], c[2]) != RS_FS_UNKNOWN;
+}
+
+/* The faces of one plane ax = p (between cells p - 1 and p): mask[u + nu v] = +1 where the cell
+ * above is known and the one below unknown (the face looks up, +ax), -1 the other way round;
+ * then greedy rectangles of one sign. */
+static int plane_faces(const rs_freespace *fs, const uint32_t *label, int ax, int p, int8_t *mask, face_list *fl)
+{
+    int au = (ax + 1) % 3, av = (ax + 2) % 3, nu = fs->n[au], nv = fs->n[av];
+    int any = 0;
+    for (int v = 0; v < nv; v++)
+        for (int u = 0; u < nu; u++) {
+            int lo[3], hi[3];
+            lo[ax] = p - 1, hi[ax] = p;
+            lo[au] = hi[au] = u;
+            lo[av] = hi[av] = v;
+            int kl = known(fs, lo), kh = known(fs, hi);
+            mask[u + (size_t)nu * v] = (int8_t)(kl == kh ? 0 : kh ? 1 : -1);
+            any |= kl != kh;
+        }
+    if (!any) return 0;
+    for (int v = 0; v < nv; v++)
+        for (int u = 0; u < nu; u++) {
+            int8_t s = mask[u + (size_t)nu * v];
+            if (!s) continue;
+            int u1 = u + 1, v1 = v + 1;
+            while (u1 < nu && mask[u1 + (size_t)nu * v] == s) u1++;
+            for (int ok = 1; ok && v1 < nv; v1 += ok)
+                for (int x = u; x < u1; x++)
+                    if (mask[x + (size_t)nu * v1] != s) ok = 0;
+            for (int y = v; y < v1; y++) memset(mask + u + (size_t)nu * y, 0, (size_t)(u1 - u));
+            int c[3]; /* the unknown cell at the rectangle's centre */
+            c[ax] = s > 0 ? p - 1 : p;
+            c[au] = (u + u1 - 1) / 2;
+            c[av] = (v + v1 - 1) / 2;
+            size_t idx = ((size_t)c[2] * fs->n[1] + (size_t)c[1]) * fs->n[0] + (size_t)c[0];
+            uint32_t pr = label[idx];
+            if (pr == UINT32_MAX) continue; /* no facet at all: nothing to stand for it */
+            if (add_rect(fl, fs, ax, p, u, u1, v, v1, s, pr) != 0) return -1;
+        }
+    return 0;
+}
+
+int rs_freespace_occluders(rs_freespace *fs, const rs_mesh *m, double depth, rs_mesh **occ, uint32_t **proxy,
+                           rs_err *err)
+{
+    *occ = NULL;
+    *proxy = NULL;
+    uint8_t *dist = malloc(fs->ncells);
+    uint32_t *label = dist ? proxy_labels(fs, m, dist) : NULL;
+    int maxn = fs->n[0] * fs->n[1] > fs->n[1] * fs->n[2] ? fs->n[0] * fs->n[1] : fs->n[1] * fs->n[2];
+    if (fs->n[0] * fs->n[2] > maxn) maxn = fs->n[0] * fs->n[2];
+    int8_t *mask = malloc((size_t)maxn);
+    face_list fl = {0};
+    int rc = -1;
+    if (!label || !mask) goto oom;
+    /* Unknown space farther than depth from every facet is taken as open (known). */
+    double dmax = depth / fs->cell;
+    fs->opened = 0;
+    for (size_t idx = 0; idx < fs->ncells; idx++)
+        if (dist[idx] > dmax && (fs->bits[idx >> 2] >> (2 * (idx & 3)) & 3) == 0) {
+            fs->bits[idx >> 2] |= (uint8_t)(1 << (2 * (idx & 3)));
+            fs->opened++;
+        }
+    for (int ax = 0; ax < 3; ax++)
+        for (int p = 1; p < fs->n[ax]; p++)
+            if (plane_faces(fs, label, ax, p, mask, &fl) != 0) goto oom;
+    if (fl.nrect) {
+        rs_mesh *o = rs_mesh_new(4 * fl.nrect, 2 * fl.nrect);
+        if (!o) goto oom;
+        memcpy(o->verts, fl.verts, 12 * fl.nrect * sizeof(float));
+        for (size_t r = 0; r < fl.nrect; r++) {
+            uint32_t b = (uint32_t)(4 * r), t[6] = {b, b + 1, b + 2, b, b + 2, b + 3};
+            memcpy(o->tris + 6 * r, t, sizeof t);
+        }
+        *occ = o;
+        *proxy = fl.proxy;
+        fl.proxy = NULL;
+    }
+    rc = 0;
+    goto out;
+oom:
+    rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the occluders of %zu cells", fs->ncells);
+out:
+    free(label);
+    free(dist);
+    free(mask);
+    free(fl.verts);
+    free(fl.proxy);
+    return rc;
+}

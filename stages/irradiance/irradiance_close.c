@@ -1,0 +1,231 @@
+/* irradiance_close: the occluders of the irradiance stage (see irradiance_close.h). */
+#include "stages/irradiance/irradiance_close.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+#include "common/cloud_ply.h"
+#include "common/faceprop.h"
+#include "common/fileio.h"
+#include "common/log.h"
+#include "common/pano.h"
+#include "common/ply.h"
+#include "meshing/freespace.h"
+
+int rs_occluders_read(const char *path, size_t nf, rs_mesh **occ, uint32_t **proxy, rs_err *err)
+{
+    *occ = NULL;
+    *proxy = NULL;
+    rs_ply *ply = NULL;
+    rs_mesh *m = rs_mesh_read(path, &ply, err);
+    if (!m) return -1;
+    double *pr = malloc((m->nfaces ? m->nfaces : 1) * sizeof *pr);
+    uint32_t *out = malloc((m->nfaces ? m->nfaces : 1) * sizeof *out);
+    int rc = -1;
+    if (!pr || !out) {
+        rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory reading the occluders");
+    } else if (rs_faceprop_get(ply, path, "proxy", m->nfaces, pr, err) == 0) {
+        rc = 0;
+        for (size_t f = 0; f < m->nfaces && rc == 0; f++) {
+            if (!(pr[f] >= 0 && pr[f] < (double)nf && pr[f] == floor(pr[f])))
+                rc = rs_err_set(err, RS_ERR_INPUT, path, 0,
+                                "face %zu: proxy %g, expected a facet index of mesh.ply (0 to %zu)", f, pr[f],
+                                nf ? nf - 1 : 0);
+            else
+                out[f] = (uint32_t)pr[f];
+        }
+    }
+    free(pr);
+    rs_ply_free(ply);
+    if (rc != 0) {
+        free(out);
+        rs_mesh_free(m);
+        return -1;
+    }
+    *occ = m;
+    *proxy = out;
+    return 0;
+}
+
+static int write_occluders(const char *path, const rs_mesh *occ, const uint32_t *proxy, rs_err *err)
+{
+    rs_ply *ply = rs_ply_new();
+    double *pr = malloc(occ->nfaces * sizeof *pr), *src = malloc(occ->nfaces * sizeof *src);
+    int rc = -1;
+    rs_ply_element *faces = ply ? rs_mesh_to_ply(occ, ply) : NULL;
+    if (!faces || !pr || !src) {
+        rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory writing the occluders");
+    } else {
+        for (size_t f = 0; f < occ->nfaces; f++) pr[f] = proxy[f], src[f] = 1;
+        if (rs_ply_add_comment(ply,
+                               "rhoscan occluders: faces between known and unknown space (source 1 = "
+                               "free-space map); proxy = the mesh.ply facet standing for the unseen surface") == 0 &&
+            rs_ply_add_scalar(faces, "proxy", RS_PLY_INT32, pr) &&
+            rs_ply_add_scalar(faces, "source", RS_PLY_UINT8, src))
+            rc = rs_ply_write(ply, path, 1, err);
+        else
+            rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory writing the occluders");
+    }
+    free(pr);
+    free(src);
+    rs_ply_free(ply);
+    return rc;
+}
+
+/* The scanners' rays: every valid point of cloud.ply from its scan's position (or the
+ * unorganized points' viewpoint). A missing cloud.ply (a given mesh without scans) carves
+ * nothing. Returns the rays carved, -1 on a bad cloud.ply. */
+static double carve_scans(const rs_config *cfg, rs_freespace *fs, rs_err *err)
+{
+    char path[4096];
+    const char *cp = rs_work_path(cfg, "cloud.ply", path, sizeof path);
+    if (!rs_file_exists(cp)) return 0;
+    rs_cloud *c = rs_cloud_read_ply(cp, err);
+    if (!c) return -1;
+    double rays = 0;
+    for (int sc = 0; sc < c->nscans; sc++) {
+        const rs_scan *scan = &c->scans[sc];
+        rs_v3 o = rs_v3_make(scan->position[0], scan->position[1], scan->position[2]);
+        long n = (long)scan->cols * scan->rows;
+#pragma omp parallel for schedule(dynamic, 4096) reduction(+ : rays)
+        for (long k = 0; k < n; k++) {
+            size_t q = scan->first + (size_t)k;
+            if (!c->valid[q]) continue;
+            rs_freespace_carve(fs, o, rs_v3_make(c->xyz[3 * q], c->xyz[3 * q + 1], c->xyz[3 * q + 2]), 0);
+            rays += 1;
+        }
+    }
+    size_t first = c->nscans
+        ? c->scans[c->nscans - 1].first + (size_t)c->scans[c->nscans - 1].cols * c->scans[c->nscans - 1].rows
+        : 0;
+    if (c->has_viewpoint && first < c->npoints) {
+        rs_v3 o = rs_v3_make(c->viewpoint[0], c->viewpoint[1], c->viewpoint[2]);
+#pragma omp parallel for schedule(dynamic, 4096) reduction(+ : rays)
+        for (long k = (long)first; k < (long)c->npoints; k++) {
+            if (!c->valid[k]) continue;
+            rs_freespace_carve(fs, o, rs_v3_make(c->xyz[3 * k], c->xyz[3 * k + 1], c->xyz[3 * k + 2]), 0);
+            rays += 1;
+        }
+    }
+    rs_cloud_free(c);
+    return rays;
+}
+
+/* The camera's rays: a pixel that sees a facet is empty up to its hit on the mesh, one that sees
+ * nothing of the mesh (and holds a usable value) is empty to the grid's edge. */
+static double carve_camera(const rs_irradiance_state *s, rs_freespace *fs)
+{
+    const rs_capture *cap = &s->cap;
+    int w = cap->pano->width, h = cap->pano->height;
+    double rays = 0;
+#pragma omp parallel for schedule(dynamic, 4) reduction(+ : rays)
+    for (int r = 0; r < h; r++) {
+        rs_ray ray[512];
+        rs_hit hit[512];
+        for (int c0 = 0; c0 < w; c0 += 512) {
+            int n = w - c0 < 512 ? w - c0 : 512;
+            for (int i = 0; i < n; i++) {
+                ray[i].org = cap->pose.position;
+                ray[i].dir = rs_pose_dir_to_world(&cap->pose, rs_pano_pixel_dir(w, h, c0 + i, r));
+                ray[i].tnear = 0;
+                ray[i].tfar = INFINITY;
+            }
+            rs_scene_intersect(s->scene, ray, hit, (size_t)n);
+            for (int i = 0; i < n; i++) {
+                size_t k = (size_t)r * w + c0 + i;
+                rs_v3 end = rs_v3_add(ray[i].org, ray[i].dir);
+                if (hit[i].face != RS_NO_HIT) {
+                    end = rs_v3_add(ray[i].org, rs_v3_scale(ray[i].dir, hit[i].t));
+                    rs_freespace_carve(fs, ray[i].org, end, 0);
+                } else if (s->ids->data[k] < 0 && rs_capture_pixel_ok(cap->pano->data + 3 * k)) {
+                    rs_freespace_carve(fs, ray[i].org, end, 1);
+                } else {
+                    continue;
+                }
+                rays += 1;
+            }
+        }
+    }
+    return rays;
+}
+
+/* The free-space map of the scans and the capture, and its faces. */
+static int build_freespace(const rs_config *cfg, rs_irradiance_state *s, rs_json *fig, rs_err *err)
+{
+    rs_freespace_opts fo = {.cell = rs_config_real(cfg, "irradiance", "occluder_cell"),
+                            .margin = rs_config_real(cfg, "irradiance", "occluder_margin"),
+                            .max_cells = (size_t)rs_config_int(cfg, "irradiance", "occluder_max_cells")};
+    rs_freespace fs;
+    double t0 = rs_now();
+    if (rs_freespace_init(&fs, s->mesh, &fo, err) != 0) return -1;
+    double scan_rays = carve_scans(cfg, &fs, err);
+    if (scan_rays < 0) {
+        rs_freespace_release(&fs);
+        return -1;
+    }
+    double cam_rays = carve_camera(s, &fs), t1 = rs_now();
+    rs_freespace_counts cnt;
+    rs_freespace_count(&fs, &cnt);
+    int rc = rs_freespace_occluders(&fs, s->mesh, rs_config_real(cfg, "irradiance", "occluder_depth"), &s->occ,
+                                    &s->occ_proxy, err);
+    rs_json_set_int(fig, "cells_unknown_opened", (long long)fs.opened);
+    double t2 = rs_now();
+    s->occ_cell = fs.cell;
+    rs_json_set_num(fig, "cell_m", fs.cell);
+    rs_json *dims = rs_json_set_arr(fig, "grid");
+    for (int a = 0; a < 3; a++) rs_json_push_num(dims, fs.n[a]);
+    rs_json_set_int(fig, "cells_free", (long long)cnt.free);
+    rs_json_set_int(fig, "cells_occupied", (long long)cnt.occupied);
+    rs_json_set_int(fig, "cells_unknown", (long long)cnt.unknown);
+    rs_json_set_num(fig, "scanner_rays", scan_rays);
+    rs_json_set_num(fig, "camera_rays", cam_rays);
+    rs_json_set_num(fig, "grid_mb", (double)((fs.ncells + 3) / 4) / 1048576.0);
+    rs_json_set_num(fig, "map_s", t1 - t0);
+    rs_json_set_num(fig, "faces_s", t2 - t1);
+    rs_log_info("irradiance: free-space map of %d x %d x %d cells of %.3g m (%.1f MB): %zu free, %zu occupied, %zu "
+                "unknown, from %.0f scanner and %.0f camera rays in %.2f s",
+                fs.n[0], fs.n[1], fs.n[2], fs.cell, (double)((fs.ncells + 3) / 4) / 1048576.0, cnt.free, cnt.occupied,
+                cnt.unknown, scan_rays, cam_rays, t1 - t0);
+    rs_freespace_release(&fs);
+    if (rc != 0) return -1;
+    char path[4096];
+    if (s->occ)
+        return write_occluders(rs_work_path(cfg, "occluders.ply", path, sizeof path), s->occ, s->occ_proxy, err);
+    return 0;
+}
+
+int rs_irradiance_close(const rs_config *cfg, rs_irradiance_state *s, rs_report *rep, rs_err *err)
+{
+    const char *mode = rs_config_string(cfg, "irradiance", "occluders");
+    char path[4096];
+    const char *occ_path = rs_work_path(cfg, "occluders.ply", path, sizeof path);
+    if (strcmp(mode, "off") == 0) {
+        if (rs_file_exists(occ_path)) unlink(occ_path); /* an earlier run's: nothing reads it now */
+        return 0;
+    }
+    double t0 = rs_now();
+    rs_json *fig = rs_json_set_obj(rep->metrics, "occluders");
+    rs_json_set_str(fig, "mode", mode);
+    s->occ_cell = rs_config_real(cfg, "irradiance", "occluder_cell");
+    if (strcmp(mode, "file") == 0) {
+        char given[4096];
+        const char *fp = rs_config_path(cfg, "irradiance", "occluders_file", given, sizeof given);
+        if (!fp)
+            return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
+                              "[irradiance] occluders = file without occluders_file: expected the occluder PLY");
+        if (rs_occluders_read(fp, s->nf, &s->occ, &s->occ_proxy, err) != 0) return -1;
+        if (rs_file_exists(occ_path)) unlink(occ_path);
+    } else if (build_freespace(cfg, s, fig, err) != 0) {
+        return -1;
+    }
+    double near = rs_config_real(cfg, "irradiance", "occluder_near") * s->occ_cell;
+    if (s->occ && rs_scene_set_occluders(s->scene, s->occ, s->occ_proxy, near, err) != 0) return -1;
+    size_t nocc = s->occ ? s->occ->nfaces : 0;
+    rs_json_set_int(fig, "faces", (long long)nocc);
+    rs_json_set_num(fig, "near_m", near);
+    rs_report_time(rep, "occluders", rs_now() - t0);
+    rs_log_info("irradiance: %zu occluder faces (%s) block rays that leave the mesh, beyond %.3g m of their origin",
+                nocc, mode, near);
+    return 0;
+}

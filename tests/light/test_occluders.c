@@ -1,0 +1,214 @@
+/* The free-space map and its occluders (meshing/freespace.h, rs_scene_set_occluders): a box room
+ * scanned from inside with one wall missing, and a floor under a walkway roof whose far half the
+ * scan missed, lit by a uniform sky with and without the occluders and with the closed model. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include "common/pano.h"
+#include "light/gather.h"
+#include "meshing/freespace.h"
+#include "tests/fixtures.h"
+#include "tests/meshgen.h"
+#include "tests/testutil.h"
+
+/* A scanner (or a camera) at o over a w x w/2 equirectangular grid of directions, traced against
+ * the real scene: a return carves to its hit, a ray that escapes carves to the grid's edge when
+ * sky is 1 (a camera's sky pixel) and nothing when 0 (a scanner's no-return). */
+static void scan_from(rs_freespace *fs, const rs_scene *real, rs_v3 o, int w, int sky)
+{
+    int h = w / 2;
+    rs_ray *rays = malloc((size_t)w * sizeof *rays);
+    rs_hit *hits = malloc((size_t)w * sizeof *hits);
+    for (int r = 0; r < h; r++) {
+        for (int c = 0; c < w; c++) {
+            rays[c].org = o;
+            rays[c].dir = rs_pano_pixel_dir(w, h, c, r);
+            rays[c].tnear = 0;
+            rays[c].tfar = INFINITY;
+        }
+        rs_scene_intersect(real, rays, hits, (size_t)w);
+        for (int c = 0; c < w; c++) {
+            if (hits[c].face != RS_NO_HIT)
+                rs_freespace_carve(fs, o, rs_v3_add(o, rs_v3_scale(rays[c].dir, hits[c].t)), 0);
+            else if (sky)
+                rs_freespace_carve(fs, o, rs_v3_add(o, rays[c].dir), 1);
+        }
+    }
+    free(rays);
+    free(hits);
+}
+
+/* The room [0, 4] x [0, 4] x [0, 3], inward, without its wall y = 4. */
+static rs_mesh *open_room(void)
+{
+    rs_meshgen g = rs_meshgen_new(4096, 4096);
+    rs_meshgen_rect(&g, rs_v3_make(0, 0, 0), rs_v3_make(4, 0, 0), rs_v3_make(0, 4, 0), 8, 8); /* floor, up */
+    rs_meshgen_rect(&g, rs_v3_make(0, 0, 3), rs_v3_make(0, 4, 0), rs_v3_make(4, 0, 0), 8, 8); /* ceiling, down */
+    rs_meshgen_rect(&g, rs_v3_make(0, 0, 0), rs_v3_make(0, 4, 0), rs_v3_make(0, 0, 3), 8, 6); /* x = 0, +x */
+    rs_meshgen_rect(&g, rs_v3_make(4, 0, 0), rs_v3_make(0, 0, 3), rs_v3_make(0, 4, 0), 6, 8); /* x = 4, -x */
+    rs_meshgen_rect(&g, rs_v3_make(0, 0, 0), rs_v3_make(0, 0, 3), rs_v3_make(4, 0, 0), 6, 8); /* y = 0, +y */
+    return rs_meshgen_done(&g);
+}
+
+static void room_map(rs_freespace *fs, const rs_mesh *m, const rs_scene *sc, double margin)
+{
+    rs_err err;
+    rs_freespace_opts fo = {.cell = 0.25, .margin = margin, .max_cells = 1 << 22};
+    assert_int_equal(rs_freespace_init(fs, m, &fo, &err), 0);
+    scan_from(fs, sc, rs_v3_make(1, 1, 1.2), 720, 0);
+}
+
+/* The room's air is free, its surfaces occupied, the space beyond the missing wall unknown; a ray
+ * out through the gap is blocked inside the grown box, open with no margin (and so outside it),
+ * and a ray inside the room still reaches the room's own wall. */
+static void test_room_missing_wall(void **state)
+{
+    (void)state;
+    rs_mesh *m = open_room();
+    rs_scene *sc = rs_fx_scene(m);
+    rs_freespace fs;
+    room_map(&fs, m, sc, 2.0);
+    assert_int_equal(rs_freespace_state(&fs, rs_v3_make(2, 1.8, 1.5)), RS_FS_FREE);
+    assert_int_equal(rs_freespace_state(&fs, rs_v3_make(3, 3, 2.5)), RS_FS_FREE);
+    assert_int_equal(rs_freespace_state(&fs, rs_v3_make(2, 0.01, 1.5)), RS_FS_OCCUPIED);
+    assert_int_equal(rs_freespace_state(&fs, rs_v3_make(2, 4.6, 1.5)), RS_FS_UNKNOWN);
+    assert_int_equal(rs_freespace_state(&fs, rs_v3_make(2, 5.8, 1.0)), RS_FS_UNKNOWN);
+    assert_int_equal(rs_freespace_state(&fs, rs_v3_make(-1, 2, 1.5)), RS_FS_UNKNOWN); /* behind a wall */
+    assert_int_equal(rs_freespace_state(&fs, rs_v3_make(2, 6.5, 1.5)), RS_FS_FREE);   /* beyond the box */
+    rs_freespace_counts cnt;
+    rs_freespace_count(&fs, &cnt);
+    assert_true(cnt.free > 0 && cnt.occupied > 0 && cnt.unknown > 0);
+    assert_int_equal(cnt.free + cnt.occupied + cnt.unknown, fs.ncells);
+
+    rs_mesh *occ = NULL;
+    uint32_t *proxy = NULL;
+    rs_err err;
+    assert_int_equal(rs_freespace_occluders(&fs, m, 4.0, &occ, &proxy, &err), 0);
+    assert_non_null(occ);
+    assert_true(occ->nfaces < 2000); /* merged into rectangles, not one pair per cell face */
+    assert_int_equal(rs_scene_set_occluders(sc, occ, proxy, 1.5 * fs.cell, &err), 0);
+    rs_ray out = {.org = rs_v3_make(2, 2, 1.5), .dir = rs_v3_make(0, 1, 0), .tnear = 0, .tfar = INFINITY};
+    rs_hit hit;
+    uint8_t blocked;
+    rs_scene_intersect(sc, &out, &hit, 1);
+    assert_int_equal(hit.occluder, 1);
+    assert_true(hit.face < m->nfaces);
+    assert_true(hit.t > 0.3 && hit.t < 2.5);    /* at the free / unknown boundary, by y = 4.5 */
+    assert_true(hit.t >= 1.5 * fs.cell - 1e-6); /* not nearer than the near limit */
+    rs_scene_occluded(sc, &out, &blocked, 1);
+    assert_int_equal(blocked, 1);
+    rs_ray wall = {.org = rs_v3_make(2, 2, 1.5), .dir = rs_v3_make(0, -1, 0), .tnear = 0, .tfar = INFINITY};
+    rs_scene_intersect(sc, &wall, &hit, 1);
+    assert_int_equal(hit.occluder, 0);
+    assert_true(fabs(hit.t - 2) < 1e-3);
+    /* Detached, the same ray escapes again. */
+    assert_int_equal(rs_scene_set_occluders(sc, NULL, NULL, 0, &err), 0);
+    rs_scene_occluded(sc, &out, &blocked, 1);
+    assert_int_equal(blocked, 0);
+    rs_mesh_free(occ);
+    free(proxy);
+    rs_freespace_release(&fs);
+
+    /* A camera in the room that sees the sky through the gap (a wall that is not there): the
+     * gap's cells are free, and the ray through it is open, with or without a margin. */
+    for (int k = 0; k < 2; k++) {
+        room_map(&fs, m, sc, k ? 0.0 : 2.0);
+        scan_from(&fs, sc, rs_v3_make(2, 2, 1.5), 360, 1);
+        assert_int_equal(rs_freespace_state(&fs, rs_v3_make(2, 3.9, 1.5)), RS_FS_FREE);
+        assert_int_equal(rs_freespace_occluders(&fs, m, 4.0, &occ, &proxy, &err), 0);
+        if (occ) assert_int_equal(rs_scene_set_occluders(sc, occ, proxy, 1.5 * fs.cell, &err), 0);
+        rs_scene_occluded(sc, &out, &blocked, 1);
+        assert_int_equal(blocked, 0);
+        assert_int_equal(rs_scene_set_occluders(sc, NULL, NULL, 0, &err), 0);
+        rs_mesh_free(occ);
+        free(proxy);
+        occ = NULL;
+        proxy = NULL;
+        rs_freespace_release(&fs);
+    }
+    rs_scene_free(sc);
+    rs_mesh_free(m);
+}
+
+/* A courtyard floor [0, 10]^2, a wall x = 10 (8 m high, facing -x) and a walkway roof over
+ * x in [7, 10] at z = 3: closed (a 0.2 m slab), or as scanned from (3, 5, 1.5): only the
+ * underside's near half (x < 8.5), the rest in the scan's shadow. */
+static rs_mesh *walkway(int closed)
+{
+    rs_meshgen g = rs_meshgen_new(8192, 8192);
+    rs_meshgen_rect(&g, rs_v3_make(0, 0, 0), rs_v3_make(10, 0, 0), rs_v3_make(0, 10, 0), 20, 20);
+    rs_meshgen_rect(&g, rs_v3_make(10, 0, 0), rs_v3_make(0, 0, 8), rs_v3_make(0, 10, 0), 16, 20);
+    if (closed)
+        rs_meshgen_box(&g, rs_v3_make(7, 0, 3), rs_v3_make(10, 10, 3.2), 8, 0);
+    else
+        rs_meshgen_rect(&g, rs_v3_make(7, 0, 3), rs_v3_make(0, 10, 0), rs_v3_make(1.5, 0, 0), 20, 3);
+    return rs_meshgen_done(&g);
+}
+
+/* The floor facet nearest (x, y) among m's upward facets. */
+static uint32_t floor_facet(const rs_mesh *m, double x, double y)
+{
+    uint32_t best = 0;
+    double bd = INFINITY;
+    for (size_t f = 0; f < m->nfaces; f++) {
+        rs_v3 c, n;
+        double a;
+        rs_mesh_face(m, f, &c, &n, &a);
+        double d = hypot(c.x - x, c.y - y) + fabs(c.z) * 100;
+        if (n.z > 0.9 && d < bd) bd = d, best = (uint32_t)f;
+    }
+    return best;
+}
+
+static double sky_lum(const rs_scene *sc, const rs_skyenv *env, uint32_t f)
+{
+    rs_gather_ctx g = rs_fx_gather_ctx(sc, env, 1024, 0, 7);
+    rs_gather_scratch *s = rs_gather_scratch_new(1024);
+    rs_facet_gather out;
+    assert_int_equal(rs_gather_facet(&g, f, s, &out), 0);
+    rs_gather_scratch_free(s);
+    free(out.entries);
+    return out.esky[1];
+}
+
+/* Under the scan's shadow the open mesh lets the floor see the sky through the missing roof; the
+ * occluders bring its E_sky most of the way back to the closed model's. */
+static void test_walkway_slab(void **state)
+{
+    (void)state;
+    rs_mesh *real = walkway(1), *m = walkway(0);
+    rs_scene *rsc = rs_fx_scene(real), *sc = rs_fx_scene(m);
+    rs_freespace fs;
+    rs_err err;
+    rs_freespace_opts fo = {.cell = 0.25, .margin = 2, .max_cells = 1 << 22};
+    assert_int_equal(rs_freespace_init(&fs, m, &fo, &err), 0);
+    scan_from(&fs, rsc, rs_v3_make(3, 5, 1.5), 1440, 0); /* the scanner: returns only */
+    scan_from(&fs, rsc, rs_v3_make(3, 5, 1.6), 720, 1);  /* the camera: its sky too */
+    rs_mesh *occ = NULL;
+    uint32_t *proxy = NULL;
+    assert_int_equal(rs_freespace_occluders(&fs, m, 4.0, &occ, &proxy, &err), 0);
+    assert_non_null(occ);
+    rs_skyenv env;
+    rs_capture cap = rs_fx_sun_pixel_capture(256, 128, 1.0f, 1.0f, 0, 0);
+    rs_fx_sky_env(&cap, 0, 0, &env);
+    uint32_t f_real = floor_facet(real, 9.2, 5), f = floor_facet(m, 9.2, 5);
+    double closed = sky_lum(rsc, &env, f_real), open = sky_lum(sc, &env, f);
+    assert_int_equal(rs_scene_set_occluders(sc, occ, proxy, 1.5 * fs.cell, &err), 0);
+    double with = sky_lum(sc, &env, f);
+    print_message("E_sky under the scan shadow: closed %.4f, open mesh %.4f, with occluders %.4f\n", closed, open,
+                  with);
+    assert_true(open > 1.5 * closed);                          /* the leak is real */
+    assert_true(fabs(with - closed) < 0.25 * (open - closed)); /* and mostly gone */
+    /* A facet out in the courtyard keeps its sky. */
+    uint32_t f_open = floor_facet(m, 2, 5);
+    double before = sky_lum(rsc, &env, floor_facet(real, 2, 5)), after = sky_lum(sc, &env, f_open);
+    assert_true(fabs(after - before) < 0.05 * before);
+    rs_fx_release(&env, &cap, sc, m);
+    rs_scene_free(rsc);
+    rs_mesh_free(real);
+    rs_mesh_free(occ);
+    free(proxy);
+    rs_freespace_release(&fs);
+}
+
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_room_missing_wall), cmocka_unit_test(test_walkway_slab))
