@@ -14,8 +14,8 @@ written from those files alone (--report-only rewrites it without running anythi
 
 --scenes DIR: the project's own reference scenes (OWN_SCENES, tools/refscene/scenes/*.json) rendered
 into DIR/<name>/ (a folder counts when it holds DIR/<name>/DONE). Each runs twice with the default
-method, on the scan and on the closed truth mesh (`--set mesh.input_mesh=`, truth.ply split by
-tools/refscene/fine_truth.py to about the pipeline's facet size: truth.ply's box faces are whole), so
+method, on the scan and on the closed truth mesh (`--set mesh.input_mesh=truth.ply` with
+`mesh.input_refine=true`, which splits its whole box faces to the facet size a scan gets), so
 that the table separates the geometry's share of the error from the method's; the figures go to
 docs/accuracy/own-<name>-scan.json and own-<name>-truth_mesh.json. --keep DIR keeps the work folders.
 """
@@ -170,14 +170,8 @@ def run_own_scene(a, name, scene, tmp):
     for run, _ in OWN_RUNS:
         work = os.path.join(tmp, 'own-%s-%s' % (name, run))
         sets = ['--set', 'pipeline.workdir=' + work]
-        if run == 'truth_mesh':   # truth.ply split to the pipeline's facet size (tools/refscene/fine_truth.py)
-            fine = os.path.join(d, 'truth_fine.ply')
-            r = subprocess.run([sys.executable, os.path.join(ROOT, 'tools', 'refscene', 'fine_truth.py'), scene, fine,
-                                '--min-edge', '0.1'], capture_output=True, text=True)
-            if r.returncode != 0:
-                log('%s: fine_truth.py exited %d: %s' % (name, r.returncode, r.stderr.strip()))
-                continue
-            sets += ['--set', 'mesh.input_mesh=' + fine]
+        if run == 'truth_mesh':   # split to the facet size a scan gets: truth.ply's box faces are whole
+            sets += ['--set', 'mesh.input_mesh=' + os.path.join(scene, 'truth.ply'), '--set', 'mesh.input_refine=true']
         log('%s: %s' % (name, run))
         r = subprocess.run([rhoscan, 'run', cfg, '--quiet'] + sets, capture_output=True, text=True)
         if r.returncode != 0:
@@ -209,9 +203,9 @@ def own_section():
              'The project\'s own Cycles scenes of the kinds issue 28 found failing (tools/refscene/scenes,',
              'README there), one ground-level scan station each, rendered with tools/refscene and run with the',
              'default method twice: on the scan (an open shell: roof tops, slab tops and the backs of columns',
-             'are never scanned) and on the closed truth mesh (`--set mesh.input_mesh=`, truth.ply split by',
-             'tools/refscene/fine_truth.py to 6 panorama pixels per edge, at least 0.1 m: its box faces are',
-             'whole: as whole faces cloister_sunset scored 31.9 % on 96 facets, split 6.8 %, shared evaluator). The',
+             'are never scanned) and on the closed truth mesh (`--set mesh.input_mesh=truth.ply` with',
+             '`mesh.input_refine=true`, which splits its whole box faces to the facet size a scan gets; as whole',
+             'faces cloister_sunset scored 31.9 % on 96 facets, split 6.8 %, shared evaluator). The',
              'difference between the two rows is the geometry\'s share of the error, the truth-mesh row the',
              'method\'s. Regenerate with `tools/accuracy_report.py --scenes DIR --only NAME ...` where DIR',
              'holds the rendered folders. *total*: E_sky + G against pi (DiffDir + DiffInd) as above (E_sky',

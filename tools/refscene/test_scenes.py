@@ -14,7 +14,6 @@ import unittest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
-import fine_truth  # noqa: E402
 import geom        # noqa: E402
 import scenedesc   # noqa: E402
 
@@ -181,40 +180,6 @@ class OwnScenes(unittest.TestCase):
         for pos in (sc["cam_pos"], sc["scan_pos"]):
             blocked = any(_ray_hits(pos, d, v[t[0]], v[t[1]], v[t[2]]) is not None for v, tris in solids for t in tris)
             self.assertTrue(blocked, "the sun must be hidden from %s" % (pos,))
-
-
-class FineTruth(unittest.TestCase):
-    def test_split_keeps_the_surface_and_bounds_the_edges(self):
-        verts, tris = box_solid([-4, 2, 0], [4, 5, 3])
-        faces = [t + (0.5, 0.4, 0.3, 7) for t in tris]
-        cam = [0.0, -3.0, 1.6]
-        v, f = fine_truth.split(verts, faces, cam, pixels=6, width=1024, min_edge=0.1, max_edge=1.0)
-        area = lambda a, b, c: 0.5 * math.sqrt(sum(x * x for x in (  # noqa: E731
-            (b[1] - a[1]) * (c[2] - a[2]) - (b[2] - a[2]) * (c[1] - a[1]),
-            (b[2] - a[2]) * (c[0] - a[0]) - (b[0] - a[0]) * (c[2] - a[2]),
-            (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))))
-        total = sum(area(v[i], v[j], v[k]) for i, j, k, *_ in f)
-        self.assertAlmostEqual(total, 2 * (8 * 3 + 8 * 3 + 3 * 3), places=6)
-        self.assertGreater(len(f), 100)
-        for i, j, k, r, g, b, part in f:
-            self.assertEqual((r, g, b, part), (0.5, 0.4, 0.3, 7))
-            tri = (v[i], v[j], v[k])
-            longest = max(math.dist(tri[0], tri[1]), math.dist(tri[1], tri[2]), math.dist(tri[2], tri[0]))
-            d = fine_truth._dist_point_triangle(cam, *tri)
-            self.assertLessEqual(longest, min(1.0, max(0.1, 6 * 2 * math.pi / 1024 * d)) + 1e-9)
-        # Outward winding is kept: the signed volume of the split box is the box's.
-        vol = sum(geom.mesh_check(v, [(i, j, k)])[2] for i, j, k, *_ in f)
-        self.assertAlmostEqual(vol, 8 * 3 * 3, places=6)
-
-    def test_reads_the_generators_truth_ply(self):
-        with tempfile.TemporaryDirectory() as d:
-            verts, tris = box_solid([0, 0, 0], [1, 1, 1])
-            path = os.path.join(d, "t.ply")
-            fine_truth.write_ply(path, [tuple(float(x) for x in p) for p in verts],
-                                 [t + (0.25, 0.5, 0.75, 3) for t in tris])
-            v, f = fine_truth.read_truth_ply(path)
-            self.assertEqual(len(v), 8)
-            self.assertEqual(f[0][3:], (0.25, 0.5, 0.75, 3))
 
 
 if __name__ == "__main__":
