@@ -58,14 +58,7 @@ static int drop_coincident(rs_cloud *c, rs_report *rep, size_t *distinct, rs_err
     for (size_t i = first; i < c->npoints; i++) {
         if (!c->valid[i]) continue;
         const double *p = c->xyz + 3 * i;
-        uint64_t h = 0xcbf29ce484222325ULL;
-        for (int j = 0; j < 3; j++) {
-            double x = p[j] + 0.0; /* -0 -> +0 */
-            uint64_t bits;
-            memcpy(&bits, &x, sizeof bits);
-            h = (h ^ bits) * 0x100000001b3ULL;
-            h ^= h >> 31;
-        }
+        uint64_t h = rs_ingest_point_hash(p);
         for (size_t k = h & (cap - 1);; k = (k + 1) & (cap - 1)) {
             if (slot[k] == UINT32_MAX) {
                 slot[k] = (uint32_t)(i - first);

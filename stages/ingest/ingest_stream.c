@@ -301,8 +301,9 @@ static int survey_file(source *s, int k, double lo[3], double hi[3], rs_err *err
     return 0;
 }
 
-/* The whole-cloud path's hash of a point (stages/ingest/ingest.c, drop_coincident). */
-static uint64_t point_hash(const double *p)
+/* Both paths' hash of a point (FNV-1a over the coordinates' bits, -0 as +0), so that the
+ * streaming path meets coincident points in the whole-cloud path's order. */
+uint64_t rs_ingest_point_hash(const double *p)
 {
     uint64_t h = 0xcbf29ce484222325ULL;
     for (int j = 0; j < 3; j++) {
@@ -335,7 +336,7 @@ static int coincident_pass(source *s, coincident *co, size_t bucket, size_t nbuc
     while ((r = source_next(s, err)) > 0)
         for (size_t i = 0; i < s->n; i++, g++) {
             const double *p = s->xyz + 3 * i;
-            uint64_t h = point_hash(p);
+            uint64_t h = rs_ingest_point_hash(p);
             if ((h >> 32) % nbuckets != bucket) continue;
             if (4 * (used + 1) > 3 * cap) { /* an unlucky bucket: a larger table */
                 size_t ncap = 2 * cap;
@@ -347,7 +348,7 @@ static int coincident_pass(source *s, coincident *co, size_t bucket, size_t nbuc
                 for (size_t k = 0; k < ncap; k++) ns[k][0] = NAN;
                 for (size_t k = 0; k < cap; k++) {
                     if (isnan(slot[k][0])) continue;
-                    size_t at = point_hash(slot[k]) & (ncap - 1);
+                    size_t at = rs_ingest_point_hash(slot[k]) & (ncap - 1);
                     while (!isnan(ns[at][0])) at = (at + 1) & (ncap - 1);
                     memcpy(ns[at], slot[k], sizeof ns[at]);
                 }

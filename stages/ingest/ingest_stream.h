@@ -4,6 +4,7 @@
 #define RS_INGEST_STREAM_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 #include "common/config.h"
 #include "common/err.h"
@@ -18,6 +19,9 @@ int rs_ingest_can_stream(const rs_config *cfg);
 /* The ingest from the files' chunks into cloud.ply at path (same bytes and report as the
  * whole-cloud path). */
 int rs_ingest_stream(const rs_config *cfg, rs_report *rep, const char *path, rs_err *err);
+
+/* The hash both paths find coincident points by. */
+uint64_t rs_ingest_point_hash(const double *p);
 
 /* The unorganized points must carry a surface: the whole-cloud path's refusals, for npoints
  * unorganized points of which distinct are distinct, collinear when they lie on a line. */
