@@ -131,27 +131,36 @@ def reference_config(tmp, scene_dir):
     return cfg
 
 
+def run_and_eval(a, label, cfg, truth, work, out, sets):
+    """`rhoscan run CFG` into work with sets, then rhoscan-eval of it into out; eval.json's
+    document, or None (logged) when either fails."""
+    rhoscan, ev = os.path.join(a.bin, 'rhoscan'), os.path.join(a.bin, 'rhoscan-eval')
+    log(label)
+    r = subprocess.run([rhoscan, 'run', cfg, '--quiet', '--set', 'pipeline.workdir=' + work] + sets,
+                       capture_output=True, text=True)
+    if r.returncode != 0:
+        log('%s: rhoscan run exited %d: %s' % (label, r.returncode, r.stderr.strip()[-400:]))
+        return None
+    os.makedirs(out, exist_ok=True)
+    r = subprocess.run([ev, truth, work, '--out', out, '--quiet'], capture_output=True, text=True)
+    if r.returncode not in (0, 1) or not os.path.exists(os.path.join(out, 'eval.json')):
+        log('%s: rhoscan-eval exited %d: %s' % (label, r.returncode, r.stderr.strip()))
+        return None
+    return json.load(open(os.path.join(out, 'eval.json')))
+
+
 def run_dataset(a, name, cfg, truth, tmp):
     """Runs the three methods and keeps rhoscan-eval's output for each in docs/accuracy."""
     os.makedirs(ACC, exist_ok=True)
-    rhoscan, ev = os.path.join(a.bin, 'rhoscan'), os.path.join(a.bin, 'rhoscan-eval')
     for method in METHODS:
         work = os.path.join(tmp, name + ('-paper' if method == 'paper' else ''))
-        sets = ['--set', 'pipeline.workdir=' + work, '--set', 'reflectance.method=' + method]
+        sets = ['--set', 'reflectance.method=' + method]
         if method == 'paper':
             sets += ['--set', 'mesh.facets=%d' % a.paper_facets]
-        log('%s: %s' % (name, method))
-        r = subprocess.run([rhoscan, 'run', cfg, '--quiet'] + sets, capture_output=True, text=True)
-        if r.returncode != 0:
-            log('%s %s: rhoscan run exited %d: %s' % (name, method, r.returncode, r.stderr.strip()[-400:]))
-            continue
         out = os.path.join(tmp, 'eval-%s-%s' % (name, method))
-        os.makedirs(out, exist_ok=True)
-        r = subprocess.run([ev, truth, work, '--out', out, '--quiet'], capture_output=True, text=True)
-        if r.returncode not in (0, 1) or not os.path.exists(os.path.join(out, 'eval.json')):
-            log('%s %s: rhoscan-eval exited %d: %s' % (name, method, r.returncode, r.stderr.strip()))
+        doc = run_and_eval(a, '%s: %s' % (name, method), cfg, truth, work, out, sets)
+        if doc is None:
             continue
-        doc = json.load(open(os.path.join(out, 'eval.json')))
         doc['run'] = {'method': method, 'facets': doc['facets_total'],
                       'settings': [s for s in sets if not s.startswith('pipeline.') and s != '--set']}
         for d in ('truth_dir', 'work_dir'):   # machine-specific paths do not belong in the docs
@@ -163,27 +172,18 @@ def run_dataset(a, name, cfg, truth, tmp):
 def run_own_scene(a, name, scene, tmp):
     """One own scene, on the scan and on the closed truth mesh, default method."""
     os.makedirs(ACC, exist_ok=True)
-    rhoscan, ev = os.path.join(a.bin, 'rhoscan'), os.path.join(a.bin, 'rhoscan-eval')
     d = os.path.join(tmp, 'cfg-own-' + name)
     os.makedirs(d, exist_ok=True)
     cfg = reference_config(d, scene)
     for run, _ in OWN_RUNS:
         work = os.path.join(tmp, 'own-%s-%s' % (name, run))
-        sets = ['--set', 'pipeline.workdir=' + work]
+        sets = []
         if run == 'truth_mesh':   # split to the facet size a scan gets: truth.ply's box faces are whole
             sets += ['--set', 'mesh.input_mesh=' + os.path.join(scene, 'truth.ply'), '--set', 'mesh.input_refine=true']
-        log('%s: %s' % (name, run))
-        r = subprocess.run([rhoscan, 'run', cfg, '--quiet'] + sets, capture_output=True, text=True)
-        if r.returncode != 0:
-            log('%s %s: rhoscan run exited %d: %s' % (name, run, r.returncode, r.stderr.strip()[-400:]))
-            continue
         out = os.path.join(tmp, 'eval-own-%s-%s' % (name, run))
-        os.makedirs(out, exist_ok=True)
-        r = subprocess.run([ev, scene, work, '--out', out, '--quiet'], capture_output=True, text=True)
-        if r.returncode not in (0, 1) or not os.path.exists(os.path.join(out, 'eval.json')):
-            log('%s %s: rhoscan-eval exited %d: %s' % (name, run, r.returncode, r.stderr.strip()))
+        doc = run_and_eval(a, '%s: %s' % (name, run), cfg, scene, work, out, sets)
+        if doc is None:
             continue
-        doc = json.load(open(os.path.join(out, 'eval.json')))
         truth = json.load(open(os.path.join(scene, 'truth.json')))
         doc['run'] = {'method': 'interreflection', 'mesh': run, 'facets': doc['facets_total'],
                       'samples': truth.get('samples')}
