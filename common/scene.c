@@ -33,6 +33,23 @@ static void embree_error(void *user, enum RTCError code, const char *str)
     rs_err_set(&s->build_err, RS_ERR_INTERNAL, NULL, 0, "Embree error %d: %s", (int)code, str ? str : "");
 }
 
+/* The unit normal of every face of m, 3 floats each (zero for degenerate faces); NULL when out of
+ * memory. */
+static float *face_normals(const rs_mesh *m)
+{
+    float *nrm = malloc((m->nfaces ? m->nfaces : 1) * 3 * sizeof *nrm);
+    if (!nrm) return NULL;
+    for (size_t f = 0; f < m->nfaces; f++) {
+        rs_v3 c, n;
+        double a;
+        rs_mesh_face(m, f, &c, &n, &a);
+        nrm[3 * f] = (float)n.x;
+        nrm[3 * f + 1] = (float)n.y;
+        nrm[3 * f + 2] = (float)n.z;
+    }
+    return nrm;
+}
+
 /* A committed Embree scene of mesh's triangles on s's device (NULL when Embree failed).
  * Embree reads copies in buffers it owns (it needs 16 bytes of padding past the last vertex for
  * SSE loads). */
@@ -69,16 +86,7 @@ rs_scene *rs_scene_new(const rs_mesh *mesh, rs_err *err)
     rs_scene *s = calloc(1, sizeof *s);
     if (!s) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory"), NULL;
     s->mesh = mesh;
-    s->normals = malloc(mesh->nfaces * 3 * sizeof *s->normals);
-    if (!s->normals) goto oom;
-    for (size_t f = 0; f < mesh->nfaces; f++) {
-        rs_v3 c, n;
-        double a;
-        rs_mesh_face(mesh, f, &c, &n, &a);
-        s->normals[3 * f] = (float)n.x;
-        s->normals[3 * f + 1] = (float)n.y;
-        s->normals[3 * f + 2] = (float)n.z;
-    }
+    if (!(s->normals = face_normals(mesh))) goto oom;
     s->extent = rs_mesh_extent(mesh);
 
     /* Embree's TBB threads would fight OpenMP's: give it as many as OpenMP uses. */
@@ -146,16 +154,8 @@ int rs_scene_set_occluders(rs_scene *s, const rs_mesh *occ, const uint32_t *prox
         if (proxy[f] >= s->mesh->nfaces)
             return rs_err_set(err, RS_ERR_INPUT, NULL, 0, "occluder face %zu: proxy facet %u, expected below %zu", f,
                               (unsigned)proxy[f], s->mesh->nfaces);
-    if (!(s->occ_normals = malloc(occ->nfaces * 3 * sizeof *s->occ_normals)))
+    if (!(s->occ_normals = face_normals(occ)))
         return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu occluder faces", occ->nfaces);
-    for (size_t f = 0; f < occ->nfaces; f++) {
-        rs_v3 c, n;
-        double a;
-        rs_mesh_face(occ, f, &c, &n, &a);
-        s->occ_normals[3 * f] = (float)n.x;
-        s->occ_normals[3 * f + 1] = (float)n.y;
-        s->occ_normals[3 * f + 2] = (float)n.z;
-    }
     s->failed = 0;
     if (!(s->occ = build_bvh(s, occ)) || s->failed) {
         if (err) *err = s->build_err;
