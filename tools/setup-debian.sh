@@ -1,6 +1,7 @@
 #!/bin/sh
 # Installs the Debian 12 packages rhoscan builds and tests with (run as root).
-# Usage: tools/setup-debian.sh [--tests]   (--tests adds what the test suites need)
+# Usage: tools/setup-debian.sh [--tests | --bench]   (--tests adds what the test suites need,
+# --bench what bench/ compares against: OctoMap and OpenVDB for rhoscan-freespace-bench --libs)
 set -eu
 pkgs="build-essential cmake pkg-config libembree-dev libtbb-dev libopenexr-dev libstb-dev zlib1g-dev libinih-dev libcjson-dev libexpat1-dev libopencv-dev libpcl-dev libjs-three"
 # libexpat1-dev: the XML section of E57 files (common/e57_xml.c).
@@ -16,6 +17,9 @@ if [ "${1:-}" = "--tests" ]; then
     # install, 85 MB of packages, 266 MB on disk); cloudcompare with xvfb and xauth: the same
     # test reads albedo_vertex.ply's colours through CloudCompare's command line.
     pkgs="$pkgs libcmocka-dev python3 python3-numpy python3-scipy python3-openimageio clang libclang-rt-14-dev libomp-dev blender-data chromium chromium-driver python3-selenium blender python3-open3d cloudcompare xvfb xauth"
+fi
+if [ "${1:-}" = "--bench" ]; then
+    pkgs="$pkgs liboctomap-dev libopenvdb-dev"
 fi
 missing=""
 for p in $pkgs; do
