@@ -311,5 +311,9 @@ const rs_cfg_key rs_cfg_keys[] = {
      "empty texels around each chart, filled by dilation so that mipmaps show no seams"},
     {"texture", "max_side", RS_CFG_INT, "8192", 64, 8192, NULL, "texels", "texture",
      "largest atlas page side (a power of two); more pages when one is not enough"},
+    {"texture", "filter", RS_CFG_ENUM, "bilinear", 0, 0, "bilinear|area", "", "texture",
+     "how a texel samples the panorama: bilinear (n x n bilinear lookups, n = texel / pixel footprint, 1 to 3) or "
+     "area (the mean over the texel of the pixels read as constant squares: a step between two pixels stays "
+     "within a texel's width, at the cost of pixel-sized blocks where the texel is finer than a pixel)"},
 
     {NULL, NULL, 0, NULL, 0, 0, NULL, NULL, NULL, NULL}};

@@ -55,6 +55,8 @@ OWN_SCENES = [  # name, scene JSON, what it tests (issue 28, part 5; tools/refsc
     ('balcony_awning', 'tools/refscene/scenes/balcony_awning.json',
      'a facade with four balconies and a shop awning, a real sun in front'),
     ('piers', 'tools/refscene/scenes/piers.json', 'a wall with six piers and stepped buttresses, a low real sun'),
+    ('tile_yard', 'tools/refscene/scenes/tile_yard.json',
+     'a yard whose walls carry brick and tile patterns, striped by the sun shadows of a pergola and a canopy'),
 ]
 OWN_RUNS = (('scan', 'scan'), ('truth_mesh', 'closed truth mesh'))
 
@@ -191,6 +193,34 @@ def run_own_scene(a, name, scene, tmp):
             doc[k] = os.path.basename(doc[k])
         json.dump(doc, open(os.path.join(ACC, 'own-%s-%s.json' % (name, run)), 'w'), indent=1)
         shutil.copy(os.path.join(out, 'eval_error.png'), os.path.join(ACC, 'own-%s-%s.png' % (name, run)))
+        if run == 'scan' and any('pattern' in p for p in truth.get('parts', [])):
+            texture_figures(a, name, scene, cfg, work, doc['facets_total'])
+
+
+def texture_figures(a, name, scene, cfg, work, facets):
+    """A textured own scene (refscene `pattern` parts): texture_eval.py's per-pixel figures, per part
+    too, at the default mesh (the scan run's work folder) and at ten times fewer facets, into
+    docs/accuracy/texture-own-NAME.json and texture-own-NAME_coarse.json (the texture section)."""
+    ev = os.path.join(ROOT, 'tools', 'eval', 'texture_eval.py')
+    coarse = work + '-coarse'
+    for suffix, w, label in (('', work, 'default mesh (%d facets)' % facets),
+                             ('_coarse', coarse, '`[mesh] facets = %d` (ten times coarser)' % (facets // 10))):
+        if suffix:
+            r = subprocess.run([os.path.join(a.bin, 'rhoscan'), 'run', cfg, '--quiet', '--set', 'pipeline.workdir=' + w,
+                                '--set', 'mesh.facets=%d' % (facets // 10)], capture_output=True, text=True)
+            if r.returncode != 0:
+                log('%s coarse: rhoscan run exited %d: %s' % (name, r.returncode, r.stderr.strip()[-400:]))
+                return
+        out = os.path.join(ACC, 'texture-own-%s%s.json' % (name, suffix))
+        r = subprocess.run([sys.executable, ev, '--bin', a.bin, '--scene', scene, '--work', w, '--facets', '--parts',
+                            '--json', out], capture_output=True, text=True)
+        if r.returncode != 0:
+            log('%s: texture_eval.py exited %d: %s' % (name, r.returncode, (r.stdout + r.stderr).strip()[-400:]))
+            return
+        d = json.load(open(out))
+        samples = json.load(open(os.path.join(scene, 'truth.json'))).get('samples')
+        d['label'] = '%s (own scene, %s samples), %s' % (name, samples, label)
+        json.dump(d, open(out, 'w'), indent=1)
 
 
 def own_section():
@@ -285,6 +315,25 @@ def texture_section():
                 fmt(t['band_bias_sun_side'], True) if t['band_bias_sun_side'] is not None else '-',
                 fmt(t['band_bias_shadow_side'], True) if t['band_bias_shadow_side'] is not None else '-',
                 t['pattern_correlation'] or 0))
+    for f in files:
+        d = json.load(open(f))
+        if not d.get('parts'):
+            continue
+        name = d.get('label', os.path.basename(f)[len('texture-'):-len('.json')])
+        lines += ['', 'Per part, %s (texture_eval.py --parts; median relative error, texture / facets; parts with '
+                  'at least 1 %% of the building pixels):' % name, '',
+                  '| part | pixels | all | sun | shadow | band | holes | correlation |',
+                  '| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |']
+        for part, pd in d['parts'].items():
+            t, fc = pd['texture'], pd.get('facets', {})
+            if t['building_pixels'] < 0.01 * d['texture']['building_pixels']:
+                continue
+
+            def pair(c):
+                return ' / '.join(fmt(x[c]['median']) if x and x[c]['median'] is not None else '-' for x in (t, fc))
+            lines.append('| %s | %d | %s | %s | %s | %s | %s | %.3f / %.3f |' % (
+                part, t['building_pixels'], pair('all'), pair('sun'), pair('shadow'), pair('shadow_edge_band'),
+                fmt(t['hole_share']), t['pattern_correlation'] or 0, (fc or {}).get('pattern_correlation') or 0))
     return lines + ['']
 
 

@@ -203,6 +203,7 @@ typedef struct {
     float *vis;  /* per texel: V, -1 where the sun is behind the face (the pages' sigma until the albedo) */
     float *L;    /* 3 per texel: radiance, flag TEX_SEEN when measured (the pages' rgb until the albedo) */
     int sub_max; /* sub-samples per side, at most */
+    int area;    /* [texture] filter = area: the texel's mean of the pixels read as constant squares */
 } tex_ctx;
 
 /* V at point p (normal n): SUN_RAYS rays toward points of the sun's disc. */
@@ -244,6 +245,32 @@ static int pixels_on_chart(const tex_ctx *c, double X, double Y, uint32_t ch)
     return 1;
 }
 
+/* [texture] filter = area: the pixel holding continuous coordinates (X, Y), the panorama read as
+ * constant squares (nearest), into px; 0 when that pixel does not see chart ch or is not usable. */
+static int pixel_on_chart(const tex_ctx *c, double X, double Y, uint32_t ch, float px[3])
+{
+    const rs_image *ids = c->in->ids, *pano = c->in->cap.pano;
+    int W = ids->width, H = ids->height, x = ((int)floor(X) % W + W) % W, y = (int)floor(Y);
+    y = y < 0 ? 0 : (y >= H ? H - 1 : y);
+    float id = ids->data[(size_t)y * W + x];
+    if (!(id >= 0 && id < (float)c->in->nf) || c->t->atlas->face_chart[(size_t)id] != ch) return 0;
+    const float *q = rs_image_px(pano, x, y);
+    if (!rs_capture_pixel_ok(q)) return 0;
+    for (int k = 0; k < 3; k++) px[k] = q[k];
+    return 1;
+}
+
+/* Sub-samples per texel side: bilinear, n = texel / footprint (1 to sub_max), each lookup already
+ * spreading over a pixel; area, two per footprint (2 to 2 sub_max), so that the nearest-pixel
+ * lookups weigh each pixel by about its share of the texel. */
+static int texel_subsamples(const tex_ctx *c, double foot)
+{
+    double r = c->t->atlas->texel / foot;
+    int ns = c->area ? (int)ceil(2 * r) : (int)ceil(r), lo = c->area ? 2 : 1,
+        hi = c->area ? 2 * c->sub_max : c->sub_max;
+    return ns < lo ? lo : (ns > hi ? hi : ns);
+}
+
 /* L at texel k (face f, texel x, y of its page): the mean of the sub-samples that the camera sees
  * on the texel's own chart. Returns 1 when any was. */
 static int texel_radiance(const tex_ctx *c, uint32_t f, int x, int y, float L[3])
@@ -255,9 +282,7 @@ static int texel_radiance(const tex_ctx *c, uint32_t f, int x, int y, float L[3]
     rs_v3 d = rs_v3_sub(p, cap->pose.position);
     double dist = rs_v3_len(d), cosv = -rs_v3_dot(n, d) / dist;
     if (!(cosv > 0.02)) return 0;
-    double foot = dist * (M_PI / cap->pano->height) / fmax(cosv, 0.2);
-    int ns = (int)ceil(c->t->atlas->texel / foot);
-    ns = ns < 1 ? 1 : (ns > c->sub_max ? c->sub_max : ns);
+    int ns = texel_subsamples(c, dist * (M_PI / cap->pano->height) / fmax(cosv, 0.2));
     rs_ray ray = {cap->pose.position, d, 0, 1 - 4 * rs_scene_offset(c->scene, p) / dist};
     uint8_t occ;
     rs_scene_occluded(c->scene, &ray, &occ, 1);
@@ -272,9 +297,15 @@ static int texel_radiance(const tex_ctx *c, uint32_t f, int x, int y, float L[3]
             rs_v3 q = rs_v3_add(p, rs_v3_add(rs_v3_scale(ch->eu, ds), rs_v3_scale(ch->ev, -dt)));
             double u, v;
             rs_pano_dir_to_uv(rs_pose_dir_to_local(&cap->pose, rs_v3_sub(q, cap->pose.position)), &u, &v);
-            if (!pixels_on_chart(c, u * cap->pano->width, v * cap->pano->height, c->t->atlas->face_chart[f])) continue;
+            double X = u * cap->pano->width, Y = v * cap->pano->height;
+            uint32_t chart = c->t->atlas->face_chart[f];
             float px[3];
-            rs_pano_sample(cap->pano, u, v, px);
+            if (c->area) {
+                if (!pixel_on_chart(c, X, Y, chart, px)) continue;
+            } else {
+                if (!pixels_on_chart(c, X, Y, chart)) continue;
+                rs_pano_sample(cap->pano, u, v, px);
+            }
             for (int k = 0; k < 3; k++) acc[k] += px[k];
             used++;
         }
@@ -481,7 +512,8 @@ static int build_atlas(const rs_config *cfg, const tex_inputs *in, rs_atlas **ou
 static int texture_compute(const rs_config *cfg, tex_inputs *in, rs_tex_pages *t, rs_report *rep, tex_counts *n,
                            rs_err *err)
 {
-    tex_ctx c = {.in = in, .t = t, .sub_max = 3};
+    const char *filter = rs_config_string(cfg, "texture", "filter");
+    tex_ctx c = {.in = in, .t = t, .sub_max = 3, .area = filter && strcmp(filter, "area") == 0};
     int rc = -1;
     double t0 = rs_now();
     rs_scene *scene = rs_scene_new(in->mesh, err);

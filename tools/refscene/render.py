@@ -26,6 +26,7 @@ from mathutils.bvhtree import BVHTree
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import geom        # noqa: E402  (beside this script; Blender does not put it on the path)
+import pattern     # noqa: E402
 import rigsim      # noqa: E402
 import scenedesc   # noqa: E402
 
@@ -130,7 +131,59 @@ def clear_scene():
         bpy.data.objects.remove(ob, do_unlink=True)
 
 
-def make_model(bm, parts):
+def pattern_colour(nt, pat):
+    """Cycles math nodes computing pattern.index_tree(pat) at the shading point (world position:
+    the model object has the identity transform) and picking that palette entry; returns the
+    colour socket. Mix nodes with factor exactly 0 or 1 give the palette's values exactly."""
+    geo = nt.nodes.new("ShaderNodeNewGeometry")
+    xyz = nt.nodes.new("ShaderNodeSeparateXYZ")
+    nt.links.new(geo.outputs["Position"], xyz.inputs["Vector"])
+    made = {}
+
+    def socket(node):
+        if isinstance(node, (int, float)):
+            return float(node)
+        if isinstance(node, str):
+            return xyz.outputs[node.upper()]
+        if id(node) in made:
+            return made[id(node)]
+        name, a, b = node
+        m = nt.nodes.new("ShaderNodeMath")
+        m.operation = name
+        m.use_clamp = False
+        for k, arg in enumerate((a, b) if name != "COMPARE" else (a, b, 0.5)):
+            v = socket(arg)
+            if isinstance(v, float):
+                m.inputs[k].default_value = v
+            else:
+                nt.links.new(v, m.inputs[k])
+        made[id(node)] = m.outputs["Value"]
+        return made[id(node)]
+
+    index = socket(pattern.index_tree(pat))
+    colour = None
+    for k, rgb in enumerate(pat["palette"]):
+        if colour is None:
+            rgbn = nt.nodes.new("ShaderNodeRGB")
+            rgbn.outputs["Color"].default_value = (*rgb, 1.0)
+            colour = rgbn.outputs["Color"]
+            continue
+        pick = nt.nodes.new("ShaderNodeMath")
+        pick.operation = "COMPARE"
+        nt.links.new(index, pick.inputs[0])
+        pick.inputs[1].default_value = float(k)
+        pick.inputs[2].default_value = 0.5
+        mix = nt.nodes.new("ShaderNodeMixRGB")
+        mix.blend_type = 'MIX'
+        mix.use_clamp = False
+        nt.links.new(pick.outputs["Value"], mix.inputs["Fac"])
+        nt.links.new(colour, mix.inputs["Color1"])
+        mix.inputs["Color2"].default_value = (*rgb, 1.0)
+        colour = mix.outputs["Color"]
+    return colour
+
+
+def make_model(bm, parts, patterns):
     mesh = bpy.data.meshes.new("model")
     bm.to_mesh(mesh)
     for i, p in enumerate(parts):
@@ -140,7 +193,10 @@ def make_model(bm, parts):
         nt.nodes.clear()
         # A pure Diffuse BSDF (roughness 0 = Lambert): the DiffCol pass is then the albedo.
         bsdf = nt.nodes.new("ShaderNodeBsdfDiffuse")
-        bsdf.inputs["Color"].default_value = (*p["albedo"], 1.0)
+        if patterns[i] is None:
+            bsdf.inputs["Color"].default_value = (*p["albedo"], 1.0)
+        else:
+            nt.links.new(pattern_colour(nt, patterns[i]), bsdf.inputs["Color"])
         bsdf.inputs["Roughness"].default_value = 0.0
         out = nt.nodes.new("ShaderNodeOutputMaterial")
         nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
@@ -504,7 +560,7 @@ def run(argv):
     t_start = time.time()
     clear_scene()
     bm = build_bmesh(sc)
-    model = make_model(bm, sc["parts"])
+    model = make_model(bm, sc["parts"], sc["patterns"])
     cam = make_camera(sc["cam_pos"], sc["cam_yaw_deg"])
     make_world(sc["env_path"], sc["env_strength"], sc["env_rot_deg"])
     if sc["sun"] is not None:

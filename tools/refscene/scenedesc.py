@@ -8,6 +8,7 @@ import math
 import os
 
 import geom
+import pattern
 import rigsim
 
 
@@ -102,6 +103,15 @@ def check_part(p, i, path, blender_worlds=()):
         raise SceneError("%s: %s: has %s: expected exactly one of \"min\" (a box), \"outline\" (an "
                          "extruded polygon), \"mesh\" (a PLY or OBJ file)"
                          % (path, where, " and ".join(kinds) if kinds else "none of them"))
+    if "pattern" in p:
+        if "albedo" in p:
+            raise SceneError("%s: %s: has both albedo and pattern: expected one (a textured part's albedo is "
+                             "its pattern's mean, filled in)" % (path, where))
+        try:
+            pat = pattern.check(p["pattern"], where + ".pattern", geom.PLANES)
+        except pattern.PatternError as e:
+            raise SceneError("%s: %s" % (path, e))
+        p["albedo"] = pattern.mean_albedo(pat)
     _albedo(p, where, path)
     if kinds[0] == "box":
         lo, hi = _vec(p, "min", 3, where, path), _vec(p, "max", 3, where, path)
@@ -207,6 +217,8 @@ def load_scene(path, blender_worlds=()):
         kinds.append(k)
         solids.append(s)
         dropped.append(d)
+    patterns = [pattern.check(p["pattern"], "", geom.PLANES) if isinstance(p, dict) and "pattern" in p else None
+                for p in parts]
     env = sc["env"]
     if not isinstance(env, dict) or not isinstance(env.get("file"), str):
         raise SceneError("%s: env: expected an object with a \"file\" string" % path)
@@ -217,7 +229,7 @@ def load_scene(path, blender_worlds=()):
     if not isinstance(cam, dict) or not isinstance(scn, dict):
         raise SceneError("%s: camera and scanner: expected objects" % path)
     out = {
-        "parts": parts, "kinds": kinds, "solids": solids, "dropped_faces": dropped,
+        "parts": parts, "kinds": kinds, "solids": solids, "dropped_faces": dropped, "patterns": patterns,
         "env": env,
         "env_path": env_file,
         "env_strength": _num(env, "strength", "env", path, 1.0, lo=0.0),

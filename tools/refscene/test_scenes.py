@@ -5,6 +5,7 @@
 # SPDX-License-Identifier: BSD-3-Clause
 """Run: /usr/bin/python3 tools/refscene/test_scenes.py   (needs numpy, not Blender)."""
 import glob
+import json
 import math
 import os
 import re
@@ -12,9 +13,12 @@ import sys
 import tempfile
 import unittest
 
+import numpy as np
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 import geom        # noqa: E402
+import pattern     # noqa: E402
 import scenedesc   # noqa: E402
 
 SCENES = os.path.join(HERE, "scenes")
@@ -180,6 +184,79 @@ class OwnScenes(unittest.TestCase):
         for pos in (sc["cam_pos"], sc["scan_pos"]):
             blocked = any(_ray_hits(pos, d, v[t[0]], v[t[1]], v[t[2]]) is not None for v, tris in solids for t in tris)
             self.assertTrue(blocked, "the sun must be hidden from %s" % (pos,))
+
+    def test_the_tile_yard_patterns_give_the_stated_albedos(self):
+        """tile_yard.json's walls (issue 22): points worked out by hand from the JSON's pattern
+        parameters, in bricks, in tiles, in joints, on stripes, at negative pattern coordinates."""
+        sc = self.scenes["tile_yard"]
+        by_name = {p["name"]: (p, pat) for p, pat in zip(sc["parts"], sc["patterns"])}
+        stated = {
+            # bricks 0.3 x 0.1, joints 0.02, half bond, from (-7.5, 6, 0) along x and z
+            "north_wall": [([-7.35, 6, 0.05], [0.62, 0.32, 0.20]),    # row 0, brick 0: albedos[0]
+                           ([-7.49, 6, 0.05], [0.78, 0.76, 0.70]),    # the head joint: mortar
+                           ([-7.30, 6, 0.15], [0.72, 0.48, 0.34]),    # row 1 shifted 0.15: brick 1, (7+3+1) mod 3
+                           ([-7.30, 6, 0.11], [0.78, 0.76, 0.70])],   # the bed joint above row 0
+            # tiles 0.4, joints 0.03, from (-7, -4, 0) along y and z
+            "west_wall": [([-7, -3.8, 0.2], [0.18, 0.28, 0.55]), ([-7, -3.4, 0.2], [0.70, 0.70, 0.64]),
+                          ([-7, -3.4, 0.6], [0.35, 0.55, 0.40]), ([-7, -3.59, 0.2], [0.50, 0.50, 0.48])],
+            # bricks along -y from (7, 6, 0): y = 6.1 is u = -0.1, brick -1, (-7) mod 2 = 1
+            "east_wall": [([7, 6.1, 0.03], [0.30, 0.26, 0.22]), ([7, 5.9, 0.03], [0.55, 0.50, 0.42])],
+            # stripes 0.25 wide from x = -7
+            "south_wall": [([-6.9, -4, 1], [0.20, 0.20, 0.22]), ([-6.7, -4, 1], [0.66, 0.60, 0.50]),
+                           ([-6.4, -4, 1], [0.20, 0.20, 0.22])],
+        }
+        for name, points in stated.items():
+            part, pat = by_name[name]
+            self.assertIsNotNone(pat, name)
+            got = pattern.albedo_at(pat, [pt for pt, _ in points])
+            for (pt, want), g in zip(points, got):
+                self.assertEqual([round(x, 6) for x in g], want, "%s at %s" % (name, pt))
+            for rgb in pat["palette"]:
+                for a in rgb:
+                    self.assertTrue(0.15 <= a <= 0.8, "%s: albedo %s outside 0.15 to 0.8" % (name, rgb))
+            self.assertEqual(part["albedo"], pattern.mean_albedo(pat), name)
+        # stripes: the mean is the two albedos' mean; the wall's pattern spans 0.15 to 0.8
+        self.assertEqual([round(x, 6) for x in by_name["south_wall"][0]["albedo"]], [0.43, 0.4, 0.36])
+        # every wall carries a pattern, the pergola and canopy are plain
+        for name in ("ground", "north_wall", "west_wall", "east_wall", "south_wall"):
+            self.assertIsNotNone(by_name[name][1], name)
+        self.assertEqual(sum(1 for n in by_name if n.startswith("slat_")), 16)
+        self.assertIsNone(by_name["canopy"][1])
+
+    def test_the_pattern_mean_is_the_area_mean(self):
+        """mean_albedo against a fine sampling of one period (5 n bricks each way)."""
+        pat = pattern.check({"type": "bricks", "plane": "xz", "size": [0.3, 0.1], "mortar_m": 0.02,
+                             "albedos": [[0.2, 0.2, 0.2], [0.6, 0.5, 0.4], [0.3, 0.7, 0.2]],
+                             "mortar": [0.8, 0.8, 0.8]}, "p", geom.PLANES)
+        n = 200
+        u = (np.arange(15 * n) + 0.5) * (15 * 0.3) / (15 * n)
+        v = (np.arange(15 * n // 3) + 0.5) * (15 * 0.1) / (15 * n // 3)
+        uu, vv = np.meshgrid(u, v)
+        pts = np.stack([uu.ravel(), np.zeros(uu.size), vv.ravel()], axis=1)
+        np.testing.assert_allclose(pattern.albedo_at(pat, pts).mean(axis=0), pattern.mean_albedo(pat), atol=2e-3)
+
+    def test_bad_patterns_are_named(self):
+        base = {"type": "tiles", "plane": "xz", "size": [0.4, 0.4], "mortar_m": 0.02,
+                "albedos": [[0.2, 0.2, 0.2], [0.6, 0.5, 0.4]], "mortar": [0.8, 0.8, 0.8]}
+        for key, value, words in (("type", "checks", "type"), ("size", [0.4], "size"), ("mortar_m", 0.5, "mortar_m"),
+                                  ("albedos", [[0.2, 0.2, 0.2]], "albedos"), ("mortar", [2, 0, 0], "mortar"),
+                                  ("plane", "qq", "plane")):
+            bad = dict(base)
+            bad[key] = value
+            with self.assertRaises(pattern.PatternError) as cm:
+                pattern.check(bad, "parts[3].pattern", geom.PLANES)
+            self.assertIn("parts[3].pattern." + words, str(cm.exception))
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "s.json")
+            open(os.path.join(tmp, "sky.exr"), "wb").close()
+            with open(path, "w") as f:
+                f.write('{"parts":[{"min":[0,0,0],"max":[1,1,1],"albedo":[0.5,0.5,0.5],"pattern":%s}],'
+                        '"env":{"file":"sky.exr"},"camera":{"position":[0,-5,1]},'
+                        '"scanner":{"position":[0,-5,1],"grid":[10,10],"elevation_deg":[-10,10]}}'
+                        % json.dumps(base))
+            with self.assertRaises(scenedesc.SceneError) as cm:
+                scenedesc.load_scene(path)
+            self.assertIn("both albedo and pattern", str(cm.exception))
 
 
 if __name__ == "__main__":
