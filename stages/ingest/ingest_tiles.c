@@ -779,6 +779,13 @@ int rs_ingest_clean_stream(const rs_config *cfg, source *s, rs_report *rep, coin
     if (co->total >= UINT32_MAX)
         return rs_err_set(err, RS_ERR_INPUT, NULL, 0, "%zu unorganized points: at most %u are supported", co->total,
                           UINT32_MAX - 1);
+    if (rs_config_has(cfg, "ingest", "voxel_size")) {
+        double far = 0, leaf = rs_config_real(cfg, "ingest", "voxel_size");
+        for (int j = 0; j < 3; j++) far = fmax(far, fmax(fabs(lo[j]), fabs(hi[j])));
+        if (!(far / leaf < 1e15)) /* voxel indices beyond a long (and beyond PCL's float grid) */
+            return rs_err_set(err, RS_ERR_INPUT, NULL, 0,
+                              "voxel size %g m for coordinates up to %.4g m: expected a larger voxel size", leaf, far);
+    }
     grid_setup(&x.gr, cfg, lo, hi);
     x.gr.k = k > 0 && co->distinct > (size_t)k ? (int)k : 0;
     snprintf(tmp_path, sizeof tmp_path, "%s.tiles.tmp", path);
