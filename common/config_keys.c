@@ -21,8 +21,8 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"ingest", "las_withheld", RS_CFG_ENUM, "drop", 0, 0, "drop|keep", "", "ingest",
      "LAS: points flagged withheld (not to be used, says the specification) are dropped, or kept"},
     {"ingest", "streaming", RS_CFG_BOOL, "true", 0, 0, NULL, "", "ingest",
-     "LAS and unorganized E57 without outlier removal or voxel grid: cloud.ply written from the reader's chunks "
-     "(memory independent of the cloud's size; same bytes); false: through the whole cloud"},
+     "LAS and unorganized E57: cloud.ply written from the reader's chunks, outlier removal and voxel grid in "
+     "spatial tiles (memory independent of the cloud's size; same points); false: through the whole cloud"},
     {"ingest", "outlier_neighbours", RS_CFG_INT, "16", 0, 1000, NULL, "", "ingest",
      "unorganized points: statistical outlier removal over this many neighbours (PCL); 0 turns it off"},
     {"ingest", "outlier_std", RS_CFG_REAL, "3", 0.1, 100, NULL, "", "ingest",

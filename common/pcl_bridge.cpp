@@ -311,6 +311,41 @@ extern "C" int rs_pcl_outliers(const float *xyz, size_t n, int k, double std_mul
     }
 }
 
+extern "C" int rs_pcl_knn_mean(const float *xyz, size_t n, const float *query, size_t m, int k, float *mean, float *kth,
+                               rs_err *err)
+{
+    try {
+        quiet();
+        auto c = to_pcl(xyz, n);
+        // The search and the arithmetic of StatisticalOutlierRemoval::applyFilterIndices (PCL 1.13):
+        // k + 1 neighbours (the first is the point itself), the mean of sqrt of their squared
+        // distances in double, stored as float. FLANN returns them sorted for k + 1 <= 250, so the
+        // sum's order is the distances' whatever the tree.
+        pcl::search::KdTree<pcl::PointXYZ> tree(false);
+        tree.setInputCloud(c);
+        pcl::Indices nn(k + 1);
+        std::vector<float> d2(k + 1);
+        for (size_t i = 0; i < m; i++) {
+            pcl::PointXYZ q(query[3 * i], query[3 * i + 1], query[3 * i + 2]);
+            if (tree.nearestKSearch(q, k + 1, nn, d2) < k + 1) {
+                mean[i] = 0, kth[i] = INFINITY;
+                continue;
+            }
+            double sum = 0.0;
+            for (int j = 1; j < k + 1; ++j) sum += std::sqrt((double)d2[j]);
+            mean[i] = static_cast<float>(sum / k);
+            kth[i] = std::sqrt(d2[k]);
+        }
+        return 0;
+    } catch (const std::bad_alloc &) {
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory in the neighbour search of %zu points", n);
+    } catch (const std::exception &e) {
+        return fail(err, e.what(), "neighbour search");
+    } catch (...) {
+        return fail(err, "unknown exception", "neighbour search");
+    }
+}
+
 extern "C" int rs_pcl_voxel(const float *xyz, const float *intensity, const uint8_t *rgb, size_t n, double leaf_m,
                             size_t *nout, float **xyz_out, float **intensity_out, uint8_t **rgb_out, rs_err *err)
 {

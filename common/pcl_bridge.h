@@ -26,6 +26,13 @@ rs_cloud *rs_pcl_read_pcd(const char *path, rs_err *err);
  * keep[i] = 0, the others keep[i] = 1. xyz holds 3 * n floats. */
 int rs_pcl_outliers(const float *xyz, size_t n, int k, double std_mul, uint8_t *keep, rs_err *err);
 
+/* For each of m query points, the mean distance to its k nearest neighbours among the n points
+ * of xyz (itself, one of them, excluded: the first of k + 1), computed as rs_pcl_outliers does,
+ * and the distance to the kth (the farthest of them). With fewer than k + 1 points, mean 0 and
+ * kth INFINITY. The tiles of the ingest's streaming path use it. */
+int rs_pcl_knn_mean(const float *xyz, size_t n, const float *query, size_t m, int k, float *mean, float *kth,
+                    rs_err *err);
+
 /* Voxel downsampling: one point per occupied cube of leaf_m, the centroid of its points;
  * intensity (may be NULL) and rgb (may be NULL) averaged the same way. Writes the new count
  * to *nout and new arrays to *xyz_out, *intensity_out, *rgb_out (NULL where the input was).

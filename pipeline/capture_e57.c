@@ -158,8 +158,10 @@ static int rig_camera(const rs_e57_image_info *im, int i, const double centre[3]
     c->width = im->width, c->height = im->height;
     c->has_width = c->has_height = c->has_matrix = c->has_rotation = c->has_translation = 1;
     double fx = im->pixel_width > 0 ? im->focal_length / im->pixel_width : 0;
-    double fy = im->pixel_height > 0 ? im->focal_length / im->pixel_height : 0, cx = im->principal_x,
-           cy = im->principal_y;
+    /* ASTM E2807 8.4.13.6: image coordinate (0,0) is the top left corner of the top left pixel, so
+     * OpenCV's principal point (pixel centres at integers) is half a pixel less. */
+    double fy = im->pixel_height > 0 ? im->focal_length / im->pixel_height : 0, cx = im->principal_x - 0.5,
+           cy = im->principal_y - 0.5;
     if (!(fx > 0 && fy > 0) && im->has_distortion) fx = im->fx, fy = im->fy, cx = im->cx, cy = im->cy;
     if (!(fx > 0 && fy > 0))
         return rs_err_set(err, RS_ERR_INPUT, path, 0,
@@ -176,7 +178,14 @@ static int rig_camera(const rs_e57_image_info *im, int i, const double centre[3]
     double d[5] = {im->k[0], im->k[1], im->p[0], im->p[1], im->k[2]};
     memcpy(c->distortion, d, sizeof d);
     c->distortion_count = 5;
-    memcpy(c->r_rig_cam, im->rotation, sizeof c->r_rig_cam);
+    /* ASTM E2807 8.4.13.4-5: the E57 camera looks along -z with y up (x_image = cx - f x / z,
+     * y_image = cy + f y / z for z < 0); the rig's camera is OpenCV's (x right, y down, z forward):
+     * the E57 frame turned 180 degrees about x, i.e. its y and z columns negated. */
+    for (int r = 0; r < 3; r++) {
+        c->r_rig_cam[3 * r] = im->rotation[3 * r];
+        c->r_rig_cam[3 * r + 1] = -im->rotation[3 * r + 1];
+        c->r_rig_cam[3 * r + 2] = -im->rotation[3 * r + 2];
+    }
     for (int k = 0; k < 3; k++) c->t_rig_cam[k] = im->translation[k] - centre[k];
     return 0;
 }
@@ -224,10 +233,6 @@ static int stitch_pinholes(const rs_config *cfg, const char *section, rs_e57 *e,
                            .estimate_gain = m > 1};
     rs_stitch_stats stats;
     if (rs_stitch(&rig, frames, &opts, &cap->pano, gains, &stats, err) != 0) goto out;
-    rs_log_warn("%s: the E57 pinhole camera frame is taken as x right, y down, z forward (OpenCV's), an assumption no "
-                "shared file confirms; CloudCompare reads it as looking along -z with y up (docs/FORMATS.md, E57 image "
-                "conventions): check the stitched panorama against the scan",
-                cap->path);
     rs_log_info("%s: %d pinhole images stitched into a %d x %d panorama (%.1f %% of the sphere seen)", cap->path, m,
                 cap->pano->width, cap->pano->height, 100 * stats.coverage);
     rs_gain_report_free(&stats.gain);

@@ -31,36 +31,6 @@ static size_t bucket_points(void)
 }
 #define BUCKET_POINTS bucket_points()
 
-typedef struct file_info {
-    int las;              /* 1 LAS, 0 E57 */
-    int wide;             /* LAS: 16-bit colour (some value above 255), the high byte kept */
-    size_t records, kept; /* points in the file, points kept (valid, class kept, not withheld) */
-    uint64_t withheld;    /* LAS: withheld points dropped */
-    int has_int, has_rgb, has_nrm, has_viewpoint;
-    double viewpoint[3];
-} file_info;
-
-typedef struct source {
-    const rs_config *cfg;
-    int nfiles, file, scan;
-    char path[4096];
-    file_info *info;
-    const uint8_t *keep; /* LAS classes kept, NULL: all */
-    int keep_withheld;
-    rs_las *las;
-    rs_e57 *e57;
-    /* the current chunk of kept points, the cloud's attributes (zeros where a file has none) */
-    size_t n, cap, raw_n; /* kept points in the chunk, room, records the chunk consumed */
-    int survey;           /* pass 1: a LAS colour value above 255 marks the file's colour 16-bit */
-    int xyz_only;         /* the checking passes: only the coordinates are needed */
-    double *xyz;
-    float *in, *nrm;
-    uint8_t *rgb;
-    int has_int, has_rgb, has_nrm;
-    double shift[3];    /* subtracted from every coordinate (recentring) */
-    uint64_t hist[256]; /* LAS classes of the current file (pass 1) */
-} source;
-
 static int grow(source *s, size_t n, rs_err *err)
 {
     if (n <= s->cap) return 0;
@@ -215,11 +185,14 @@ static int file_kind(const char *path, int *las)
     return ok;
 }
 
+int rs_ingest_cleans(const rs_config *cfg)
+{
+    return rs_config_int(cfg, "ingest", "outlier_neighbours") > 0 || rs_config_has(cfg, "ingest", "voxel_size");
+}
+
 int rs_ingest_can_stream(const rs_config *cfg)
 {
-    if (!rs_config_bool(cfg, "ingest", "streaming") || rs_config_int(cfg, "ingest", "outlier_neighbours") > 0 ||
-        rs_config_has(cfg, "ingest", "voxel_size"))
-        return 0;
+    if (!rs_config_bool(cfg, "ingest", "streaming")) return 0;
     int n = rs_config_path_count(cfg, "ingest", "scan");
     for (int i = 0; i < n; i++) {
         char path[4096];
@@ -316,11 +289,6 @@ uint64_t rs_ingest_point_hash(const double *p)
     return h;
 }
 
-typedef struct coincident {
-    uint8_t *dropped; /* one bit per point kept, in stream order */
-    size_t total, distinct;
-} coincident;
-
 /* One bucket's points into a table of their coordinates (NaN: empty): a point equal to one
  * before it is marked dropped, the first kept, as in the whole-cloud path. */
 static int coincident_pass(source *s, coincident *co, size_t bucket, size_t nbuckets, rs_err *err)
@@ -374,6 +342,16 @@ static int coincident_pass(source *s, coincident *co, size_t bucket, size_t nbuc
 static int is_dropped(const coincident *co, size_t g)
 {
     return co->dropped[g >> 3] >> (g & 7) & 1;
+}
+
+int rs_ingest_source_next(source *s, rs_err *err)
+{
+    return source_next(s, err);
+}
+
+void rs_ingest_source_rewind(source *s)
+{
+    source_rewind(s);
 }
 
 /* The whole-cloud path's collinearity test (ingest.c, collinear_points) over the distinct
@@ -440,6 +418,14 @@ static int write_record(void *ctx, const rs_ply_element *el, size_t k, double *v
     if (s->has_nrm)
         for (int j = 0; j < 3; j++) v[n++] = s->nrm[3 * i + j];
     return 0;
+}
+
+int rs_ingest_write_points(source *s, const coincident *co, const rs_cloud *shape, size_t count, const char *path,
+                           rs_err *err)
+{
+    source_rewind(s);
+    writer w = {s, co, 0, 0, 0};
+    return rs_cloud_write_ply_stream(shape, count, write_record, &w, path, err);
 }
 
 /* Pass 1 over every file: per-file counts and report entries, the cloud's shape (which
@@ -539,6 +525,7 @@ static int check_points(const rs_config *cfg, source *s, rs_report *rep, coincid
     rs_log_info("streamed checks (%zu coincident pass%s, 2 for the spread): %.2f s", nbuckets,
                 nbuckets == 1 ? "" : "es", rs_now() - t0);
     if (rs_ingest_surface_check(cfg, co->total, co->distinct, collinear, err) != 0) return -1;
+    if (rs_ingest_cleans(cfg)) return 0; /* rs_ingest_clean_stream reports them */
     rs_report_skip(rep, "outlier removal", "[ingest] outlier_neighbours = 0");
     rs_json_set_int(rep->metrics, "outliers_removed", 0);
     rs_report_skip(rep, "voxel downsampling", "[ingest] voxel_size not set");
@@ -583,11 +570,15 @@ int rs_ingest_stream(const rs_config *cfg, rs_report *rep, const char *path, rs_
         goto out;
     }
     if (check_points(cfg, &s, rep, &co, err) != 0) goto out;
+    if (rs_ingest_cleans(cfg)) {
+        double slo[3], shi[3];
+        for (int j = 0; j < 3; j++) slo[j] = lo[j] - s.shift[j], shi[j] = hi[j] - s.shift[j];
+        rc = rs_ingest_clean_stream(cfg, &s, rep, &co, &shape, slo, shi, path, err);
+        goto out;
+    }
     rs_json_set_int(rep->metrics, "points_written", (long long)co.distinct);
     t0 = rs_now();
-    source_rewind(&s);
-    writer w = {&s, &co, 0, 0, 0};
-    if (rs_cloud_write_ply_stream(&shape, co.distinct, write_record, &w, path, err) != 0) goto out;
+    if (rs_ingest_write_points(&s, &co, &shape, co.distinct, path, err) != 0) goto out;
     rs_report_time(rep, "write", rs_now() - t0);
     rs_log_info("cloud.ply: %zu points written from the files' chunks (streaming: no whole cloud in memory)",
                 co.distinct);

@@ -144,7 +144,7 @@ static void quat(const double *R, double q[4])
     }
 }
 
-/* Six pinhole cameras on the cube's faces (100 degree field, x right, y down, z forward), each
+/* Six pinhole cameras on the cube's faces (100 degree field), each
  * an 8-bit PNG of the synthetic sky, embedded with their poses: stitched into a panorama that
  * shows that sky. */
 static void test_pinholes_stitched(void **state)
@@ -173,12 +173,15 @@ static void test_pinholes_stitched(void **state)
         rs_err err = {0};
         assert_int_equal(rs_image_write_png(img, path, 1.0f, &err), 0);
         rs_image_free(img);
-        double q[4];
-        quat(R, q);
+        /* Written as the standard has them (ASTM E2807 8.4.13): the camera looks along -z with y
+         * up (the OpenCV frame's y and z negated), image coordinate 0 at the first pixel's corner. */
+        double Re[9], q[4];
+        for (int i = 0; i < 3; i++) Re[3 * i] = R[3 * i], Re[3 * i + 1] = -R[3 * i + 1], Re[3 * i + 2] = -R[3 * i + 2];
+        quat(Re, q);
         at += (size_t)snprintf(args + at, sizeof args - at,
                                "--image '%s' --image-name cam%d --image-pose '%.17g %.17g %.17g %.17g 2 3 %g' "
                                "--pinhole '%.17g %.17g %.17g %.17g %.17g' ",
-                               path, c, q[0], q[1], q[2], q[3], 1.5 + 0.01 * c, fx * pw, pw, pw, cx, cx);
+                               path, c, q[0], q[1], q[2], q[3], 1.5 + 0.01 * c, fx * pw, pw, pw, cx + 0.5, cx + 0.5);
     }
     snprintf(e57, sizeof e57, "%s/rig.e57", dir);
     const char *ptx = rs_test_path(dir, "s.ptx");
