@@ -276,11 +276,11 @@ const rs_cfg_key rs_cfg_keys[] = {
      "Ward's ambient accuracy: facets of one plane within this share of their harmonic mean distance to what they see "
      "(and within about 32 facets' area) share the sky and interreflection part of their irradiance, not the sun's: "
      "less sampling noise at a bias of that order; 0 = each facet its own gather; not with method = paper"},
-    {"reflectance", "albedo_pool_sigmas", RS_CFG_REAL, "0", 0, 10, NULL, "sigma", "reflectance",
+    {"reflectance", "albedo_pool_sigmas", RS_CFG_REAL, "3", 0, 10, NULL, "sigma", "reflectance",
      "> 0: each estimable facet's albedo is pooled with its same-plane neighbours (within about 32 facets' area) whose "
      "albedo agrees with its own within this many combined standard errors in every channel (a larger step is an "
-     "edge and stays), shrunk toward their mean by how much of their scatter the noise explains (a resolved texture "
-     "stays); 0 = each facet its own albedo; not with method = paper"},
+     "edge and stays), weighted by inverse variance and shrunk toward their mean by how much of their scatter the "
+     "noise explains (a resolved texture stays); 0 = each facet its own albedo; not with method = paper"},
     {"reflectance", "unobserved_albedo", RS_CFG_REAL, NULL, 0, 1, NULL, "", "reflectance",
      "albedo assumed for facets the camera does not see; default: see unobserved_albedo_by"},
     {"reflectance", "unobserved_albedo_by", RS_CFG_ENUM, "orientation", 0, 0, "orientation|all", "", "reflectance",

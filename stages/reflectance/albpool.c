@@ -23,13 +23,14 @@ static double noise2(const rs_albpool_in *in, size_t j)
     return in->s_rad[j] * in->s_rad[j] + in->s_mc[j] * in->s_mc[j];
 }
 
-/* Does j's albedo agree with i's within the test's combined standard errors, in every channel? */
+/* Does j's albedo agree with i's within the test's combined standard errors, in every channel?
+ * An albedo above 1 (light the model missed, pixels mixed across an edge) is no neighbour. */
 static int agrees(const rs_albpool_in *in, size_t i, size_t j)
 {
     double s = in->sigmas * sqrt(noise2(in, i) + noise2(in, j) + 2 * in->floor * in->floor);
     for (int ch = 0; ch < 3; ch++) {
         double a = in->rho[3 * i + ch], b = in->rho[3 * j + ch], mid = 0.5 * (a + b);
-        if (!(fabs(a - b) <= s * mid)) return 0;
+        if (!(fabs(a - b) <= s * mid) || b > 1) return 0;
     }
     return 1;
 }
@@ -49,7 +50,9 @@ static facet_stats pool_facet(const rs_pool *p, const rs_albpool_in *in, size_t 
     for (size_t q = q0; q < q1; q++) {
         uint32_t j = p->nbr[q];
         if (j != i && !agrees(in, i, j)) continue;
-        kept[nk] = j, w[nk] = p->w[q], wsum += p->w[q], nk++;
+        /* inverse variance: a facet observed with large noise does not pull a well observed one */
+        double wj = p->w[q] / (noise2(in, j) + in->floor * in->floor);
+        kept[nk] = j, w[nk] = wj, wsum += wj, nk++;
     }
     if (q1 - q0 > 1) st.kept_share = (double)(nk - 1) / (double)(q1 - q0 - 1);
     double m[3] = {0, 0, 0}, sw2 = 0, N = 0;

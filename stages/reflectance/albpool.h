@@ -9,7 +9,10 @@
  *     |rho_i - rho_j| <= sigmas rho_ij sqrt(s_i^2 + s_j^2 + 2 floor^2),
  * s being the facet's independent relative noise (radiance_sigma_rel and the Monte Carlo part of
  * E in quadrature): a real step (paint, a stain, brick against mortar) larger than that survives.
- * Over the kept set (weights w_j: area, normalised), m_i = sum w_j rho_j. What the facets resolve
+ * A neighbour whose albedo is above 1 in a channel (light the model missed, pixels mixed across an
+ * edge) is not kept. Over the kept set, weights w_j = area_j / (s_j^2 + floor^2) (inverse variance:
+ * a badly observed facet does not pull a well observed one), normalised, m_i = sum w_j rho_j
+ * (pool.h's disk taper included in area_j). What the facets resolve
  * (a pattern below the test's reach) shows as scatter beyond the noise: with S = sum w_j
  * (rho_j - m_i)^2 / m_i^2 (luminance) and N = sum w_j s_j^2 - sum w_j^2 s_j^2 its expectation
  * under noise alone, the real variance is tau^2 = max(0, S - N) / (1 - sum w_j^2). The estimate
