@@ -271,7 +271,7 @@ int main(int argc, char **argv)
     double t2 = rs_now();
     rs_mesh *occ;
     uint32_t *proxy;
-    if (rs_freespace_occluders(&fs, bs->mesh, 0.5, &occ, &proxy, &err) != 0) return 2;
+    if (rs_freespace_occluders(&fs, bs->mesh, 0.5, RS_FS_KEEP_BEHIND, &occ, &proxy, &err) != 0) return 2;
     double t3 = rs_now();
     size_t trays = 2000000, esc0, esc1;
     double plain = trace_time(sc, bs->mesh, trays, &esc0);

@@ -197,6 +197,10 @@ const rs_cfg_key rs_cfg_keys[] = {
     {"irradiance", "occluder_depth", RS_CFG_REAL, "0.5", 0, 1000, NULL, "m", "irradiance",
      "unknown space blocks only within this distance of a scanned facet (the body behind a wall, the top of a slab, "
      "the back of a pillar); farther away it is taken as open (the ground in a building's scan shadow)"},
+    {"irradiance", "occluder_keep", RS_CFG_ENUM, "behind", 0, 0, "behind|near", "", "irradiance",
+     "which unknown cells within occluder_depth block: behind = those behind a scanned facet (along its inward "
+     "normal) and those closing a gap between such cells; near = every one (also the air over unseen ground and "
+     "the scan shadow beside a column, which fattens it)"},
     {"irradiance", "occluder_near", RS_CFG_REAL, "1.5", 0, 100, NULL, "cells", "irradiance",
      "occluder hits nearer than this many cells to a ray's origin are ignored, so that a facet is not shadowed "
      "by the unknown cells next to its own"},

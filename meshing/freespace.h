@@ -61,15 +61,28 @@ void rs_freespace_count(const rs_freespace *fs, rs_freespace_counts *c);
  * other cells keep what they held. */
 void rs_freespace_label(const rs_freespace *fs, const rs_mesh *m, uint32_t *label);
 
+/* Which unknown cells block (rs_freespace_occluders). */
+typedef enum rs_fs_keep {
+    /* every unknown cell within depth of a facet's cell: also the air over unseen ground and the
+     * shadow wedge beside a column or above a lintel, which fattens them (the courtyard sample) */
+    RS_FS_KEEP_NEAR = 0,
+    /* only the unknown cells behind a scanned facet (the centre in the prism behind its triangle,
+     * within depth of its plane), and those closing a gap between such cells: an unknown run of
+     * at most depth cells each way along a grid axis, no free cell in it, behind cells at both
+     * ends */
+    RS_FS_KEEP_BEHIND = 1
+} rs_fs_keep;
+
 /* The occluders: first every unknown cell farther than depth (m, a city-block distance over the
- * grid) from every cell a facet of m lies in is taken as open (marked free, counted in
- * fs->opened): unknown space blocks only near what was scanned, the body behind a wall, the top
- * of a slab, the back of a pillar, not the open ground in a building's scan shadow. Then a mesh of
- * the merged known/unknown faces (two triangles per rectangle, wound to face the known side) and
- * per triangle the proxy facet of m (the nearest by a breadth-first search over the grid from
- * the facets' cells). *occ and *proxy are the caller's to free; *occ is NULL when there is no
- * face. -1 out of memory. */
-int rs_freespace_occluders(rs_freespace *fs, const rs_mesh *m, double depth, rs_mesh **occ, uint32_t **proxy,
-                           rs_err *err);
+ * grid) from every cell a facet of m lies in, or (RS_FS_KEEP_BEHIND) not behind a facet nor in a
+ * gap between such cells, is taken as open (marked free, counted in fs->opened): unknown space
+ * blocks only near what was scanned, the body behind a wall, the top of a slab, the back of a
+ * pillar, not the open ground in a building's scan shadow. Then a mesh of the merged
+ * known/unknown faces (two triangles per rectangle, wound to face the known side) and per
+ * triangle the proxy facet of m (the nearest by a breadth-first search over the grid from the
+ * facets' cells). *occ and *proxy are the caller's to free; *occ is NULL when there is no face.
+ * -1 out of memory. */
+int rs_freespace_occluders(rs_freespace *fs, const rs_mesh *m, double depth, rs_fs_keep keep, rs_mesh **occ,
+                           uint32_t **proxy, rs_err *err);
 
 #endif

@@ -1,6 +1,7 @@
 /* freespace_faces: the occluder faces of a free-space grid (freespace.h): known/unknown faces
  * merged greedily into rectangles per grid plane, and each rectangle's proxy facet, the nearest
  * scanned one by a breadth-first search from the occupied cells. */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include "meshing/freespace.h"
@@ -45,6 +46,93 @@ static uint32_t *proxy_labels(const rs_freespace *fs, const rs_mesh *m, uint8_t 
     }
     free(queue);
     return label;
+}
+
+/* Marks behind[] the cells behind facet f: those whose centre lies in the prism behind its
+ * triangle (the side the scanner did not see), within depth of its plane. Centres, not every cell
+ * the prism touches, so that a facet whose edge or back lies on a cell boundary does not claim
+ * the cell beyond it. */
+static void mark_behind(const rs_freespace *fs, const rs_mesh *m, size_t f, double depth, uint8_t *behind)
+{
+    rs_v3 c, n, v[3];
+    double area;
+    rs_mesh_face(m, f, &c, &n, &area);
+    if (!(area > 0) || !rs_v3_finite(n)) return;
+    for (int k = 0; k < 3; k++) v[k] = rs_mesh_vert(m, m->tris[3 * f + k]);
+    double lo[3], hi[3];
+    for (int a = 0; a < 3; a++) {
+        double nv = a == 0 ? n.x : a == 1 ? n.y : n.z;
+        lo[a] = INFINITY, hi[a] = -INFINITY;
+        for (int k = 0; k < 3; k++) {
+            double p = a == 0 ? v[k].x : a == 1 ? v[k].y : v[k].z;
+            lo[a] = fmin(lo[a], fmin(p, p - nv * depth));
+            hi[a] = fmax(hi[a], fmax(p, p - nv * depth));
+        }
+    }
+    int i0[3], i1[3];
+    for (int a = 0; a < 3; a++) {
+        i0[a] = (int)fmax(0, floor((lo[a] - fs->lo[a]) / fs->cell - 0.5));
+        i1[a] = (int)fmin(fs->n[a] - 1, ceil((hi[a] - fs->lo[a]) / fs->cell - 0.5));
+    }
+    rs_v3 e1 = rs_v3_sub(v[1], v[0]), e2 = rs_v3_sub(v[2], v[0]);
+    double d11 = rs_v3_dot(e1, e1), d12 = rs_v3_dot(e1, e2), d22 = rs_v3_dot(e2, e2), den = d11 * d22 - d12 * d12;
+    if (!(den > 0)) return;
+    for (int k = i0[2]; k <= i1[2]; k++)
+        for (int j = i0[1]; j <= i1[1]; j++)
+            for (int i = i0[0]; i <= i1[0]; i++) {
+                rs_v3 q = rs_v3_make(fs->lo[0] + (i + 0.5) * fs->cell, fs->lo[1] + (j + 0.5) * fs->cell,
+                                     fs->lo[2] + (k + 0.5) * fs->cell);
+                rs_v3 w = rs_v3_sub(q, v[0]);
+                double d = -rs_v3_dot(w, n); /* depth behind the plane */
+                if (!(d > 0 && d <= depth)) continue;
+                double w1 = rs_v3_dot(w, e1), w2 = rs_v3_dot(w, e2);
+                double s = (d22 * w1 - d12 * w2) / den, t = (d11 * w2 - d12 * w1) / den;
+                if (s >= -1e-9 && t >= -1e-9 && s + t <= 1 + 1e-9)
+                    behind[((size_t)k * fs->n[1] + (size_t)j) * fs->n[0] + (size_t)i] = 1;
+            }
+}
+
+/* 1 when unknown cell (i, j, k) closes a gap along an axis: within span cells each way, before
+ * any free cell or the grid's edge, a cell behind a facet. */
+static int in_gap(const rs_freespace *fs, const uint8_t *behind, const int c[3], int span)
+{
+    for (int a = 0; a < 3; a++) {
+        int ends = 0;
+        for (int dir = -1; dir <= 1; dir += 2)
+            for (int s = 1; s <= span; s++) {
+                int q[3] = {c[0], c[1], c[2]};
+                q[a] += dir * s;
+                if (q[a] < 0 || q[a] >= fs->n[a]) break;
+                size_t idx = ((size_t)q[2] * fs->n[1] + (size_t)q[1]) * fs->n[0] + (size_t)q[0];
+                if (rs_freespace_cell(fs, q[0], q[1], q[2]) == RS_FS_FREE) break;
+                if (behind[idx]) {
+                    ends++;
+                    break;
+                }
+            }
+        if (ends == 2) return 1;
+    }
+    return 0;
+}
+
+/* Marks dist[] 255 (open) for the unknown cells that are neither behind a facet of m nor in a gap
+ * between such cells (RS_FS_KEEP_BEHIND). -1 out of memory. */
+static int open_unbacked(const rs_freespace *fs, const rs_mesh *m, double depth, uint8_t *dist)
+{
+    uint8_t *behind = calloc(fs->ncells, 1);
+    if (!behind) return -1;
+    for (size_t f = 0; f < m->nfaces; f++) mark_behind(fs, m, f, depth, behind);
+    int span = (int)floor(depth / fs->cell + 1e-9);
+    for (int k = 0; k < fs->n[2]; k++)
+        for (int j = 0; j < fs->n[1]; j++)
+            for (int i = 0; i < fs->n[0]; i++) {
+                size_t idx = ((size_t)k * fs->n[1] + (size_t)j) * fs->n[0] + (size_t)i;
+                int c[3] = {i, j, k};
+                if (behind[idx] || dist[idx] == 255 || rs_freespace_cell(fs, i, j, k) != RS_FS_UNKNOWN) continue;
+                if (!in_gap(fs, behind, c, span)) dist[idx] = 255;
+            }
+    free(behind);
+    return 0;
 }
 
 typedef struct face_list {
@@ -127,8 +215,8 @@ static int plane_faces(const rs_freespace *fs, const uint32_t *label, int ax, in
     return 0;
 }
 
-int rs_freespace_occluders(rs_freespace *fs, const rs_mesh *m, double depth, rs_mesh **occ, uint32_t **proxy,
-                           rs_err *err)
+int rs_freespace_occluders(rs_freespace *fs, const rs_mesh *m, double depth, rs_fs_keep keep, rs_mesh **occ,
+                           uint32_t **proxy, rs_err *err)
 {
     *occ = NULL;
     *proxy = NULL;
@@ -140,7 +228,8 @@ int rs_freespace_occluders(rs_freespace *fs, const rs_mesh *m, double depth, rs_
     face_list fl = {0};
     int rc = -1;
     if (!label || !mask) goto oom;
-    /* Unknown space farther than depth from every facet is taken as open (known). */
+    if (keep == RS_FS_KEEP_BEHIND && open_unbacked(fs, m, depth, dist) != 0) goto oom;
+    /* Unknown space farther than depth from every facet (or not backed by one) is taken as open. */
     double dmax = depth / fs->cell;
     fs->opened = 0;
     for (size_t idx = 0; idx < fs->ncells; idx++)

@@ -167,7 +167,9 @@ static int build_freespace(const rs_config *cfg, rs_irradiance_state *s, rs_json
     double cam_rays = carve_camera(s, &fs), t1 = rs_now();
     rs_freespace_counts cnt;
     rs_freespace_count(&fs, &cnt);
-    int rc = rs_freespace_occluders(&fs, s->mesh, rs_config_real(cfg, "irradiance", "occluder_depth"), &s->occ,
+    const char *ks = rs_config_string(cfg, "irradiance", "occluder_keep");
+    rs_fs_keep keep = strcmp(ks, "near") == 0 ? RS_FS_KEEP_NEAR : RS_FS_KEEP_BEHIND;
+    int rc = rs_freespace_occluders(&fs, s->mesh, rs_config_real(cfg, "irradiance", "occluder_depth"), keep, &s->occ,
                                     &s->occ_proxy, err);
     rs_json_set_int(fig, "cells_unknown_opened", (long long)fs.opened);
     double t2 = rs_now();

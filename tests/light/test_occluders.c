@@ -83,7 +83,9 @@ static void test_room_missing_wall(void **state)
     rs_mesh *occ = NULL;
     uint32_t *proxy = NULL;
     rs_err err;
-    assert_int_equal(rs_freespace_occluders(&fs, m, 4.0, &occ, &proxy, &err), 0);
+    /* The whole wall is missing (not a scan shadow beside what was scanned): only the near rule,
+     * every unknown cell within depth, closes it; the behind rule leaves it to the camera. */
+    assert_int_equal(rs_freespace_occluders(&fs, m, 4.0, RS_FS_KEEP_NEAR, &occ, &proxy, &err), 0);
     assert_non_null(occ);
     assert_true(occ->nfaces < 2000); /* merged into rectangles, not one pair per cell face */
     assert_int_equal(rs_scene_set_occluders(sc, occ, proxy, 1.5 * fs.cell, &err), 0);
@@ -115,7 +117,7 @@ static void test_room_missing_wall(void **state)
         room_map(&fs, m, sc, k ? 0.0 : 2.0);
         scan_from(&fs, sc, rs_v3_make(2, 2, 1.5), 360, 1);
         assert_int_equal(rs_freespace_state(&fs, rs_v3_make(2, 3.9, 1.5)), RS_FS_FREE);
-        assert_int_equal(rs_freespace_occluders(&fs, m, 4.0, &occ, &proxy, &err), 0);
+        assert_int_equal(rs_freespace_occluders(&fs, m, 4.0, RS_FS_KEEP_BEHIND, &occ, &proxy, &err), 0);
         if (occ) assert_int_equal(rs_scene_set_occluders(sc, occ, proxy, 1.5 * fs.cell, &err), 0);
         rs_scene_occluded(sc, &out, &blocked, 1);
         assert_int_equal(blocked, 0);
@@ -186,7 +188,7 @@ static void test_walkway_slab(void **state)
     scan_from(&fs, rsc, rs_v3_make(3, 5, 1.6), 720, 1);  /* the camera: its sky too */
     rs_mesh *occ = NULL;
     uint32_t *proxy = NULL;
-    assert_int_equal(rs_freespace_occluders(&fs, m, 4.0, &occ, &proxy, &err), 0);
+    assert_int_equal(rs_freespace_occluders(&fs, m, 4.0, RS_FS_KEEP_BEHIND, &occ, &proxy, &err), 0);
     assert_non_null(occ);
     rs_skyenv env;
     rs_capture cap = rs_fx_sun_pixel_capture(256, 128, 1.0f, 1.0f, 0, 0);
@@ -211,4 +213,87 @@ static void test_walkway_slab(void **state)
     rs_freespace_release(&fs);
 }
 
-RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_room_missing_wall), cmocka_unit_test(test_walkway_slab))
+/* A column [-0.25, 0.25] x [2, 2.5] x [0, 4] on open ground [-6, 6]^2, scanned (and
+ * photographed) from (0, -2, 1.8): only its front face y = 2 is in the mesh. Behind it, and over
+ * the ground in its scan shadow, the space is unknown. */
+static rs_mesh *column(int closed)
+{
+    rs_meshgen g = rs_meshgen_new(8192, 8192);
+    rs_meshgen_rect(&g, rs_v3_make(-6, -6, 0), rs_v3_make(12, 0, 0), rs_v3_make(0, 12, 0), 24, 24);
+    if (closed)
+        rs_meshgen_box(&g, rs_v3_make(-0.25, 2, 0), rs_v3_make(0.25, 2.5, 4), 4, 0);
+    else
+        rs_meshgen_rect(&g, rs_v3_make(-0.25, 2, 0), rs_v3_make(0.5, 0, 0), rs_v3_make(0, 0, 4), 2, 16);
+    return rs_meshgen_done(&g);
+}
+
+static int blocked_by(rs_scene *sc, const rs_mesh *occ, const uint32_t *proxy, double near, rs_v3 o, rs_v3 d)
+{
+    rs_err err;
+    assert_int_equal(rs_scene_set_occluders(sc, occ, proxy, near, &err), 0);
+    rs_ray r = {.org = o, .dir = d, .tnear = 0, .tfar = INFINITY};
+    uint8_t b;
+    rs_scene_occluded(sc, &r, &b, 1);
+    assert_int_equal(rs_scene_set_occluders(sc, NULL, NULL, 0, &err), 0);
+    return b;
+}
+
+/* The courtyard sample's bug (docs/PIPELINE.md, occluders): keeping every unknown cell within
+ * occluder_depth of a scanned cell fattens what was scanned into its scan shadow, so that open
+ * air behind a column and over the unseen ground beside it blocks light (the column's sun shadow
+ * grew and the ground behind the colonnade lost its sky). Keeping only the cells behind a
+ * scanned facet closes the column's body and nothing else. */
+static void test_column_shadow(void **state)
+{
+    (void)state;
+    rs_mesh *real = column(1), *m = column(0);
+    rs_scene *rsc = rs_fx_scene(real), *sc = rs_fx_scene(m);
+    rs_v3 body = rs_v3_make(-3, 2.3, 2.1), air = rs_v3_make(-3, 2.6, 2.1), low = rs_v3_make(-3, 3.6, 0.1);
+    rs_v3 east = rs_v3_make(1, 0, 0);
+    rs_ray probe[3] = {{.org = body, .dir = east, .tnear = 0, .tfar = INFINITY},
+                       {.org = air, .dir = east, .tnear = 0, .tfar = INFINITY},
+                       {.org = low, .dir = east, .tnear = 0, .tfar = INFINITY}};
+    uint8_t truth[3];
+    rs_scene_occluded(rsc, probe, truth, 3);
+    assert_int_equal(truth[0], 1); /* through the real column */
+    assert_int_equal(truth[1], 0); /* just behind it: open air */
+    assert_int_equal(truth[2], 0); /* low over the ground in its scan shadow */
+    for (int keep = 0; keep < 2; keep++) {
+        rs_freespace fs;
+        rs_err err;
+        rs_freespace_opts fo = {.cell = 0.25, .margin = 2, .max_cells = 1 << 22};
+        assert_int_equal(rs_freespace_init(&fs, m, &fo, &err), 0);
+        scan_from(&fs, rsc, rs_v3_make(0, -2, 1.8), 1440, 0);
+        scan_from(&fs, rsc, rs_v3_make(0.2, -2, 1.6), 720, 1);
+        assert_int_equal(rs_freespace_state(&fs, air), RS_FS_FREE);
+        assert_int_equal(rs_freespace_state(&fs, rs_v3_make(0, 2.6, 2.1)), RS_FS_UNKNOWN);
+        assert_int_equal(rs_freespace_state(&fs, rs_v3_make(0, 3.6, 0.1)), RS_FS_UNKNOWN);
+        rs_mesh *occ = NULL;
+        uint32_t *proxy = NULL;
+        assert_int_equal(
+            rs_freespace_occluders(&fs, m, 0.5, keep ? RS_FS_KEEP_BEHIND : RS_FS_KEEP_NEAR, &occ, &proxy, &err), 0);
+        assert_non_null(occ);
+        double near = 1.5 * fs.cell;
+        int b_body = blocked_by(sc, occ, proxy, near, body, east), b_air = blocked_by(sc, occ, proxy, near, air, east),
+            b_low = blocked_by(sc, occ, proxy, near, low, east);
+        print_message("%s: blocked through the column %d, behind it %d, over the shadowed ground %d (%zu faces)\n",
+                      keep ? "behind" : "near", b_body, b_air, b_low, occ->nfaces);
+        assert_int_equal(b_body, 1); /* both close the column's unseen body */
+        if (keep) {
+            assert_int_equal(b_air, 0);
+            assert_int_equal(b_low, 0);
+        } else {
+            assert_true(b_air && b_low); /* the bug, kept as occluder_keep = near */
+        }
+        rs_mesh_free(occ);
+        free(proxy);
+        rs_freespace_release(&fs);
+    }
+    rs_scene_free(sc);
+    rs_scene_free(rsc);
+    rs_mesh_free(m);
+    rs_mesh_free(real);
+}
+
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_room_missing_wall), cmocka_unit_test(test_walkway_slab),
+             cmocka_unit_test(test_column_shadow))
