@@ -115,15 +115,29 @@ static void fp_file(fp_state *s, const char *path)
     }
 }
 
+static void fp_one_section(fp_state *s, const char *section);
+
+/* A section and its named instances: "capture" takes in [capture.NAME] too (the further
+ * captures), so that adding or changing one reruns the stages that read them. */
 static void fp_section(const char *section, void *user)
 {
     fp_state *s = user;
+    fp_one_section(s, section);
+    const char *names[64];
+    int n = rs_config_sections(s->cfg, section, names, 64);
+    for (int i = 0; i < n && i < 64; i++)
+        if (strchr(names[i], '.')) fp_one_section(s, names[i]);
+}
+
+static void fp_one_section(fp_state *s, const char *section)
+{
     char *text = rs_config_section_text(s->cfg, section);
     if (text) s->hash = rs_hash_bytes(text, strlen(text), s->hash);
     free(text);
-    /* Files named by the section's path keys are inputs too. */
+    /* Files named by the section's path keys are inputs too ([capture.NAME] has [capture]'s keys). */
+    size_t blen = strcspn(section, ".");
     for (const rs_cfg_key *k = rs_cfg_keys; k->section; k++) {
-        if (strcmp(k->section, section) != 0) continue;
+        if (strlen(k->section) != blen || strncmp(k->section, section, blen) != 0) continue;
         char path[4096];
         if (k->type == RS_CFG_PATH && rs_config_path(s->cfg, section, k->key, path, sizeof path)) {
             if (strcmp(section, "pipeline") != 0) fp_file(s, path);

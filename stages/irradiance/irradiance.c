@@ -185,6 +185,7 @@ static int load_other_captures(const rs_config *cfg, const rs_irradiance_opts *o
         rs_capture *c = &s->others[s->nothers];
         if (rs_capture_load(cfg, o->captures[i], c, err) != 0) return -1;
         rs_sunsource_remove(&s->sun, c, NULL, 0);
+        s->other_names[s->nothers] = o->captures[i];
         uint8_t **mask = &s->other_masks[s->nothers++];
         if (!(*mask = malloc((size_t)c->pano->width * c->pano->height)))
             return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for [%s]'s sky mask", o->captures[i]);

@@ -104,7 +104,16 @@ static void report_sky(const rs_irradiance_opts *o, const rs_irradiance_state *s
         for (int k = 0; k < 5; k++) rs_json_push_num(pz, info->fill.model.perez[1][k]);
         rs_json_set_int(rep->metrics, "sky_ground_from_albedo", info->fill.ground_from_albedo);
     }
-    if (nothers) rs_json_set_int(rep->metrics, "sky_other_capture_pixels", (long long)info->other_pixels);
+    if (nothers) {
+        rs_json_set_int(rep->metrics, "sky_other_capture_pixels", (long long)info->other_pixels);
+        /* Each further capture's exposure factor (capture / it, per channel) under its section's
+         * name: the texture stage brings their radiance to the capture's exposure with them. */
+        rs_json *ce = rs_json_set_obj(rep->metrics, "capture_exposure");
+        for (int i = 0; i < nothers; i++) {
+            rs_json *a = rs_json_set_arr(ce, s->other_names[i]);
+            for (int ch = 0; ch < 3; ch++) rs_json_push_num(a, info->other_scale[i][ch]);
+        }
+    }
     if (s->sky.pano) {
         rs_json_set_int(rep->metrics, "sky_panorama_pixels", (long long)info->sky_pano_pixels);
         rs_json_set_num(rep->metrics, "sky_panorama_overlap_sr", info->sky_overlap_sr);

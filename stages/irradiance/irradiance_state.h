@@ -65,6 +65,7 @@ typedef struct rs_irradiance_state {
     uint8_t *sky_mask;                       /* its pixels that see sky */
     rs_capture others[RS_SKYENV_MAX_OTHERS]; /* further captures ([capture.NAME]) */
     uint8_t *other_masks[RS_SKYENV_MAX_OTHERS];
+    const char *other_names[RS_SKYENV_MAX_OTHERS];      /* their sections ("capture.NAME"), borrowed */
     const rs_capture *other_ptrs[RS_SKYENV_MAX_OTHERS]; /* the same, as so wants them */
     const uint8_t *other_mask_ptrs[RS_SKYENV_MAX_OTHERS];
     int nothers;

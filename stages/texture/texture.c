@@ -27,12 +27,24 @@
 #include "common/scene.h"
 #include "common/select.h"
 #include "pipeline/capture_load.h"
+#include "sky/skyenv.h"
 #include "stages/stages.h"
 #include "stages/texture/texture_internal.h"
 
 #define SUN_RAYS       4
 #define SUN_RADIUS_RAD (0.2665 * M_PI / 180)
-#define TEX_SEEN       128u /* while the texels are measured: the camera saw the texel */
+#define TEX_SEEN       128u                       /* while the texels are measured: a capture saw the texel */
+#define TEX_FURTHER    64u                        /* and a further capture saw it */
+#define TEX_MAX_VIEWS  (RS_SKYENV_MAX_OTHERS + 1) /* [capture] and the further captures the sky map takes */
+
+/* A capture that measures L: [capture] (view 0) or a further [capture.NAME]. */
+typedef struct {
+    rs_capture cap;
+    rs_image *ids;   /* the facet under each pixel's centre, -1 none: facet_id.exr for [capture], traced for
+                        the others (trace_ids) */
+    double scale[3]; /* to [capture]'s exposure: irradiance.json's capture_exposure (1 for [capture]) */
+    const char *name;
+} tex_view;
 
 typedef struct {
     rs_mesh *mesh;
@@ -40,9 +52,11 @@ typedef struct {
     size_t nf;
     double *rho, *esky, *esun, *G; /* 3 per facet */
     double *estimable;             /* per facet */
-    rs_capture cap;
-    rs_image *ids; /* facet_id.exr */
-    rs_v3 sun;     /* toward the sun; zero when none */
+    double *unobserved;            /* per facet, with further captures only (else NULL): 1 when [capture] did not
+                                      observe it (no facet albedo) but the irradiance stage gathered its light */
+    tex_view views[TEX_MAX_VIEWS];
+    int nviews;
+    rs_v3 sun; /* toward the sun; zero when none */
     double origin[3];
 } tex_inputs;
 
@@ -56,27 +70,90 @@ static void tex_inputs_free(tex_inputs *in)
     free(in->esun);
     free(in->G);
     free(in->estimable);
-    rs_capture_release(&in->cap);
-    rs_image_free(in->ids);
+    free(in->unobserved);
+    for (int v = 0; v < in->nviews; v++) {
+        rs_capture_release(&in->views[v].cap);
+        rs_image_free(in->views[v].ids);
+    }
 }
 
-/* irradiance.json's sun_direction (zero when absent or not a unit vector). */
-static rs_v3 read_sun_direction(const rs_config *cfg)
+/* irradiance.json, parsed (NULL when absent or unreadable). */
+static cJSON *read_irradiance_json(const rs_config *cfg)
 {
     char path[4096], *text = NULL;
     size_t n = 0;
-    rs_v3 s = rs_v3_make(0, 0, 0);
-    if (rs_read_file(rs_work_path(cfg, "irradiance.json", path, sizeof path), &text, &n, NULL) != 0) return s;
+    if (rs_read_file(rs_work_path(cfg, "irradiance.json", path, sizeof path), &text, &n, NULL) != 0) return NULL;
     cJSON *j = cJSON_ParseWithLength(text, n);
+    free(text);
+    return j;
+}
+
+/* irradiance.json's sun_direction (zero when absent or not a unit vector). */
+static rs_v3 read_sun_direction(const cJSON *j)
+{
+    rs_v3 s = rs_v3_make(0, 0, 0);
     const cJSON *d = cJSON_GetObjectItemCaseSensitive(j, "sun_direction");
     if (cJSON_IsArray(d) && cJSON_GetArraySize(d) == 3) {
         rs_v3 v = rs_v3_make(cJSON_GetArrayItem(d, 0)->valuedouble, cJSON_GetArrayItem(d, 1)->valuedouble,
                              cJSON_GetArrayItem(d, 2)->valuedouble);
         if (rs_v3_finite(v) && fabs(rs_v3_len(v) - 1) < 1e-3) s = rs_v3_norm(v);
     }
-    cJSON_Delete(j);
-    free(text);
     return s;
+}
+
+/* The further captures ([capture.NAME], in file order, as many as the irradiance stage's sky map
+ * takes), each with the exposure factor that stage found for it from the sky both saw
+ * (irradiance.json's capture_exposure, skyenv.h): their radiance is brought to [capture]'s
+ * exposure the same way as their sky. */
+static int load_further_views(const rs_config *cfg, const cJSON *irr, tex_inputs *in, rs_err *err)
+{
+    const char *names[TEX_MAX_VIEWS];
+    int n = rs_config_sections(cfg, "capture", names, TEX_MAX_VIEWS);
+    const cJSON *ce = cJSON_GetObjectItemCaseSensitive(irr, "capture_exposure");
+    for (int i = 0; i < n && i < TEX_MAX_VIEWS && in->nviews < TEX_MAX_VIEWS; i++) {
+        if (strcmp(names[i], "capture") == 0) continue;
+        tex_view *v = &in->views[in->nviews];
+        const cJSON *a = cJSON_GetObjectItemCaseSensitive(ce, names[i]);
+        if (!cJSON_IsArray(a) || cJSON_GetArraySize(a) != 3) {
+            char path[4096];
+            return rs_err_set(err, RS_ERR_INPUT, rs_work_path(cfg, "irradiance.json", path, sizeof path), 0,
+                              "capture_exposure has no factors for [%s]: expected 3 numbers for every further "
+                              "capture (rerun irradiance with the same captures)",
+                              names[i]);
+        }
+        for (int ch = 0; ch < 3; ch++) {
+            double f = cJSON_GetArrayItem(a, ch)->valuedouble;
+            if (!(isfinite(f) && f > 0)) {
+                char path[4096];
+                return rs_err_set(err, RS_ERR_INPUT, rs_work_path(cfg, "irradiance.json", path, sizeof path), 0,
+                                  "capture_exposure of [%s], channel %d, is %g: expected a finite factor > 0", names[i],
+                                  ch, f);
+            }
+            v->scale[ch] = f;
+        }
+        v->name = names[i];
+        if (rs_capture_load(cfg, names[i], &v->cap, err) != 0) return -1;
+        in->nviews++;
+    }
+    return 0;
+}
+
+/* in->unobserved from albedo.ply's observed and irradiance.ply's gathered (in->alb, in->irr). */
+static int read_unobserved(tex_inputs *in, const char *ap, const char *ip, rs_err *err)
+{
+    size_t nf = in->nf;
+    double *g = malloc((nf + 1) * sizeof *g);
+    in->unobserved = malloc((nf + 1) * sizeof *in->unobserved);
+    int rc = -1;
+    if (!g || !in->unobserved)
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+    else if (rs_faceprop_get(in->alb, ap, "observed", nf, in->unobserved, err) == 0 &&
+             rs_faceprop_get(in->irr, ip, "gathered", nf, g, err) == 0) {
+        for (size_t f = 0; f < nf; f++) in->unobserved[f] = !(in->unobserved[f] > 0) && g[f] > 0;
+        rc = 0;
+    }
+    free(g);
+    return rc;
 }
 
 static int read_inputs(const rs_config *cfg, tex_inputs *in, rs_err *err)
@@ -101,14 +178,24 @@ static int read_inputs(const rs_config *cfg, tex_inputs *in, rs_err *err)
     if (rs_faceprop_get_rgb(in->irr, ip, "irradiance_sky", nf, in->esky, err) != 0 ||
         rs_faceprop_get_rgb(in->irr, ip, "irradiance_sun", nf, in->esun, err) != 0)
         return -1;
+    const char *secs[2];
+    if (rs_config_sections(cfg, "capture", secs, 2) > 1 && read_unobserved(in, ap, ip, err) != 0) return -1;
     rs_ply_free(in->irr);
     in->irr = NULL;
-    if (rs_capture_load(cfg, "capture", &in->cap, err) != 0) return -1;
+    tex_view *v0 = &in->views[0];
+    in->nviews = 1;
+    v0->name = "capture";
+    v0->scale[0] = v0->scale[1] = v0->scale[2] = 1;
+    if (rs_capture_load(cfg, "capture", &v0->cap, err) != 0) return -1;
     const char *idp = rs_work_path(cfg, "facet_id.exr", path, sizeof path);
-    if (!(in->ids = rs_image_read(idp, err))) return -1;
-    if (in->ids->width != in->cap.pano->width || in->ids->height != in->cap.pano->height || in->ids->channels != 1)
+    if (!(v0->ids = rs_image_read(idp, err))) return -1;
+    if (v0->ids->width != v0->cap.pano->width || v0->ids->height != v0->cap.pano->height || v0->ids->channels != 1)
         return rs_err_set(err, RS_ERR_INPUT, idp, 0, "does not match the panorama's size (rerun observe)");
-    in->sun = read_sun_direction(cfg);
+    cJSON *irr = read_irradiance_json(cfg);
+    in->sun = read_sun_direction(irr);
+    int rc = load_further_views(cfg, irr, in, err);
+    cJSON_Delete(irr);
+    if (rc != 0) return -1;
     const char *o = rs_ply_find_comment(in->alb, "rhoscan_origin");
     if (!o || sscanf(o, "%lf %lf %lf", &in->origin[0], &in->origin[1], &in->origin[2]) != 3)
         in->origin[0] = in->origin[1] = in->origin[2] = 0;
@@ -126,12 +213,13 @@ static double default_texel(const tex_inputs *in)
     size_t nf = in->nf, n = 0;
     float *v = malloc((nf + 1) * sizeof *v);
     if (!v) return 0.01;
-    double pix = M_PI / in->cap.pano->height;
+    double pix = M_PI / in->views[0].cap.pano->height;
     for (size_t f = 0; f < nf; f++) {
         rs_v3 c, nrm;
         double a;
         rs_mesh_face(in->mesh, f, &c, &nrm, &a);
-        if (in->estimable[f] > 0 && a > 0) v[n++] = (float)(rs_v3_len(rs_v3_sub(c, in->cap.pose.position)) * pix);
+        if (in->estimable[f] > 0 && a > 0)
+            v[n++] = (float)(rs_v3_len(rs_v3_sub(c, in->views[0].cap.pose.position)) * pix);
     }
     double t = n ? rs_select_kth(v, n, n / 10) : 0.01;
     free(v);
@@ -204,6 +292,9 @@ typedef struct {
     float *L;    /* 3 per texel: radiance, flag TEX_SEEN when measured (the pages' rgb until the albedo) */
     int sub_max; /* sub-samples per side, at most */
     int area;    /* [texture] filter = area: the texel's mean of the pixels read as constant squares */
+    size_t view_seen[TEX_MAX_VIEWS]; /* texels each view saw */
+    size_t multi_seen;               /* texels two views or more saw */
+    size_t others_only;              /* texels only further captures saw */
 } tex_ctx;
 
 /* V at point p (normal n): SUN_RAYS rays toward points of the sun's disc. */
@@ -228,11 +319,11 @@ static float sun_visibility(const tex_ctx *c, rs_v3 p, rs_v3 n)
     return (float)esc / SUN_RAYS;
 }
 
-/* 1 when the panorama's four pixels around continuous coordinates (X, Y) all see chart ch and
- * hold usable radiance. */
-static int pixels_on_chart(const tex_ctx *c, double X, double Y, uint32_t ch)
+/* 1 when view v's four pixels around continuous coordinates (X, Y) all see chart ch and hold
+ * usable radiance. */
+static int pixels_on_chart(const tex_ctx *c, const tex_view *v, double X, double Y, uint32_t ch)
 {
-    const rs_image *ids = c->in->ids, *pano = c->in->cap.pano;
+    const rs_image *ids = v->ids, *pano = v->cap.pano;
     int W = ids->width, H = ids->height, x0 = (int)floor(X - 0.5), y0 = (int)floor(Y - 0.5);
     for (int j = 0; j < 2; j++)
         for (int i = 0; i < 2; i++) {
@@ -246,10 +337,10 @@ static int pixels_on_chart(const tex_ctx *c, double X, double Y, uint32_t ch)
 }
 
 /* [texture] filter = area: the pixel holding continuous coordinates (X, Y), the panorama read as
- * constant squares (nearest), into px; 0 when that pixel does not see chart ch or is not usable. */
-static int pixel_on_chart(const tex_ctx *c, double X, double Y, uint32_t ch, float px[3])
+ * constant squares (nearest), of view v into px; 0 when that pixel does not see chart ch or is not usable. */
+static int pixel_on_chart(const tex_ctx *c, const tex_view *v, double X, double Y, uint32_t ch, float px[3])
 {
-    const rs_image *ids = c->in->ids, *pano = c->in->cap.pano;
+    const rs_image *ids = v->ids, *pano = v->cap.pano;
     int W = ids->width, H = ids->height, x = ((int)floor(X) % W + W) % W, y = (int)floor(Y);
     y = y < 0 ? 0 : (y >= H ? H - 1 : y);
     float id = ids->data[(size_t)y * W + x];
@@ -271,18 +362,20 @@ static int texel_subsamples(const tex_ctx *c, double foot)
     return ns < lo ? lo : (ns > hi ? hi : ns);
 }
 
-/* L at texel k (face f, texel x, y of its page): the mean of the sub-samples that the camera sees
- * on the texel's own chart. Returns 1 when any was. */
-static int texel_radiance(const tex_ctx *c, uint32_t f, int x, int y, float L[3])
+/* L of view v at texel (x, y) of face f, point p: the mean of the sub-samples that the view
+ * sees on the texel's own chart, unscaled. Returns 1 when any was, with the view's weight in w:
+ * cos(view) x min(1, texel area / the pixel's footprint on the surface), the footprint
+ * (distance x pixel angle)^2 / cos: a direct, near, fine view counts more than a grazing, far,
+ * coarse one, and views that resolve the texel count alike but for their angle. */
+static int view_radiance(const tex_ctx *c, const tex_view *v, uint32_t f, rs_v3 p, float L[3], double *w)
 {
-    const rs_capture *cap = &c->in->cap;
+    const rs_capture *cap = &v->cap;
     rs_v3 n = rs_scene_normal(c->scene, f);
-    double b[3];
-    rs_v3 p = rs_tex_point(c->t, f, x, y, b);
     rs_v3 d = rs_v3_sub(p, cap->pose.position);
     double dist = rs_v3_len(d), cosv = -rs_v3_dot(n, d) / dist;
     if (!(cosv > 0.02)) return 0;
-    int ns = texel_subsamples(c, dist * (M_PI / cap->pano->height) / fmax(cosv, 0.2));
+    double pix = M_PI / cap->pano->height;
+    int ns = texel_subsamples(c, dist * pix / fmax(cosv, 0.2));
     rs_ray ray = {cap->pose.position, d, 0, 1 - 4 * rs_scene_offset(c->scene, p) / dist};
     uint8_t occ;
     rs_scene_occluded(c->scene, &ray, &occ, 1);
@@ -295,46 +388,94 @@ static int texel_radiance(const tex_ctx *c, uint32_t f, int x, int y, float L[3]
         for (int i = 0; i < ns; i++) {
             double ds = ((i + 0.5) / ns - 0.5) * tx, dt = ((j + 0.5) / ns - 0.5) * tx;
             rs_v3 q = rs_v3_add(p, rs_v3_add(rs_v3_scale(ch->eu, ds), rs_v3_scale(ch->ev, -dt)));
-            double u, v;
-            rs_pano_dir_to_uv(rs_pose_dir_to_local(&cap->pose, rs_v3_sub(q, cap->pose.position)), &u, &v);
-            double X = u * cap->pano->width, Y = v * cap->pano->height;
+            double u, vv;
+            rs_pano_dir_to_uv(rs_pose_dir_to_local(&cap->pose, rs_v3_sub(q, cap->pose.position)), &u, &vv);
+            double X = u * cap->pano->width, Y = vv * cap->pano->height;
             uint32_t chart = c->t->atlas->face_chart[f];
             float px[3];
             if (c->area) {
-                if (!pixel_on_chart(c, X, Y, chart, px)) continue;
+                if (!pixel_on_chart(c, v, X, Y, chart, px)) continue;
             } else {
-                if (!pixels_on_chart(c, X, Y, chart)) continue;
-                rs_pano_sample(cap->pano, u, v, px);
+                if (!pixels_on_chart(c, v, X, Y, chart)) continue;
+                rs_pano_sample(cap->pano, u, vv, px);
             }
             for (int k = 0; k < 3; k++) acc[k] += px[k];
             used++;
         }
     if (!used) return 0;
     for (int k = 0; k < 3; k++) L[k] = (float)(acc[k] / used);
+    double area = (dist * pix) * (dist * pix) / cosv;
+    *w = cosv * fmin(1.0, tx * tx / area);
     return 1;
 }
 
-/* First pass over the texels: L and V. */
+/* L at texel (x, y) of face f: every view that sees it (view_radiance), each brought to
+ * [capture]'s exposure, blended by the views' weights. One view's L is taken as it is. seen:
+ * per view, 1 when it saw the texel. Returns the views that saw it. */
+static int texel_radiance(const tex_ctx *c, uint32_t f, int x, int y, float L[3], uint8_t *seen)
+{
+    double b[3];
+    rs_v3 p = rs_tex_point(c->t, f, x, y, b);
+    double acc[3] = {0, 0, 0}, wsum = 0;
+    int nseen = 0;
+    float one[3] = {0, 0, 0};
+    for (int vi = 0; vi < c->in->nviews; vi++) {
+        const tex_view *v = &c->in->views[vi];
+        float Lv[3];
+        double w = 0;
+        seen[vi] = (uint8_t)view_radiance(c, v, f, p, Lv, &w);
+        if (!seen[vi]) continue;
+        for (int k = 0; k < 3; k++) {
+            one[k] = vi == 0 ? Lv[k] : (float)(v->scale[k] * Lv[k]);
+            acc[k] += w * one[k];
+        }
+        wsum += w;
+        nseen++;
+    }
+    if (!nseen) return 0;
+    for (int k = 0; k < 3; k++) L[k] = nseen == 1 || !(wsum > 0) ? one[k] : (float)(acc[k] / wsum);
+    return nseen;
+}
+
+/* First pass over the texels: L and V, and what each view saw. */
 static void pass_measure(tex_ctx *c)
 {
     rs_tex_pages *t = c->t;
-    int S = t->side;
+    int S = t->side, nv = c->in->nviews;
     long rows = (long)t->npages * S;
     int has_sun = rs_v3_len(c->in->sun) > 0.5;
-#pragma omp parallel for schedule(dynamic, 4)
-    for (long row = 0; row < rows; row++)
-        for (int x = 0; x < S; x++) {
-            size_t k = (size_t)row * S + (size_t)x;
-            c->vis[k] = -1;
-            if (t->face[k] < 0) continue;
-            uint32_t f = (uint32_t)t->face[k];
-            int y = (int)(row % S);
-            if (texel_radiance(c, f, x, y, c->L + 3 * k)) t->flags[k] |= TEX_SEEN;
-            if (has_sun) {
-                double b[3];
-                c->vis[k] = sun_visibility(c, rs_tex_point(t, f, x, y, b), rs_scene_normal(c->scene, f));
+#pragma omp parallel
+    {
+        size_t by[TEX_MAX_VIEWS] = {0}, multi = 0, others = 0;
+        uint8_t seen[TEX_MAX_VIEWS];
+#pragma omp for schedule(dynamic, 4)
+        for (long row = 0; row < rows; row++)
+            for (int x = 0; x < S; x++) {
+                size_t k = (size_t)row * S + (size_t)x;
+                c->vis[k] = -1;
+                if (t->face[k] < 0) continue;
+                uint32_t f = (uint32_t)t->face[k];
+                int y = (int)(row % S);
+                int ns = texel_radiance(c, f, x, y, c->L + 3 * k, seen);
+                if (ns) {
+                    t->flags[k] |= TEX_SEEN;
+                    if (ns > seen[0]) t->flags[k] |= TEX_FURTHER;
+                    for (int v = 0; v < nv; v++) by[v] += seen[v];
+                    multi += ns > 1;
+                    others += !seen[0];
+                }
+                if (has_sun) {
+                    double b[3];
+                    c->vis[k] = sun_visibility(c, rs_tex_point(t, f, x, y, b), rs_scene_normal(c->scene, f));
+                }
             }
+#pragma omp critical(tex_measure_counts)
+        {
+            for (int v = 0; v < nv; v++) c->view_seen[v] += by[v];
+            c->multi_seen += multi;
+            c->others_only += others;
         }
+    }
 }
 
 /* U per chart from the facets' sun term and their mean texel V. */
@@ -378,6 +519,8 @@ static int chart_sun(tex_ctx *c)
 
 typedef struct {
     size_t texels, seen, penumbra, unseen;
+    int views;
+    size_t view_seen[TEX_MAX_VIEWS], multi_seen, others_only;
 } tex_counts;
 
 /* Second pass: rho = pi L / E, or the facet's albedo. */
@@ -407,8 +550,11 @@ static void pass_albedo(tex_ctx *c, tex_counts *n)
                 Etot += E[q] / 3;
             }
             texels++;
-            int ok = (t->flags[k] & TEX_SEEN) && in->estimable[f] > 0;
-            t->flags[k] &= (uint8_t)~TEX_SEEN;
+            /* a facet [capture] did not observe has no albedo of its own: a further capture's L
+             * there stands on the facet's gathered light */
+            int ok = (t->flags[k] & TEX_SEEN) &&
+                (in->estimable[f] > 0 || (in->unobserved && in->unobserved[f] > 0 && (t->flags[k] & TEX_FURTHER)));
+            t->flags[k] &= (uint8_t) ~(TEX_SEEN | TEX_FURTHER);
             for (int q = 0; q < 3; q++) ok &= E[q] > 0 && isfinite(E[q]);
             if (c->vis[k] > 0 && c->vis[k] < 1) {
                 t->flags[k] |= RS_TEX_PENUMBRA;
@@ -479,7 +625,8 @@ static int write_pages(const rs_config *cfg, const rs_tex_pages *t, char names[]
     return 0;
 }
 
-static void report_texture(rs_report *rep, const rs_atlas *a, const tex_counts *n, size_t vertices)
+static void report_texture(rs_report *rep, const rs_atlas *a, const tex_counts *n, size_t vertices,
+                           const char *const *names)
 {
     rs_json_set_num(rep->metrics, "texel_size_m", a->texel);
     rs_json_set_int(rep->metrics, "charts", (long long)a->ncharts);
@@ -492,6 +639,13 @@ static void report_texture(rs_report *rep, const rs_atlas *a, const tex_counts *
     rs_json_set_int(rep->metrics, "penumbra_texels", (long long)n->penumbra);
     rs_json_set_num(rep->metrics, "penumbra_share", n->texels ? (double)n->penumbra / n->texels : 0);
     rs_json_set_int(rep->metrics, "export_vertices", (long long)vertices);
+    if (n->views > 1) { /* further captures: what each saw (one capture: the figures above say it) */
+        rs_json *vs = rs_json_set_obj(rep->metrics, "captures_seen_texels");
+        for (int v = 0; v < n->views; v++) rs_json_set_int(vs, names[v], (long long)n->view_seen[v]);
+        rs_json_set_int(rep->metrics, "blended_texels", (long long)n->multi_seen);
+        rs_json_set_int(rep->metrics, "further_only_texels", (long long)n->others_only);
+        rs_json_set_num(rep->metrics, "unseen_share", n->texels ? (double)n->unseen / n->texels : 0);
+    }
 }
 
 static int build_atlas(const rs_config *cfg, const tex_inputs *in, rs_atlas **out, rs_err *err)
@@ -509,6 +663,39 @@ static int build_atlas(const rs_config *cfg, const tex_inputs *in, rs_atlas **ou
     return *out ? 0 : -1;
 }
 
+/* A further view's facet image: the facet each pixel's centre ray hits from the front, -1 none
+ * (what the observe stage's facet_id.exr holds for [capture], traced the same way). */
+static int trace_ids(const rs_scene *scene, tex_view *v, rs_err *err)
+{
+    int w = v->cap.pano->width, h = v->cap.pano->height;
+    if (!(v->ids = rs_image_new(w, h, 1)))
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for [%s]'s facet image", v->name);
+    int fail = 0;
+#pragma omp parallel
+    {
+        rs_ray *rays = malloc((size_t)w * sizeof *rays);
+        rs_hit *hits = malloc((size_t)w * sizeof *hits);
+        if (!rays || !hits) {
+#pragma omp atomic write
+            fail = 1;
+        }
+#pragma omp for schedule(dynamic, 4)
+        for (int r = 0; r < h; r++) {
+            if (!rays || !hits) continue;
+            for (int x = 0; x < w; x++)
+                rays[x] = (rs_ray){v->cap.pose.position,
+                                   rs_pose_dir_to_world(&v->cap.pose, rs_pano_pixel_dir(w, h, x, r)), 0, INFINITY};
+            rs_scene_intersect_coherent(scene, rays, hits, (size_t)w);
+            for (int x = 0; x < w; x++)
+                v->ids->data[(size_t)r * w + x] =
+                    hits[x].face == RS_NO_HIT || hits[x].backface ? -1.0f : (float)hits[x].face;
+        }
+        free(rays);
+        free(hits);
+    }
+    return fail ? rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory tracing [%s]", v->name) : 0;
+}
+
 static int texture_compute(const rs_config *cfg, tex_inputs *in, rs_tex_pages *t, rs_report *rep, tex_counts *n,
                            rs_err *err)
 {
@@ -519,6 +706,10 @@ static int texture_compute(const rs_config *cfg, tex_inputs *in, rs_tex_pages *t
     rs_scene *scene = rs_scene_new(in->mesh, err);
     if (!scene) return -1;
     c.scene = scene;
+    double t1 = rs_now();
+    for (int v = 1; v < in->nviews; v++)
+        if (trace_ids(scene, &in->views[v], err) != 0) goto out;
+    if (in->nviews > 1) rs_report_time(rep, "trace_views", rs_now() - t1);
     c.Dc = corner_irradiance(in, t->atlas);
     c.vis = t->sigma;
     c.L = t->rgb;
@@ -535,6 +726,10 @@ static int texture_compute(const rs_config *cfg, tex_inputs *in, rs_tex_pages *t
         goto out;
     }
     pass_albedo(&c, n);
+    n->views = in->nviews;
+    memcpy(n->view_seen, c.view_seen, sizeof n->view_seen);
+    n->multi_seen = c.multi_seen;
+    n->others_only = c.others_only;
     rs_report_time(rep, "texels", rs_now() - t0);
     t0 = rs_now();
     rs_tex_dilate(t);
@@ -575,9 +770,17 @@ int rs_texture_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     memcpy(e.origin, in.origin, sizeof e.origin);
     if (rs_tex_export_all(&e, err) != 0) goto out;
     rs_report_time(rep, "write", rs_now() - t0);
-    report_texture(rep, atlas, &n, e.vertices);
+    const char *vnames[TEX_MAX_VIEWS];
+    for (int v = 0; v < in.nviews; v++) vnames[v] = in.views[v].name;
+    report_texture(rep, atlas, &n, e.vertices, vnames);
     rs_log_info("texture: %zu surface texels, %.1f %% seen, %.2f %% in a penumbra", n.texels,
                 n.texels ? 100.0 * n.seen / n.texels : 0, n.texels ? 100.0 * n.penumbra / n.texels : 0);
+    for (int v = 1; v < in.nviews; v++)
+        rs_log_info("texture: [%s] saw %zu texels (exposure factor %.4g %.4g %.4g)", in.views[v].name, n.view_seen[v],
+                    in.views[v].scale[0], in.views[v].scale[1], in.views[v].scale[2]);
+    if (in.nviews > 1)
+        rs_log_info("texture: %zu texels blended from two captures or more, %zu from further captures only",
+                    n.multi_seen, n.others_only);
     rc = 0;
 out:
     free(names);
