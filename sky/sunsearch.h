@@ -38,6 +38,13 @@
  * agreement allows is taken all the same (light/sunsource.c). */
 #define RS_SUNSEARCH_MIN_ABOVE_ONE 30
 
+/* Evidence instead of the cone: a direction beyond the prior's cone is taken when its edge score
+ * beats the best inside the cone by at least this many standard errors (cone_sigmas; the
+ * default of [sky] sun_search_lead_sigmas), it lights at least RS_SUNSEARCH_MIN_ABOVE_ONE pair
+ * facets whose albedo is above 1 without the sun and more than it shadows, and its DNI is
+ * significant (light/sunsource.c). */
+#define RS_SUNSEARCH_LEAD_SIGMAS 4.0
+
 typedef struct rs_sunsearch {
     rs_v3 dir;           /* unit, world, toward the sun */
     double score;        /* its log contrast: the median, or the sun cluster's (upper_cluster) */
@@ -52,6 +59,10 @@ typedef struct rs_sunsearch {
                              every direction was scored by the sun's cluster of contrasts instead
                              (rs_sunshadow_upper_cluster), and the edge score forgave predicted edges
                              the radiance does not show */
+    double cone_sigmas;   /* the best lies beyond the prior's cone and none inside it is tied: its edge-score lead
+                             over the best direction inside (refined there), in standard errors over the blocks
+                             of pairs; NAN when not measured (inside the cone, a ridge, or nothing scored there) */
+    rs_v3 cone_dir;       /* with cone_sigmas: that best direction inside the cone */
     double dir_sigma_deg; /* the direction's uncertainty: RMS angle of the best direction over a
                              bootstrap of blocks of pairs, on a 1 degree grid within 6 degrees */
 } rs_sunsearch;
