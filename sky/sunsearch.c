@@ -261,15 +261,19 @@ static void block_difference(const double *a, const double *b, double *sum, doub
  * beat the cone? The coarse in-cone directions dirs[1..n) keep their edge scores in edge; the
  * best of them is refined at 2 and 0.5 degrees within the cone (its best chance), and the best's
  * edge-score lead over it, in block standard errors, goes to out->cone_sigmas (its direction to
- * out->cone_dir). A cone with no scored direction leaves it NAN: nothing to compare with, and so
- * no evidence that the cone is wrong. Returns 0, -1 out of memory. */
+ * out->cone_dir). INFINITY when no direction inside has a score (too few lit-shadowed pairs, or
+ * no sun's cluster of contrasts: the shadows support none of them); NAN when the cone holds no
+ * hidden direction at all (nothing to compare with). Returns 0, -1 out of memory. */
 static int cone_margin(const search_ctx *c, const cone *k, double tau, rs_v3 *dirs, double *med, double *edge,
                        size_t *np, double *median, int n, rs_sunsearch *out)
 {
     int top = -1;
     for (int i = 1; i < n; i++)
         if (isfinite(edge[i]) && (top < 0 || edge[i] > edge[top])) top = i;
-    if (top < 0) return 0;
+    if (top < 0) { /* no direction inside casts a sun's shadows onto the observed model */
+        if (n > 1) out->cone_sigmas = INFINITY;
+        return 0;
+    }
     rs_v3 centre = dirs[top];
     for (int level = 0; level < 2; level++) {
         int nl = local_grid(c->env, centre, level ? 2 * DEG : 4 * DEG, level ? 0.5 * DEG : 2 * DEG, dirs), m = 0;
@@ -505,4 +509,13 @@ int rs_sunsearch_run_median_only(const rs_scene *scene, const rs_skyenv *env, co
 {
     cone k = {.prior = NULL};
     return search_run(scene, env, pairs, E, L, observed, 0, &k, out, err);
+}
+
+int rs_sunsearch_accept(const rs_sunsearch *f, double off_deg, double agree_deg, double lead_sigmas, int *missing_light,
+                        int *decisive)
+{
+    *missing_light = f->above_one_lit >= RS_SUNSEARCH_MIN_ABOVE_ONE && f->above_one_lit >= 4 * f->above_one_dark;
+    *decisive = lead_sigmas > 0 && f->cone_sigmas >= lead_sigmas && f->above_one_lit >= RS_SUNSEARCH_MIN_ABOVE_ONE &&
+        f->above_one_lit > f->above_one_dark;
+    return f->score >= RS_SUNSEARCH_MIN_SCORE && (off_deg <= agree_deg || *missing_light || *decisive);
 }

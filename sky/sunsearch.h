@@ -77,6 +77,16 @@ int rs_sunsearch_run(const rs_scene *scene, const rs_skyenv *env, const rs_sunsh
                      const double *L, const uint8_t *observed, const rs_v3 *prior, double prior_deg, rs_sunsearch *out,
                      rs_err *err);
 
+/* Whether the stage takes the direction found (light/sunsource.c), off_deg from the visible
+ * sky's sun: its contrast reaches RS_SUNSEARCH_MIN_SCORE and it lies within agree_deg of the sky's
+ * sun, or lights at least RS_SUNSEARCH_MIN_ABOVE_ONE pair facets whose albedo is above 1 without
+ * it, four times as many as it shadows (*missing_light), or (lead_sigmas > 0) leads the best
+ * direction inside the cone by lead_sigmas standard errors (cone_sigmas) and lights at least
+ * RS_SUNSEARCH_MIN_ABOVE_ONE of those facets, more than it shadows (*decisive). The DNI's
+ * significance is the estimate's to check. */
+int rs_sunsearch_accept(const rs_sunsearch *f, double off_deg, double agree_deg, double lead_sigmas, int *missing_light,
+                        int *decisive);
+
 /* The same scored by the median contrast alone, never by the sun's cluster: the search as it
  * was before leaks were guarded against, for tests that show the difference. */
 int rs_sunsearch_run_median_only(const rs_scene *scene, const rs_skyenv *env, const rs_sunshadow_pairs *pairs,
