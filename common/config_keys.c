@@ -245,6 +245,11 @@ const rs_cfg_key rs_cfg_keys[] = {
      "horizon where no camera saw sky or a bright pixel, and when nothing places it and no sky pixel is bright, its "
      "direction too, searched among those no camera saw for shadows that match the radiance; on: always (a clipped "
      "sun's disc leaves the panoramas); off: never"},
+    {"sky", "sun_search_lead_sigmas", RS_CFG_REAL, "4", 0, 1000, NULL, "", "irradiance",
+     "a searched sun (sun_from_shadows = auto, nothing places it) farther than 30 deg from where the visible sky's "
+     "glow puts it is taken on evidence when its shadows' edge score beats the best direction within those 30 deg by "
+     "at least this many standard errors (over blocks of facet pairs), it lights most of the paired facets whose "
+     "albedo would otherwise exceed 1 and its DNI is significant; 0: never (only a direction near the glow)"},
     {"sky", "fill_from_facets", RS_CFG_ENUM, "auto", 0, 0, "auto|on|off", "", "irradiance",
      "the filled (hidden) sky's brightness from the observed facets that see it: same-plane pairs that see "
      "different shares of the fill's uncertain light fit one correction per channel, in units of that uncertainty "

@@ -236,7 +236,7 @@ static double *irradiance_without_sun(const rs_facet_gather *fg, size_t nf, cons
 
 int rs_sunsource_search(rs_sunsource *sun, const rs_scene *scene, const rs_skyenv *env, const rs_facet_gather *fg,
                         const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height, rs_v3 sky_dir,
-                        rs_err *err)
+                        double lead_sigmas, rs_err *err)
 {
     const rs_mesh *mesh = rs_scene_mesh(scene);
     double *E = irradiance_without_sun(fg, mesh->nfaces, radiance, observed);
@@ -254,9 +254,9 @@ int rs_sunsource_search(rs_sunsource *sun, const rs_scene *scene, const rs_skyen
     if (rc < 0) return -1;
     sun->found_off_deg = acos(fmax(-1, fmin(1, rs_v3_dot(rs_v3_norm(sky_dir), sun->found.dir)))) * 180 / M_PI;
     const rs_sunsearch *f = &sun->found;
-    sun->missing_light = f->above_one_lit >= RS_SUNSEARCH_MIN_ABOVE_ONE && f->above_one_lit >= 4 * f->above_one_dark;
-    if (rc == 0 && f->score >= RS_SUNSEARCH_MIN_SCORE &&
-        (sun->found_off_deg <= RS_SUNSOURCE_AGREE_DEG || sun->missing_light)) {
+    int take = rs_sunsearch_accept(f, sun->found_off_deg, RS_SUNSOURCE_AGREE_DEG, lead_sigmas, &sun->missing_light,
+                                   &sun->decisive);
+    if (rc == 0 && take) {
         sun->active = sun->from_shadows = sun->searched = 1;
         sun->dir_world = sun->found.dir;
         sun->dir_from = "shadows";

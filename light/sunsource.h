@@ -35,6 +35,8 @@ typedef struct rs_sunsource_opts {
     int clip_level_given;       /* 1: clip_level is given; else 0.9 x the brightest sky pixel (near a given sun) */
     double clip_level;          /* luminance from which a capture pixel is the clipped disc */
     const char *given_dir_from; /* what placed the fill's sun when it is given: "config" or "solar position" */
+    double lead_sigmas;         /* a searched sun beyond the sky's cone is taken on evidence when it leads the best
+                                   inside by this many standard errors (RS_SUNSEARCH_LEAD_SIGMAS); 0: never */
 } rs_sunsource_opts;
 
 typedef struct rs_sunsource {
@@ -51,6 +53,8 @@ typedef struct rs_sunsource {
     rs_sunsearch found;   /* its result */
     double found_off_deg; /* its angle to the sky's own estimate (rs_sunsource_search) */
     int missing_light;    /* it lights enough facets whose albedo is above 1 without it (RS_SUNSEARCH_MIN_ABOVE_ONE) */
+    int decisive;         /* beyond the cone, taken on evidence: its shadows beat the cone's best by lead_sigmas
+                             standard errors and it lights most of the pair facets whose albedo is above 1 */
     double margin;        /* its margin (m) */
     double clip_level;    /* luminance from which a capture pixel is the clipped disc */
     double halo_factor;   /* pixels within cone_rad above this x the median sky go too */
@@ -101,13 +105,16 @@ int rs_sunsource_visibility(const rs_sunsource *sun, const rs_scene *scene, int 
  * above 1, four times as many as it shadows: missing_light), the
  * direction whose clear-sky distribution explains the visible sky best (the model fill's
  * search): two independent cues must agree, so that shadows cast by a dim sun the cameras did
- * see cannot put a second one behind the building. When taken, activates sun with from_shadows
- * and searched (its DNI must then come out above 5 standard errors, else it adds nothing).
- * Returns 0, -1 out of memory (err set). */
+ * see cannot put a second one behind the building. Or farther on evidence (decisive): with
+ * lead_sigmas > 0, when its edge score leads the best direction inside the cone by at least
+ * lead_sigmas standard errors (rs_sunsearch cone_sigmas) and it lights at least
+ * RS_SUNSEARCH_MIN_ABOVE_ONE pair facets whose albedo is above 1 without it, more than it
+ * shadows. When taken, activates sun with from_shadows and searched (its DNI must then come out
+ * above 5 standard errors, else it adds nothing). Returns 0, -1 out of memory (err set). */
 #define RS_SUNSOURCE_AGREE_DEG 30.0
 int rs_sunsource_search(rs_sunsource *sun, const rs_scene *scene, const rs_skyenv *env, const rs_facet_gather *fg,
                         const double *radiance, const uint8_t *observed, rs_v3 cam, int pano_height, rs_v3 sky_dir,
-                        rs_err *err);
+                        double lead_sigmas, rs_err *err);
 
 /* With from_shadows: estimates dni and rgb (rs_sunshadow_estimate; E = E_sky + G from fg and
  * the observed radiance, the margin from the capture at cam with panoramas pano_height high).

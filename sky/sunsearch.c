@@ -242,6 +242,61 @@ static int refine(const search_ctx *c, rs_v3 *dirs, int n, double tau, double *m
     return isfinite(best);
 }
 
+/* Total and standard error, over the SPREAD_BLOCKS blocks of consecutive pairs, of the
+ * difference a - b of two directions' per-block edge scores (paired: the same pairs). */
+static void block_difference(const double *a, const double *b, double *sum, double *se)
+{
+    double s = 0, s2 = 0;
+    for (int k = 0; k < SPREAD_BLOCKS; k++) {
+        double d = a[k] - b[k];
+        s += d;
+        s2 += d * d;
+    }
+    double var = (s2 - s * s / SPREAD_BLOCKS) / (SPREAD_BLOCKS - 1);
+    *sum = s;
+    *se = sqrt(fmax(0, var) * SPREAD_BLOCKS);
+}
+
+/* No direction inside the cone is tied with the best (ridge_in_cone): by how much does the best
+ * beat the cone? The coarse in-cone directions dirs[1..n) keep their edge scores in edge; the
+ * best of them is refined at 2 and 0.5 degrees within the cone (its best chance), and the best's
+ * edge-score lead over it, in block standard errors, goes to out->cone_sigmas (its direction to
+ * out->cone_dir). INFINITY when no direction inside has a score (too few lit-shadowed pairs, or
+ * no sun's cluster of contrasts: the shadows support none of them); NAN when the cone holds no
+ * hidden direction at all (nothing to compare with). Returns 0, -1 out of memory. */
+static int cone_margin(const search_ctx *c, const cone *k, double tau, rs_v3 *dirs, double *med, double *edge,
+                       size_t *np, double *median, int n, rs_sunsearch *out)
+{
+    int top = -1;
+    for (int i = 1; i < n; i++)
+        if (isfinite(edge[i]) && (top < 0 || edge[i] > edge[top])) top = i;
+    if (top < 0) { /* no direction inside casts a sun's shadows onto the observed model */
+        if (n > 1) out->cone_sigmas = INFINITY;
+        return 0;
+    }
+    rs_v3 centre = dirs[top];
+    for (int level = 0; level < 2; level++) {
+        int nl = local_grid(c->env, centre, level ? 2 * DEG : 4 * DEG, level ? 0.5 * DEG : 2 * DEG, dirs), m = 0;
+        for (int i = 0; i < nl; i++)
+            if (rs_v3_dot(dirs[i], *k->prior) >= k->cos_cone) dirs[m++] = dirs[i];
+        dirs[m++] = centre;
+        if (score_all(c, dirs, m, tau, med, edge, np, median, NULL) != 0) return -1;
+        out->candidates += m;
+        int b = best_apart(dirs, edge, m, NULL, 0, 0);
+        if (b >= 0) centre = dirs[b];
+    }
+    double blocks[2 * SPREAD_BLOCKS], sum, se;
+    dirs[0] = out->dir;
+    dirs[1] = centre;
+    if (score_all(c, dirs, 2, tau, med, edge, np, median, blocks) != 0) return -1;
+    out->candidates += 2;
+    out->cone_dir = centre;
+    if (!isfinite(edge[1])) return 0;
+    block_difference(blocks, blocks + SPREAD_BLOCKS, &sum, &se);
+    out->cone_sigmas = se > 0 ? sum / se : sum > 0 ? INFINITY : 0;
+    return 0;
+}
+
 /* The best direction lies beyond the cone around the visible sky's sun, but the shadows' score is
  * flat along a ridge of directions that put the long shadow lines in the same place (in a
  * street whose far ends the scan lacks, azimuth and elevation trade along the whole street).
@@ -249,7 +304,7 @@ static int refine(const search_ctx *c, rs_v3 *dirs, int n, double tau, double *m
  * with the best (the total over blocks of pairs of their difference below 2 standard errors)
  * could be the sun as well as it: the one nearest the prior is refined at 2 and 0.5 degrees
  * within the cone and replaces the best (out->ridge). Returns 1 when it did, 0 when none is
- * tied, -1 out of memory. */
+ * tied (cone_margin then measures the best's lead), -1 out of memory. */
 static int ridge_in_cone(const search_ctx *c, const cone *k, double tau, rs_v3 *dirs, double *med, double *edge,
                          size_t *np, double *median, rs_sunsearch *out)
 {
@@ -273,21 +328,16 @@ static int ridge_in_cone(const search_ctx *c, const cone *k, double tau, rs_v3 *
     double pick_cos = -2;
     for (int i = 1; i < n; i++) {
         if (!isfinite(edge[i])) continue;
-        double sum = 0, sum2 = 0;
-        for (int b = 0; b < SPREAD_BLOCKS; b++) {
-            double d = blocks[b] - blocks[(size_t)i * SPREAD_BLOCKS + b];
-            sum += d;
-            sum2 += d * d;
-        }
-        double var = (sum2 - sum * sum / SPREAD_BLOCKS) / (SPREAD_BLOCKS - 1);
+        double sum, se;
+        block_difference(blocks, blocks + (size_t)i * SPREAD_BLOCKS, &sum, &se);
         double cosp = rs_v3_dot(dirs[i], *k->prior);
-        if (sum < 2 * sqrt(fmax(0, var) * SPREAD_BLOCKS) && cosp > pick_cos) {
+        if (sum < 2 * se && cosp > pick_cos) {
             pick = i;
             pick_cos = cosp;
         }
     }
     free(blocks);
-    if (pick < 0) return 0;
+    if (pick < 0) return cone_margin(c, k, tau, dirs, med, edge, np, median, n, out);
     rs_v3 centre = dirs[pick];
     int best = pick;
     for (int level = 0; level < 2; level++) {
@@ -342,6 +392,7 @@ static int search_run(const rs_scene *scene, const rs_skyenv *env, const rs_suns
                       rs_err *err)
 {
     memset(out, 0, sizeof *out);
+    out->cone_sigmas = NAN;
     const rs_mesh *m = rs_scene_mesh(scene);
     size_t nf = m->nfaces;
     size_t stride = (pairs->n + RS_SUNSEARCH_MAX_PAIRS - 1) / RS_SUNSEARCH_MAX_PAIRS;
@@ -458,4 +509,13 @@ int rs_sunsearch_run_median_only(const rs_scene *scene, const rs_skyenv *env, co
 {
     cone k = {.prior = NULL};
     return search_run(scene, env, pairs, E, L, observed, 0, &k, out, err);
+}
+
+int rs_sunsearch_accept(const rs_sunsearch *f, double off_deg, double agree_deg, double lead_sigmas, int *missing_light,
+                        int *decisive)
+{
+    *missing_light = f->above_one_lit >= RS_SUNSEARCH_MIN_ABOVE_ONE && f->above_one_lit >= 4 * f->above_one_dark;
+    *decisive = lead_sigmas > 0 && f->cone_sigmas >= lead_sigmas && f->above_one_lit >= RS_SUNSEARCH_MIN_ABOVE_ONE &&
+        f->above_one_lit > f->above_one_dark;
+    return f->score >= RS_SUNSEARCH_MIN_SCORE && (off_deg <= agree_deg || *missing_light || *decisive);
 }

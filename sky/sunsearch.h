@@ -38,6 +38,13 @@
  * agreement allows is taken all the same (light/sunsource.c). */
 #define RS_SUNSEARCH_MIN_ABOVE_ONE 30
 
+/* Evidence instead of the cone: a direction beyond the prior's cone is taken when its edge score
+ * beats the best inside the cone by at least this many standard errors (cone_sigmas; the
+ * default of [sky] sun_search_lead_sigmas), it lights at least RS_SUNSEARCH_MIN_ABOVE_ONE pair
+ * facets whose albedo is above 1 without the sun and more than it shadows, and its DNI is
+ * significant (light/sunsource.c). */
+#define RS_SUNSEARCH_LEAD_SIGMAS 4.0
+
 typedef struct rs_sunsearch {
     rs_v3 dir;           /* unit, world, toward the sun */
     double score;        /* its log contrast: the median, or the sun cluster's (upper_cluster) */
@@ -52,6 +59,10 @@ typedef struct rs_sunsearch {
                              every direction was scored by the sun's cluster of contrasts instead
                              (rs_sunshadow_upper_cluster), and the edge score forgave predicted edges
                              the radiance does not show */
+    double cone_sigmas;   /* the best lies beyond the prior's cone and none inside it is tied: its edge-score lead
+                             over the best direction inside (refined there), in standard errors over the blocks
+                             of pairs; NAN when not measured (inside the cone, a ridge, or nothing scored there) */
+    rs_v3 cone_dir;       /* with cone_sigmas: that best direction inside the cone */
     double dir_sigma_deg; /* the direction's uncertainty: RMS angle of the best direction over a
                              bootstrap of blocks of pairs, on a 1 degree grid within 6 degrees */
 } rs_sunsearch;
@@ -65,6 +76,16 @@ typedef struct rs_sunsearch {
 int rs_sunsearch_run(const rs_scene *scene, const rs_skyenv *env, const rs_sunshadow_pairs *pairs, const double *E,
                      const double *L, const uint8_t *observed, const rs_v3 *prior, double prior_deg, rs_sunsearch *out,
                      rs_err *err);
+
+/* Whether the stage takes the direction found (light/sunsource.c), off_deg from the visible
+ * sky's sun: its contrast reaches RS_SUNSEARCH_MIN_SCORE and it lies within agree_deg of the sky's
+ * sun, or lights at least RS_SUNSEARCH_MIN_ABOVE_ONE pair facets whose albedo is above 1 without
+ * it, four times as many as it shadows (*missing_light), or (lead_sigmas > 0) leads the best
+ * direction inside the cone by lead_sigmas standard errors (cone_sigmas) and lights at least
+ * RS_SUNSEARCH_MIN_ABOVE_ONE of those facets, more than it shadows (*decisive). The DNI's
+ * significance is the estimate's to check. */
+int rs_sunsearch_accept(const rs_sunsearch *f, double off_deg, double agree_deg, double lead_sigmas, int *missing_light,
+                        int *decisive);
 
 /* The same scored by the median contrast alone, never by the sun's cluster: the search as it
  * was before leaks were guarded against, for tests that show the difference. */

@@ -456,7 +456,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     }
     gather_context(&o, &s);
     if (ground_from_scan(&o, &s, rep, err) != 0 || gather_pass_run(&o, &s, rep, "", err) != 0) goto out;
-    if (s.sun.search && rs_irradiance_search_sun(&s, rep, err) != 0) goto out;
+    if (s.sun.search && rs_irradiance_search_sun(&o, &s, rep, err) != 0) goto out;
     if (s.sun.searched && s.so.fill.method == RS_SKYFILL_MODEL && s.info.fill.fit_samples &&
         regather_around_searched_sun(&o, &s, rep, err) != 0)
         goto out;

@@ -22,6 +22,7 @@ int rs_irradiance_sun_options(const rs_config *cfg, rs_sunsource_opts *o, rs_err
     o->clip_level_given = rs_config_has(cfg, "sky", "sun_clip_level");
     if (o->clip_level_given) o->clip_level = rs_config_real(cfg, "sky", "sun_clip_level");
     o->given_dir_from = rs_config_has(cfg, "sky", "sun_azimuth_deg") ? "config" : "solar position";
+    o->lead_sigmas = rs_config_real(cfg, "sky", "sun_search_lead_sigmas");
     if (!o->dni_given && o->from_shadows != RS_SUN_SHADOWS_ON) return 0;
     double col[3];
     rs_config_reals(cfg, "sky", "sun_color", col);
@@ -83,7 +84,7 @@ double rs_irradiance_sky_glow(const rs_skyfill_report *fill, rs_skyfill_method m
 }
 
 /* [sky] sun_from_shadows = auto with nothing placing the sun and no bright sky pixel. */
-int rs_irradiance_search_sun(rs_irradiance_state *s, rs_report *rep, rs_err *err)
+int rs_irradiance_search_sun(const rs_irradiance_opts *o, rs_irradiance_state *s, rs_report *rep, rs_err *err)
 {
     rs_sunsource *sun = &s->sun;
     const rs_skyfill_report *fill = &s->info.fill;
@@ -97,7 +98,7 @@ int rs_irradiance_search_sun(rs_irradiance_state *s, rs_report *rep, rs_err *err
     }
     double t0 = rs_now();
     if (rs_sunsource_search(sun, s->scene, &s->env, s->fg, s->radiance, s->observed, s->cap.pose.position,
-                            s->cap.pano->height, fill->sun_dir, err) != 0)
+                            s->cap.pano->height, fill->sun_dir, o->sun.lead_sigmas, err) != 0)
         return -1;
     rs_report_time(rep, "sun_search", rs_now() - t0);
     if (sun->searched)
@@ -108,7 +109,10 @@ int rs_irradiance_search_sun(rs_irradiance_state *s, rs_report *rep, rs_err *err
                     asin(fmin(1, sun->dir_world.z)) * 180 / M_PI, sun->found.dir_sigma_deg,
                     sun->found.upper_cluster ? "sun cluster's" : "median", sun->found.score, sun->found.pairs,
                     sun->found.median_score, sun->found.candidates, sun->found_off_deg,
-                    sun->found.ridge ? ", on the ridge of directions as good as the best, nearest the sky's" : "");
+                    sun->found.ridge    ? ", on the ridge of directions as good as the best, nearest the sky's"
+                        : sun->decisive ? ", taken on evidence: its shadows beat the best direction near the sky's"
+                                          " and it lights most facets whose albedo is above 1 without it"
+                                        : "");
     else if (sun->found.score >= RS_SUNSEARCH_MIN_SCORE)
         rs_report_skip(rep, "sun from the shadows",
                        "the shadows' best direction (median log contrast %.3f) is "
@@ -212,6 +216,12 @@ static void report_search(const rs_sunsource *sun, rs_json *metrics)
     rs_json_set_int(o, "albedo_above_one_lit", (long long)f->above_one_lit);
     rs_json_set_int(o, "albedo_above_one_shadowed", (long long)f->above_one_dark);
     rs_json_set_bool(o, "missing_light", sun->missing_light);
+    if (isfinite(f->cone_sigmas)) { /* beyond the sky's cone, none inside it tied */
+        rs_json_set_num(o, "lead_over_sky_cone_sigmas", f->cone_sigmas);
+        rs_json_set_num(o, "sky_cone_best_azimuth_deg", atan2(f->cone_dir.y, f->cone_dir.x) * 180 / M_PI);
+        rs_json_set_num(o, "sky_cone_best_elevation_deg", asin(fmax(-1, fmin(1, f->cone_dir.z))) * 180 / M_PI);
+        rs_json_set_bool(o, "taken_on_evidence", sun->decisive);
+    }
     rs_json_set_int(o, "pairs", (long long)f->pairs);
     rs_json_set_int(o, "candidates", f->candidates);
     rs_json_set_num(o, "off_sky_estimate_deg", sun->found_off_deg);

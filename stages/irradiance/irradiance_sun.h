@@ -28,9 +28,9 @@ void rs_irradiance_sun_auto(const rs_irradiance_opts *o, rs_irradiance_state *s)
  * sky (c below RS_SUNSEARCH_MIN_GLOW) casts no shadow to read: no sun is searched then. */
 double rs_irradiance_sky_glow(const rs_skyfill_report *fill, rs_skyfill_method method);
 
-/* With s->sun.search, after the gather: the sun looked for in the shadows (rs_sunsource_search),
- * unless the visible sky is overcast. */
-int rs_irradiance_search_sun(rs_irradiance_state *s, rs_report *rep, rs_err *err);
+/* With s->sun.search, after the gather: the sun looked for in the shadows (rs_sunsource_search,
+ * with o->sun.lead_sigmas), unless the visible sky is overcast. */
+int rs_irradiance_search_sun(const rs_irradiance_opts *o, rs_irradiance_state *s, rs_report *rep, rs_err *err);
 
 /* With s->sun.active, after the gather: the explicit sun's term added to s->fg, its DNI first
  * estimated from the shadows when no one gave it. */
