@@ -101,7 +101,8 @@ typedef struct {
 
 typedef struct {
     double *rho, *G, *Lfill;
-    double *E, *scratch; /* E_sky + G as divided by (pooled), and room for 3 per facet */
+    const double *rho_own; /* each facet's own albedo before pooling (rho when not pooled) */
+    double *E, *scratch;   /* E_sky + G as divided by (pooled), and room for 3 per facet */
     uint8_t *estimable;
     double fill[3];                        /* the mean of all estimable facets */
     double fill_class[RS_FILL_CLASSES][3]; /* what unobserved facets of each orientation take */
@@ -265,7 +266,9 @@ static int solve(const refl_in *in, refl_out *out)
  * underestimated there (a wrong sky, exposure or pose), not that the wall is that bright. */
 static int above_one(const refl_out *out, size_t f)
 {
-    return out->rho[3 * f] > 1 || out->rho[3 * f + 1] > 1 || out->rho[3 * f + 2] > 1;
+    /* Judged on the facet's own albedo: pooling with its neighbours would hide the evidence. */
+    const double *r = out->rho_own ? out->rho_own : out->rho;
+    return r[3 * f] > 1 || r[3 * f + 1] > 1 || r[3 * f + 2] > 1;
 }
 
 /* Relative uncertainty of rho = pi L / E, for estimable facets: L's observation noise, E's fill
@@ -638,6 +641,7 @@ static int albedo_pool(const rs_mesh *mesh, const refl_opts *o, refl_facets *fb,
                              .s_bias = fb->ap_s_bias,
                              .neff = fb->ap_neff};
     if (rs_albpool_run(mesh, &ai, &n->ap) != 0) goto oom;
+    out->rho_own = out->rho;
     out->rho = fb->rho_pooled;
     out->pool_s_rad = fb->ap_s_rad, out->pool_s_mc = fb->ap_s_mc, out->pool_s_bias = fb->ap_s_bias;
     out->pool_neff = fb->ap_neff, out->pool_sigmas = o->albedo_pool;

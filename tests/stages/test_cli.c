@@ -327,10 +327,12 @@ static void test_effective_config(void **state)
     assert_int_equal(rs_faceprop_get(ply, "albedo.ply", "albedo_above_one", nf, flag, &err), 0);
     assert_int_equal(rs_faceprop_get(ply, "albedo.ply", "estimable", nf, est, &err), 0);
     assert_int_equal(rs_faceprop_get_rgb(ply, "albedo.ply", "albedo", nf, alb, &err), 0);
+    /* The flag judges each facet's own albedo: pooling within its plane may bring a flagged
+     * facet's written albedo below 1, but an albedo written above 1 is always flagged. */
     for (size_t i = 0; i < nf; i++) {
         int over = est[i] > 0 && (alb[3 * i] > 1 || alb[3 * i + 1] > 1 || alb[3 * i + 2] > 1);
-        assert_int_equal(flag[i] > 0, over);
-        flagged += over;
+        if (over) assert_true(flag[i] > 0);
+        flagged += flag[i] > 0;
     }
     assert_int_equal(flagged, (size_t)above);
     free(flag);
