@@ -268,7 +268,7 @@ static int build_planes(const rs_config *cfg, rs_irradiance_state *s, rs_json *f
     rs_json_set_num(pf, "hole_m2", st.hole_area);
     rs_json_set_num(pf, "extension_m2", st.extend_area);
     rs_json_set_num(pf, "slab_top_m2", st.slab_area);
-    rs_json_set_int(pf, "faces", (long long)st.faces);
+    rs_json_set_int(pf, "triangles", (long long)st.faces);
     rs_json_set_num(pf, "rays", st.rays);
     rs_json_set_num(pf, "time_s", rs_now() - t0);
     rs_log_info("irradiance: %zu planar regions (%zu walls, %zu ceilings) closed: holes %.3g m^2, extensions %.3g "
