@@ -184,11 +184,14 @@ const rs_cfg_key rs_cfg_keys[] = {
      "those facets take E_sky from the sky map's order-2 harmonics, without rays, where the harmonics' relative "
      "error (measured on the map at 256 normals, 1.5 x the worst near the facet's) is below this (0: never)"},
 
-    {"irradiance", "occluders", RS_CFG_ENUM, "off", 0, 0, "off|freespace|file", "", "irradiance",
+    {"irradiance", "occluders", RS_CFG_ENUM, "off", 0, 0, "off|freespace|planes|freespace+planes|file", "",
+     "irradiance",
      "close the open scanned shell for the light: freespace builds a map of the space the scanners' and the camera's "
      "rays crossed and blocks every gather, sun and search ray that enters space none crossed (within the model's "
-     "box grown by occluder_margin), writing the faces to occluders.ply; file takes them from occluders_file; off: "
-     "rays that leave the mesh see the sky"},
+     "box grown by occluder_margin); planes closes the large planar regions where their geometry makes it certain "
+     "(holes and edges in scan shadows filled in their plane, slabs seen only from below given their top); "
+     "freespace+planes both; the faces go to occluders.ply; file takes them from occluders_file; off: rays that "
+     "leave the mesh see the sky"},
     {"irradiance", "occluder_cell", RS_CFG_REAL, "0.25", 0.005, 100, NULL, "m", "irradiance",
      "edge of a free-space cell (grown until the grid has at most occluder_max_cells cells)"},
     {"irradiance", "occluder_margin", RS_CFG_REAL, "2", 0, 1000, NULL, "m", "irradiance",

@@ -11,6 +11,7 @@
 #include "common/log.h"
 #include "common/pano.h"
 #include "common/ply.h"
+#include "meshing/closing.h"
 #include "meshing/freespace.h"
 
 int rs_occluders_read(const char *path, size_t nf, rs_mesh **occ, uint32_t **proxy, rs_err *err)
@@ -48,7 +49,8 @@ int rs_occluders_read(const char *path, size_t nf, rs_mesh **occ, uint32_t **pro
     return 0;
 }
 
-static int write_occluders(const char *path, const rs_mesh *occ, const uint32_t *proxy, rs_err *err)
+static int write_occluders(const char *path, const rs_mesh *occ, const uint32_t *proxy, const uint8_t *source,
+                           rs_err *err)
 {
     rs_ply *ply = rs_ply_new();
     double *pr = malloc(occ->nfaces * sizeof *pr), *src = malloc(occ->nfaces * sizeof *src);
@@ -57,10 +59,11 @@ static int write_occluders(const char *path, const rs_mesh *occ, const uint32_t 
     if (!faces || !pr || !src) {
         rs_err_set(err, RS_ERR_SYSTEM, path, 0, "out of memory writing the occluders");
     } else {
-        for (size_t f = 0; f < occ->nfaces; f++) pr[f] = proxy[f], src[f] = 1;
+        for (size_t f = 0; f < occ->nfaces; f++) pr[f] = proxy[f], src[f] = source ? source[f] : 1;
         if (rs_ply_add_comment(ply,
                                "rhoscan occluders: faces between known and unknown space (source 1 = "
-                               "free-space map); proxy = the mesh.ply facet standing for the unseen surface") == 0 &&
+                               "free-space map; 2, 3, 4 = a planar region's filled hole, extension, slab top or "
+                               "edge); proxy = the mesh.ply facet standing for the unseen surface") == 0 &&
             rs_ply_add_scalar(faces, "proxy", RS_PLY_INT32, pr) &&
             rs_ply_add_scalar(faces, "source", RS_PLY_UINT8, src))
             rc = rs_ply_write(ply, path, 1, err);
@@ -190,10 +193,90 @@ static int build_freespace(const rs_config *cfg, rs_irradiance_state *s, rs_json
                 fs.n[0], fs.n[1], fs.n[2], fs.cell, (double)((fs.ncells + 3) / 4) / 1048576.0, cnt.free, cnt.occupied,
                 cnt.unknown, scan_rays, cam_rays, t1 - t0);
     rs_freespace_release(&fs);
-    if (rc != 0) return -1;
+    return rc;
+}
+
+/* The points the model was seen from: every scan's position, the unorganized points' viewpoint
+ * (cloud.ply, when there is one) and the camera's. *n of them into a new array; NULL with err on
+ * a bad cloud.ply or out of memory. */
+static rs_v3 *viewpoints(const rs_config *cfg, const rs_irradiance_state *s, size_t *n, rs_err *err)
+{
     char path[4096];
-    if (s->occ)
-        return write_occluders(rs_work_path(cfg, "occluders.ply", path, sizeof path), s->occ, s->occ_proxy, err);
+    const char *cp = rs_work_path(cfg, "cloud.ply", path, sizeof path);
+    rs_cloud *c = NULL;
+    if (rs_file_exists(cp) && !(c = rs_cloud_read_ply(cp, err))) return NULL;
+    size_t cap = (c ? (size_t)c->nscans + 1 : 0) + 1;
+    rs_v3 *v = malloc(cap * sizeof *v);
+    if (!v) {
+        rs_cloud_free(c);
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the viewpoints");
+        return NULL;
+    }
+    *n = 0;
+    for (int sc = 0; c && sc < c->nscans; sc++)
+        v[(*n)++] = rs_v3_make(c->scans[sc].position[0], c->scans[sc].position[1], c->scans[sc].position[2]);
+    if (c && c->has_viewpoint) v[(*n)++] = rs_v3_make(c->viewpoint[0], c->viewpoint[1], c->viewpoint[2]);
+    v[(*n)++] = s->cap.pose.position;
+    rs_cloud_free(c);
+    return v;
+}
+
+/* The planar closing (meshing/closing.h), appended to the occluders s holds (the free-space
+ * map's, with freespace+planes); *source gets 1 for the ones before, the closing's kinds after. */
+static int build_planes(const rs_config *cfg, rs_irradiance_state *s, rs_json *fig, uint8_t **source, rs_err *err)
+{
+    size_t nv = 0;
+    double t0 = rs_now();
+    rs_v3 *views = viewpoints(cfg, s, &nv, err);
+    if (!views) return -1;
+    rs_closing_opts o = RS_CLOSING_OPTS_DEFAULT;
+    rs_closing_stats st;
+    rs_mesh *pm = NULL;
+    uint32_t *pp = NULL;
+    uint8_t *ps = NULL;
+    int rc = rs_closing_build(s->mesh, s->scene, views, nv, &o, &pm, &pp, &ps, &st, err);
+    free(views);
+    if (rc != 0) return -1;
+    size_t n0 = s->occ ? s->occ->nfaces : 0, n1 = pm ? pm->nfaces : 0, v0 = s->occ ? s->occ->nverts : 0;
+    rs_mesh *all = rs_mesh_new(v0 + (pm ? pm->nverts : 0), n0 + n1);
+    uint32_t *pr = malloc((n0 + n1 + 1) * sizeof *pr);
+    uint8_t *src = malloc(n0 + n1 + 1);
+    if (!all || !pr || !src) {
+        rs_mesh_free(all), free(pr), free(src), rs_mesh_free(pm), free(pp), free(ps);
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the occluders");
+    }
+    if (n0) memcpy(all->verts, s->occ->verts, 3 * v0 * sizeof(float)), memcpy(all->tris, s->occ->tris, 3 * n0 * 4);
+    if (n0) memcpy(pr, s->occ_proxy, n0 * sizeof *pr);
+    memset(src, 1, n0);
+    if (n1) {
+        memcpy(all->verts + 3 * v0, pm->verts, 3 * pm->nverts * sizeof(float));
+        for (size_t k = 0; k < 3 * n1; k++) all->tris[3 * n0 + k] = pm->tris[k] + (uint32_t)v0;
+        memcpy(pr + n0, pp, n1 * sizeof *pr);
+        memcpy(src + n0, ps, n1);
+    }
+    rs_mesh_free(pm), free(pp), free(ps);
+    rs_mesh_free(s->occ);
+    free(s->occ_proxy);
+    s->occ = n0 + n1 ? all : (rs_mesh_free(all), NULL);
+    s->occ_proxy = pr;
+    *source = src;
+    rs_json *pf = rs_json_set_obj(fig, "planes");
+    rs_json_set_num(pf, "cell_m", o.cell);
+    rs_json_set_int(pf, "viewpoints", (long long)nv);
+    rs_json_set_int(pf, "regions", (long long)st.regions);
+    rs_json_set_int(pf, "walls", (long long)st.walls);
+    rs_json_set_int(pf, "ceilings", (long long)st.ceilings);
+    rs_json_set_int(pf, "slabs", (long long)st.slabs);
+    rs_json_set_num(pf, "hole_m2", st.hole_area);
+    rs_json_set_num(pf, "extension_m2", st.extend_area);
+    rs_json_set_num(pf, "slab_top_m2", st.slab_area);
+    rs_json_set_int(pf, "triangles", (long long)st.faces);
+    rs_json_set_num(pf, "rays", st.rays);
+    rs_json_set_num(pf, "time_s", rs_now() - t0);
+    rs_log_info("irradiance: %zu planar regions (%zu walls, %zu ceilings) closed: holes %.3g m^2, extensions %.3g "
+                "m^2, %zu slab tops %.3g m^2, %zu faces, in %.2f s",
+                st.regions, st.walls, st.ceilings, st.hole_area, st.extend_area, st.slabs, st.slab_area, st.faces,
+                rs_now() - t0);
     return 0;
 }
 
@@ -218,8 +301,18 @@ int rs_irradiance_close(const rs_config *cfg, rs_irradiance_state *s, rs_report 
                               "[irradiance] occluders = file without occluders_file: expected the occluder PLY");
         if (rs_occluders_read(fp, s->nf, &s->occ, &s->occ_proxy, err) != 0) return -1;
         if (rs_file_exists(occ_path)) unlink(occ_path);
-    } else if (build_freespace(cfg, s, fig, err) != 0) {
-        return -1;
+    } else {
+        uint8_t *source = NULL;
+        int planes = strstr(mode, "planes") != NULL;
+        if (strstr(mode, "freespace") && build_freespace(cfg, s, fig, err) != 0) return -1;
+        if (planes && build_planes(cfg, s, fig, &source, err) != 0) return -1;
+        int rc = 0;
+        if (s->occ)
+            rc = write_occluders(occ_path, s->occ, s->occ_proxy, source, err);
+        else if (rs_file_exists(occ_path))
+            unlink(occ_path);
+        free(source);
+        if (rc != 0) return -1;
     }
     double near = rs_config_real(cfg, "irradiance", "occluder_near") * s->occ_cell;
     if (s->occ && rs_scene_set_occluders(s->scene, s->occ, s->occ_proxy, near, err) != 0) return -1;

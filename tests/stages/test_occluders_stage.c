@@ -5,10 +5,12 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
+#include "common/faceprop.h"
 #include "common/fileio.h"
 #include "common/image.h"
 #include "common/mesh.h"
 #include "common/ply.h"
+#include "meshing/closing.h"
 #include "tests/fixtures.h"
 #include "tests/testutil.h"
 
@@ -55,17 +57,17 @@ static size_t count_lines(const char *path, const char *prefix)
     return n;
 }
 
-/* With and without occluders: the same facets in albedo.ply and the exports, the same facet-id
- * image; occluders.ply holds faces and proxies of mesh.ply's facets. */
-static void test_occluders_stay_out_of_outputs(void **state)
+/* With and without occluders (extra: the [irradiance] lines that turn them on): the same facets
+ * in albedo.ply and the exports, the same facet-id image; occluders.ply holds faces and proxies
+ * of mesh.ply's facets, each with its source (1 free space, 2 to 4 the planar closing); with
+ * planes, irradiance.json reports the floor's and the wall's regions. */
+static void check_occluders_stay_out(const char *extra, int planes)
 {
-    (void)state;
     char *out = NULL;
     char off_dir[2048], on_dir[2048];
-    snprintf(off_dir, sizeof off_dir, "%s", run_scene("occ_off", NULL, NULL, 0, &out));
+    snprintf(off_dir, sizeof off_dir, "%s", run_scene(planes ? "occp_off" : "occ_off", NULL, NULL, 0, &out));
     free(out);
-    snprintf(on_dir, sizeof on_dir, "%s",
-             run_scene("occ_on", "occluders = freespace\noccluder_margin = 3\n", NULL, 0, &out));
+    snprintf(on_dir, sizeof on_dir, "%s", run_scene(planes ? "occp_on" : "occ_on", extra, NULL, 0, &out));
     free(out);
     char a[4200], b[4200];
     snprintf(a, sizeof a, "%s/work/occluders.ply", on_dir);
@@ -78,12 +80,17 @@ static void test_occluders_stay_out_of_outputs(void **state)
     assert_non_null(occ);
     rs_ply_prop *proxy = rs_ply_find_prop(rs_ply_find_element(ply, "face"), "proxy");
     assert_non_null(proxy);
+    double *src = malloc(occ->nfaces * sizeof *src);
+    assert_int_equal(rs_faceprop_get(ply, a, "source", occ->nfaces, src, &err), 0);
+    for (size_t f = 0; f < occ->nfaces; f++) assert_true(src[f] >= 1 && src[f] <= (planes ? RS_CLOSE_SLAB : 1));
+    free(src);
     rs_mesh_free(occ);
     rs_ply_free(ply);
     snprintf(b, sizeof b, "%s/work/occluders.ply", off_dir);
     assert_int_not_equal(access(b, F_OK), 0);
     snprintf(a, sizeof a, "%s/work/irradiance.json", on_dir);
     assert_true(rs_test_json_number(a, "occluders/faces") == (double)nocc);
+    if (planes) assert_true(rs_test_json_number(a, "occluders/planes/regions") >= 2);
 
     const char *same_count[][2] = {{"albedo.ply", "face"}, {"albedo_vertex.ply", "face"}, {"mesh.ply", "face"}};
     for (size_t k = 0; k < sizeof same_count / sizeof same_count[0]; k++) {
@@ -112,6 +119,13 @@ static void test_occluders_stay_out_of_outputs(void **state)
     assert_int_not_equal(access(a, F_OK), 0);
     rs_test_rmtree(off_dir);
     rs_test_rmtree(on_dir);
+}
+
+static void test_occluders_stay_out_of_outputs(void **state)
+{
+    (void)state;
+    check_occluders_stay_out("occluders = freespace\noccluder_margin = 3\n", 0);
+    check_occluders_stay_out("occluders = freespace+planes\noccluder_margin = 3\n", 1);
 }
 
 static void expect_refused(const char *occ_text, const char *const *needles)
