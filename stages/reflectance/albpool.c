@@ -94,15 +94,20 @@ int rs_albpool_run(const rs_mesh *mesh, const rs_albpool_in *in, rs_albpool_out 
      * term is 0 for all, and the 64 kept are the nearest), at a weight change below 1e-3. */
     double *inv = malloc((nf ? nf : 1) * sizeof *inv);
     if (!inv) return -1;
-    for (size_t f = 0; f < nf; f++) inv[f] = 1e-3;
+    for (size_t f = 0; f < (nf ? nf : 1); f++) inv[f] = 1e-3;
     rs_pool p;
     int rc = rs_pool_build(mesh, inv, in->usable, in->usable, RS_ALBPOOL_PLANE, &p);
     free(inv);
     if (rc != 0) return -1;
-    size_t pooled = 0, usable = 0;
-    double neff = 0, kept_share = 0, shrink = 0;
+    /* Per facet: its kept share and shrink (NaN when it is not pooled), summed afterwards in
+     * facet order so that the summary does not depend on the threads. */
+    double *st2 = malloc((nf ? 2 * nf : 1) * sizeof *st2);
+    if (!st2) {
+        rs_pool_free(&p);
+        return -1;
+    }
     int failed = 0;
-#pragma omp parallel reduction(+ : pooled, usable, neff, kept_share, shrink) reduction(|| : failed)
+#pragma omp parallel reduction(|| : failed)
     {
         uint32_t *kept = malloc(RS_POOL_MAX_NEIGHBOURS * sizeof *kept);
         double *w = malloc(RS_POOL_MAX_NEIGHBOURS * sizeof *w);
@@ -111,18 +116,26 @@ int rs_albpool_run(const rs_mesh *mesh, const rs_albpool_in *in, rs_albpool_out 
         for (size_t i = 0; i < nf; i++) {
             memcpy(out->rho + 3 * i, in->rho + 3 * i, 3 * sizeof *out->rho);
             out->s_rad[i] = in->s_rad[i], out->s_mc[i] = in->s_mc[i], out->s_bias[i] = 0, out->neff[i] = 1;
+            st2[2 * i] = st2[2 * i + 1] = NAN;
             /* a facet whose noise is unknown (not finite) keeps its own albedo, and no neighbour takes it
              * (agrees() fails on NaN) */
             if (!kept || !w || !in->usable[i] || !isfinite(noise2(in, i))) continue;
             facet_stats st = pool_facet(&p, in, i, kept, w, out);
-            usable++;
-            pooled += out->neff[i] > 1.0001;
-            neff += out->neff[i], kept_share += st.kept_share, shrink += st.shrink;
+            st2[2 * i] = st.kept_share, st2[2 * i + 1] = st.shrink;
         }
         free(kept);
         free(w);
     }
     rs_pool_free(&p);
+    size_t pooled = 0, usable = 0;
+    double neff = 0, kept_share = 0, shrink = 0;
+    for (size_t i = 0; i < nf && !failed; i++) {
+        if (isnan(st2[2 * i])) continue;
+        usable++;
+        pooled += out->neff[i] > 1.0001;
+        neff += out->neff[i], kept_share += st2[2 * i], shrink += st2[2 * i + 1];
+    }
+    free(st2);
     if (failed) return -1;
     out->pooled = pooled;
     out->mean_neff = usable ? neff / usable : 1;
