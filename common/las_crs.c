@@ -8,6 +8,7 @@
 #include <ctype.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <math.h>
 #include <string.h>
 
 /* GeoTIFF / EPSG linear unit codes rhoscan converts. */
@@ -217,7 +218,8 @@ static void projected(const wkt *w, const wnode *p, rs_las_crs *crs)
         if ((is_kw(w, &c, "AUTHORITY") || is_kw(w, &c, "ID"))) {
             char auth[16];
             node_args(w, &c, auth, sizeof auth, &code);
-            if (strcmp(auth, "EPSG") == 0 && code > 0) crs->epsg = (int)code;
+            /* EPSG codes are whole numbers below 10^6; anything else is not one (and would overflow int). */
+            if (strcmp(auth, "EPSG") == 0 && code >= 1 && code < 1e6 && code == floor(code)) crs->epsg = (int)code;
         } else if (!have_unit && (is_kw(w, &c, "UNIT") || is_kw(w, &c, "LENGTHUNIT"))) {
             have_unit = unit_node(w, &c, crs->unit, sizeof crs->unit, &crs->unit_m);
         } else if (!have_unit && is_kw(w, &c, "AXIS")) { /* WKT 2: AXIS["easting (X)",east,LENGTHUNIT[...]] */

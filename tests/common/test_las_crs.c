@@ -35,6 +35,13 @@ static void test_wkt(void **state)
     assert_string_equal(c.unit, "foot");
     assert_true(c.unit_m == 0.3048 && c.vunit_m == 0.3048);
     assert_int_equal(rs_las_crs_wkt("nothing here", 12, &c), -1);
+    /* An authority code that is no EPSG code (too large for int, or fractional) is ignored, not cast. */
+    const char *huge = "PROJCS[\"x\",UNIT[\"metre\",1],AUTHORITY[\"EPSG\",\"9e99\"]]";
+    assert_int_equal(rs_las_crs_wkt(huge, strlen(huge), &c), 0);
+    assert_int_equal(c.epsg, 0);
+    const char *frac = "PROJCS[\"x\",UNIT[\"metre\",1],ID[\"EPSG\",2994.5]]";
+    assert_int_equal(rs_las_crs_wkt(frac, strlen(frac), &c), 0);
+    assert_int_equal(c.epsg, 0);
 }
 
 static void put_keys(uint8_t *d, const unsigned *v, int n)
