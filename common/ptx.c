@@ -2,6 +2,7 @@
  * to back, each registered by its 4x4 matrix. */
 #include "common/ptx.h"
 
+#include <float.h>
 #include <limits.h>
 #include <math.h>
 #include <stdlib.h>
@@ -235,6 +236,17 @@ static int read_scan(ptx_text *t, rs_cloud *c, int scan, rs_err *err)
         c->xyz[3 * i + 0] = v[0] * T[0] + v[1] * T[4] + v[2] * T[8] + T[12];
         c->xyz[3 * i + 1] = v[0] * T[1] + v[1] * T[5] + v[2] * T[9] + T[13];
         c->xyz[3 * i + 2] = v[0] * T[2] + v[1] * T[6] + v[2] * T[10] + T[14];
+        for (int j = 0; j < 3; j++)
+            if (!(fabs(c->xyz[3 * i + j]) <= RS_CLOUD_MAX_M)) {
+                snprintf(label, sizeof label, "scan %d point %zu", scan, k + 1);
+                return rs_err_set(err, RS_ERR_INPUT, t->name, t->line,
+                                  "%s: coordinate %g after the scan's transform; expected -%g to %g (m)", label,
+                                  c->xyz[3 * i + j], RS_CLOUD_MAX_M, RS_CLOUD_MAX_M);
+            }
+        if (!(fabs(v[3]) <= FLT_MAX)) /* stored as float */
+            return rs_err_set(err, RS_ERR_INPUT, t->name, t->line,
+                              "scan %d point %zu: intensity %g; expected a number within the float range", scan, k + 1,
+                              v[3]);
         c->intensity[i] = (float)v[3];
         c->valid[i] = !no_return;
     }

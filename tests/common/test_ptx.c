@@ -191,6 +191,14 @@ static void test_errors(void **state)
     expect_error(HEADER_1x2 "1 2 nan 0.5\n1 2 3 0.5\n", 11, "not finite");
     expect_error(HEADER_1x2 "1 2 1e999 0.5\n1 2 3 0.5\n", 11, "not finite");
     expect_error(HEADER_1x2 "1 2 3 0.5 1 2 300\n1 2 3 0.5\n", 11, "expected 0 to 255");
+    /* Beyond the cloud's range, in the file or only after the scan's transform (a scale or a
+     * translation); an intensity beyond float. */
+    expect_error(HEADER_1x2 "1 2 3e9 0.5\n1 2 3 0.5\n", 11, "after the scan's transform");
+    expect_error("1\n1\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1e6 0 0 0\n0 1e6 0 0\n0 0 1e6 0\n0 0 0 1\n5555 0 0 0.5\n", 11,
+                 "coordinate 5.555e+09 after the scan's transform");
+    expect_error("1\n1\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 2e9 1\n1 1 1 0.5\n", 11,
+                 "after the scan's transform");
+    expect_error(HEADER_1x2 "1 2 3 1e300\n1 2 3 0.5\n", 11, "intensity 1e+300");
     expect_error("2\n", 2, "the file ends");
     expect_error("abc\n", 1, "not a number");
     expect_error("0\n5\n", 1, "expected an integer from 1");

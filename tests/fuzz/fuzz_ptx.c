@@ -1,6 +1,8 @@
 /* fuzz_ptx: libFuzzer harness for the Leica PTX reader (rs_ptx_read_mem).
  * Built with -DRHOSCAN_FUZZ=ON and clang; run by tools/fuzz.sh. */
+#include <math.h>
 #include <stddef.h>
+#include <stdlib.h>
 #include <stdint.h>
 
 #include "common/ptx.h"
@@ -13,6 +15,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     volatile double sum = 0.0;
     if (c) {
         for (size_t i = 0; i < c->npoints; i++) {
+            for (int j = 0; j < 3; j++) /* the reader's promise: finite and within range, transformed */
+                if (!(fabs(c->xyz[3 * i + j]) <= RS_CLOUD_MAX_M)) abort();
+            if (c->intensity && !isfinite(c->intensity[i])) abort();
             sum += c->xyz[3 * i] + c->xyz[3 * i + 2] + c->valid[i];
             if (c->intensity) sum += c->intensity[i];
             if (c->rgb) sum += c->rgb[3 * i + 2];
