@@ -257,6 +257,27 @@ static void block_difference(const double *a, const double *b, double *sum, doub
     *se = sqrt(fmax(0, var) * SPREAD_BLOCKS);
 }
 
+/* Refines *centre at 2 and then 0.5 degrees, among the directions inside the cone (and the
+ * centre itself); *centre becomes each level's best. Returns the best's index in dirs (its scores
+ * in med, edge, np, median), -2 when a level has no best, -1 out of memory. */
+static int refine_in_cone(const search_ctx *c, const cone *k, double tau, rs_v3 *centre, rs_v3 *dirs, double *med,
+                          double *edge, size_t *np, double *median, rs_sunsearch *out)
+{
+    int best = -2;
+    for (int level = 0; level < 2; level++) {
+        int nl = local_grid(c->env, *centre, level ? 2 * DEG : 4 * DEG, level ? 0.5 * DEG : 2 * DEG, dirs), m = 0;
+        for (int i = 0; i < nl; i++)
+            if (rs_v3_dot(dirs[i], *k->prior) >= k->cos_cone) dirs[m++] = dirs[i];
+        dirs[m++] = *centre;
+        if (score_all(c, dirs, m, tau, med, edge, np, median, NULL) != 0) return -1;
+        out->candidates += m;
+        best = best_apart(dirs, edge, m, NULL, 0, 0);
+        if (best < 0) return -2;
+        *centre = dirs[best];
+    }
+    return best;
+}
+
 /* No direction inside the cone is tied with the best (ridge_in_cone): by how much does the best
  * beat the cone? The coarse in-cone directions dirs[1..n) keep their edge scores in edge; the
  * best of them is refined at 2 and 0.5 degrees within the cone (its best chance), and the best's
@@ -275,16 +296,7 @@ static int cone_margin(const search_ctx *c, const cone *k, double tau, rs_v3 *di
         return 0;
     }
     rs_v3 centre = dirs[top];
-    for (int level = 0; level < 2; level++) {
-        int nl = local_grid(c->env, centre, level ? 2 * DEG : 4 * DEG, level ? 0.5 * DEG : 2 * DEG, dirs), m = 0;
-        for (int i = 0; i < nl; i++)
-            if (rs_v3_dot(dirs[i], *k->prior) >= k->cos_cone) dirs[m++] = dirs[i];
-        dirs[m++] = centre;
-        if (score_all(c, dirs, m, tau, med, edge, np, median, NULL) != 0) return -1;
-        out->candidates += m;
-        int b = best_apart(dirs, edge, m, NULL, 0, 0);
-        if (b >= 0) centre = dirs[b];
-    }
+    if (refine_in_cone(c, k, tau, &centre, dirs, med, edge, np, median, out) == -1) return -1;
     double blocks[2 * SPREAD_BLOCKS], sum, se;
     dirs[0] = out->dir;
     dirs[1] = centre;
@@ -339,18 +351,9 @@ static int ridge_in_cone(const search_ctx *c, const cone *k, double tau, rs_v3 *
     free(blocks);
     if (pick < 0) return cone_margin(c, k, tau, dirs, med, edge, np, median, n, out);
     rs_v3 centre = dirs[pick];
-    int best = pick;
-    for (int level = 0; level < 2; level++) {
-        int nl = local_grid(c->env, centre, level ? 2 * DEG : 4 * DEG, level ? 0.5 * DEG : 2 * DEG, dirs), m = 0;
-        for (int i = 0; i < nl; i++)
-            if (rs_v3_dot(dirs[i], *k->prior) >= k->cos_cone) dirs[m++] = dirs[i];
-        dirs[m++] = centre;
-        if (score_all(c, dirs, m, tau, med, edge, np, median, NULL) != 0) return -1;
-        out->candidates += m;
-        best = best_apart(dirs, edge, m, NULL, 0, 0);
-        if (best < 0) return 0;
-        centre = dirs[best];
-    }
+    int best = refine_in_cone(c, k, tau, &centre, dirs, med, edge, np, median, out);
+    if (best == -1) return -1;
+    if (best < 0) return 0;
     out->dir = dirs[best];
     out->score = med[best];
     out->median_score = median[best];
