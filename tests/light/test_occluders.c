@@ -307,7 +307,7 @@ static rs_mesh *overhang(int closed)
     if (closed) {
         rs_meshgen_box(&g, rs_v3_make(0, -2, 3), rs_v3_make(1.5, 2, 3.3), 4, 0);
     } else {
-        rs_meshgen_rect(&g, rs_v3_make(0, -2, 3), rs_v3_make(0, 4, 0), rs_v3_make(1.5, 0, 0), 8, 3); /* down */
+        rs_meshgen_rect(&g, rs_v3_make(0, -2, 3), rs_v3_make(0, 4, 0), rs_v3_make(1.5, 0, 0), 8, 3);   /* down */
         rs_meshgen_rect(&g, rs_v3_make(1.5, -2, 3), rs_v3_make(0, 4, 0), rs_v3_make(0, 0, 0.3), 8, 1); /* +x */
     }
     return rs_meshgen_done(&g);
