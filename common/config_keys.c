@@ -184,7 +184,7 @@ const rs_cfg_key rs_cfg_keys[] = {
      "those facets take E_sky from the sky map's order-2 harmonics, without rays, where the harmonics' relative "
      "error (measured on the map at 256 normals, 1.5 x the worst near the facet's) is below this (0: never)"},
 
-    {"irradiance", "occluders", RS_CFG_ENUM, "off", 0, 0, "off|freespace|planes|freespace+planes|file", "",
+    {"irradiance", "occluders", RS_CFG_ENUM, "freespace+planes", 0, 0, "off|freespace|planes|freespace+planes|file", "",
      "irradiance",
      "close the open scanned shell for the light: freespace builds a map of the space the scanners' and the camera's "
      "rays crossed and blocks every gather, sun and search ray that enters space none crossed (within the model's "

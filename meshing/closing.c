@@ -429,9 +429,80 @@ static int in_slab(const raster *r, int i, int j)
     return s == C_REGION || s == C_HOLE || s == C_EXT;
 }
 
+/* A facet may stand for an unseen face when its normal lies within 60 degrees of the face's, as
+ * for the free-space map's proxies (meshing/freespace.h, RS_FS_PROXY_COS). */
+#define RS_CLOSE_PROXY_COS 0.5
+
+/* The facets of m facing d (normal within RS_CLOSE_PROXY_COS of it) and their centroids. */
+typedef struct {
+    rs_v3 d;
+    size_t n;
+    uint32_t *face;
+    rs_v3 *c;
+} facing_set;
+
+static int facing_set_build(const rs_mesh *m, rs_v3 d, facing_set *s)
+{
+    s->d = d;
+    s->n = 0;
+    s->face = malloc((m->nfaces ? m->nfaces : 1) * sizeof *s->face);
+    s->c = malloc((m->nfaces ? m->nfaces : 1) * sizeof *s->c);
+    if (!s->face || !s->c) return -1;
+    for (size_t f = 0; f < m->nfaces; f++) {
+        rs_v3 c, n;
+        double a;
+        rs_mesh_face(m, f, &c, &n, &a);
+        if (rs_v3_dot(n, d) > RS_CLOSE_PROXY_COS) s->face[s->n] = (uint32_t)f, s->c[s->n++] = c;
+    }
+    return 0;
+}
+
+static uint32_t facing_nearest(const facing_set *s, rs_v3 p)
+{
+    uint32_t best = UINT32_MAX;
+    double bd = INFINITY;
+    for (size_t k = 0; k < s->n; k++) {
+        rs_v3 e = rs_v3_sub(s->c[k], p);
+        double d = rs_v3_dot(e, e);
+        if (d < bd) bd = d, best = s->face[k];
+    }
+    return best;
+}
+
+/* The proxies of quads first .. out->nq (a slab's top and edges): the mesh's facet nearest to each
+ * among those facing its way. The region's own facets face down: as the top's proxy the
+ * underside's radiance stood for the top's (the tower sample's cornice, docs/PIPELINE.md). A face
+ * no facet faces the way of keeps the region's. */
+static int slab_proxies(const ctx *x, quads *out, size_t first)
+{
+    enum { MAX_DIRS = 8 };
+    facing_set set[MAX_DIRS];
+    int nset = 0, rc = 0;
+    for (size_t k = first; k < out->nq && rc == 0; k++) {
+        const float *v = out->verts + 12 * k;
+        rs_v3 c[4];
+        for (int q = 0; q < 4; q++) c[q] = rs_v3_make(v[3 * q], v[3 * q + 1], v[3 * q + 2]);
+        rs_v3 nrm = rs_v3_cross(rs_v3_sub(c[1], c[0]), rs_v3_sub(c[2], c[0]));
+        if (!(rs_v3_len(nrm) > 0)) continue;
+        nrm = rs_v3_norm(nrm);
+        rs_v3 mid = rs_v3_scale(rs_v3_add(rs_v3_add(c[0], c[1]), rs_v3_add(c[2], c[3])), 0.25);
+        int q = 0;
+        while (q < nset && rs_v3_dot(set[q].d, nrm) < 0.999) q++;
+        if (q == nset) {
+            if (nset == MAX_DIRS) continue;
+            if (facing_set_build(x->m, nrm, &set[nset++]) != 0) rc = -1;
+        }
+        uint32_t pr = rc == 0 ? facing_nearest(&set[q], mid) : UINT32_MAX;
+        if (pr != UINT32_MAX) out->proxy[k] = pr;
+    }
+    for (int q = 0; q < nset; q++) free(set[q].face), free(set[q].c);
+    return rc;
+}
+
 /* The slab's top face over its region, holes and extension, and the vertical faces around it. */
 static int emit_slab(const ctx *x, raster *r, quads *out)
 {
+    size_t first = out->nq;
     double th = x->o->slab_thickness;
     double area = emit_rects(r, 1u << C_REGION | 1u << C_HOLE | 1u << C_EXT, -th, 1, RS_CLOSE_SLAB, out);
     if (area < 0) return -1;
@@ -457,7 +528,7 @@ static int emit_slab(const ctx *x, raster *r, quads *out)
             }
         }
     x->st->slabs++;
-    return 0;
+    return slab_proxies(x, out, first);
 }
 
 /* One region: fit, rasterise, fill, extend, slab. */

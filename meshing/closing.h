@@ -24,8 +24,10 @@
  *     slab_thickness (0.2 m, a concrete slab or a roof's build-up) above its underside, facing up,
  *     over the region, its filled holes and its extension, and its edges: vertical faces around
  *     that outline, facing outward (RS_CLOSE_SLAB).
- * Every face carries a proxy: the region's facet nearest to it over the raster (its radiance
- * stands for the unseen surface's). Faces are wound counter-clockwise seen from the side they
+ * Every face carries a proxy whose radiance stands for the unseen surface's: for holes and
+ * extensions the region's facet nearest to it over the raster (they lie in its plane and face its
+ * way), for a slab's top and edges the mesh's facet nearest to the face among those facing its way
+ * (normal within 60 degrees; the region's own when none does): the underside faces the other way. Faces are wound counter-clockwise seen from the side they
  * face (the side the scanner saw: an occluder's known side). */
 #ifndef RS_CLOSING_H
 #define RS_CLOSING_H

@@ -106,9 +106,12 @@ int rs_freespace_init(rs_freespace *fs, const rs_mesh *m, const rs_freespace_opt
     return 0;
 }
 
-void rs_freespace_label(const rs_freespace *fs, const rs_mesh *m, uint32_t *label)
+size_t rs_freespace_label(const rs_freespace *fs, const rs_mesh *m, const uint8_t *use, uint32_t *label)
 {
-    for (size_t f = 0; f < m->nfaces; f++) sample_facet((rs_freespace *)fs, m, f, label);
+    size_t n = 0;
+    for (size_t f = 0; f < m->nfaces; f++)
+        if (!use || use[f]) sample_facet((rs_freespace *)fs, m, f, label), n++;
+    return n;
 }
 
 void rs_freespace_release(rs_freespace *fs)

@@ -7,8 +7,10 @@
  * carving runs on every OpenMP thread and the result does not depend on their order. A cell
  * neither free nor occupied is unknown. The occluders are the faces between a known cell (free
  * or occupied) and an unknown one, merged into rectangles per grid plane, each facing the known
- * side, each with a proxy: the scanned facet nearest to the unknown cell behind its centre, whose
- * radiance stands for the unseen surface's. */
+ * side, each with a proxy whose radiance stands for the unseen surface's: the scanned facet nearest
+ * to the unknown cell behind its centre among those facing the face's way (RS_FS_PROXY_COS). The
+ * nearest facet whatever its facing was the tower sample's error: the unseen top of a cornice
+ * scanned from below took its dark underside's radiance. */
 #ifndef RS_FREESPACE_H
 #define RS_FREESPACE_H
 
@@ -57,9 +59,15 @@ typedef struct rs_freespace_counts {
 } rs_freespace_counts;
 void rs_freespace_count(const rs_freespace *fs, rs_freespace_counts *c);
 
-/* label[cell] = the facet of m sampled into it (the later one in file order where several are);
- * other cells keep what they held. */
-void rs_freespace_label(const rs_freespace *fs, const rs_mesh *m, uint32_t *label);
+/* label[cell] = the facet of m sampled into it (the later one in file order where several are),
+ * of the facets use[] marks (every facet when use is NULL); other cells keep what they held.
+ * Returns the facets sampled. */
+size_t rs_freespace_label(const rs_freespace *fs, const rs_mesh *m, const uint8_t *use, uint32_t *label);
+
+/* A facet may stand for an unseen surface facing an occluder face's way when its normal lies
+ * within 60 degrees of the face's (cos 0.5; every normal is within 54.7 degrees of one of the six
+ * axis directions, so every facet can stand for some face). */
+#define RS_FS_PROXY_COS 0.5
 
 /* Which unknown cells block (rs_freespace_occluders). */
 typedef enum rs_fs_keep {
@@ -79,8 +87,9 @@ typedef enum rs_fs_keep {
  * blocks only near what was scanned, the body behind a wall, the top of a slab, the back of a
  * pillar, not the open ground in a building's scan shadow. Then a mesh of the merged
  * known/unknown faces (two triangles per rectangle, wound to face the known side) and per
- * triangle the proxy facet of m (the nearest by a breadth-first search over the grid from the
- * facets' cells). *occ and *proxy are the caller's to free; *occ is NULL when there is no face.
+ * triangle the proxy facet of m: the nearest (by a breadth-first search over the grid from the
+ * facets' cells) of the facets facing the face's way (normal within RS_FS_PROXY_COS of it), or of
+ * every facet when none faces that way. *occ and *proxy are the caller's to free; *occ is NULL when there is no face.
  * -1 out of memory. */
 int rs_freespace_occluders(rs_freespace *fs, const rs_mesh *m, double depth, rs_fs_keep keep, rs_mesh **occ,
                            uint32_t **proxy, rs_err *err);

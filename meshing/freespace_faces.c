@@ -1,30 +1,35 @@
 /* freespace_faces: the occluder faces of a free-space grid (freespace.h): known/unknown faces
  * merged greedily into rectangles per grid plane, and each rectangle's proxy facet, the nearest
- * scanned one by a breadth-first search from the occupied cells. */
+ * scanned one facing the same way by a breadth-first search from those facets' cells. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include "meshing/freespace.h"
 
-/* Every cell's nearest facet (UINT32_MAX where none is reachable): the facets' own cells,
- * spread through the grid in breadth-first order (6-neighbours); dist[]: the steps taken (a
- * city-block distance in cells, 254 at most, 255 unreached). */
-static uint32_t *proxy_labels(const rs_freespace *fs, const rs_mesh *m, uint8_t *dist)
+/* label[] := every cell's nearest facet among those facing[f] & bit marks (every facet when
+ * facing is NULL), UINT32_MAX where none is reachable: those facets' own cells, spread through the
+ * grid in breadth-first order (6-neighbours) with queue[] (ncells entries) as scratch; dist[] (when
+ * not NULL): the steps taken (a city-block distance in cells, 254 at most, 255 unreached).
+ * Returns the facets that seeded it. */
+static size_t spread_labels(const rs_freespace *fs, const rs_mesh *m, const uint8_t *facing, uint8_t bit,
+                            uint32_t *label, uint32_t *queue, uint8_t *dist)
 {
     size_t n = fs->ncells;
-    uint32_t *label = malloc(n * sizeof *label);
-    uint32_t *queue = malloc(n * sizeof *queue);
-    if (!label || !queue) {
-        free(label);
-        free(queue);
-        return NULL;
-    }
     memset(label, 0xff, n * sizeof *label);
-    rs_freespace_label(fs, m, label);
+    uint8_t *use = NULL;
+    if (facing) {
+        if (!(use = malloc(m->nfaces ? m->nfaces : 1))) return SIZE_MAX;
+        for (size_t f = 0; f < m->nfaces; f++) use[f] = (facing[f] & bit) != 0;
+    }
+    size_t seeds = rs_freespace_label(fs, m, use, label);
+    free(use);
     size_t head = 0, tail = 0;
-    memset(dist, 255, n);
+    if (dist) memset(dist, 255, n);
     for (size_t idx = 0; idx < n; idx++)
-        if (label[idx] != UINT32_MAX) queue[tail++] = (uint32_t)idx, dist[idx] = 0;
+        if (label[idx] != UINT32_MAX) {
+            queue[tail++] = (uint32_t)idx;
+            if (dist) dist[idx] = 0;
+        }
     size_t sx = 1, sy = (size_t)fs->n[0], sz = (size_t)fs->n[0] * fs->n[1];
     while (head < tail) {
         size_t idx = queue[head++];
@@ -40,12 +45,31 @@ static uint32_t *proxy_labels(const rs_freespace *fs, const rs_mesh *m, uint8_t 
         for (int q = 0; q < cnt; q++)
             if (label[nb[q]] == UINT32_MAX) {
                 label[nb[q]] = label[idx];
-                dist[nb[q]] = dist[idx] < 254 ? (uint8_t)(dist[idx] + 1) : 254;
+                if (dist) dist[nb[q]] = dist[idx] < 254 ? (uint8_t)(dist[idx] + 1) : 254;
                 queue[tail++] = (uint32_t)nb[q];
             }
     }
-    free(queue);
-    return label;
+    return seeds;
+}
+
+/* facing[f]: bit 2 ax + (sign < 0) set when facet f's normal lies within RS_FS_PROXY_COS of the
+ * axis direction sign e_ax, i.e. when f may stand for an unseen surface facing that way. NULL when
+ * out of memory. */
+static uint8_t *facing_bits(const rs_mesh *m)
+{
+    uint8_t *facing = calloc(m->nfaces ? m->nfaces : 1, 1);
+    if (!facing) return NULL;
+    for (size_t f = 0; f < m->nfaces; f++) {
+        rs_v3 c, n;
+        double area;
+        rs_mesh_face(m, f, &c, &n, &area);
+        double nv[3] = {n.x, n.y, n.z};
+        for (int a = 0; a < 3; a++) {
+            if (nv[a] > RS_FS_PROXY_COS) facing[f] |= (uint8_t)(1 << (2 * a));
+            if (nv[a] < -RS_FS_PROXY_COS) facing[f] |= (uint8_t)(1 << (2 * a + 1));
+        }
+    }
+    return facing;
 }
 
 /* Marks behind[] the cells behind facet f: those whose centre lies in the prism behind its
@@ -175,10 +199,12 @@ static int known(const rs_freespace *fs, int c[3])
     return rs_freespace_cell(fs, c[0], c[1], c[2]) != RS_FS_UNKNOWN;
 }
 
-/* The faces of one plane ax = p (between cells p - 1 and p): mask[u + nu v] = +1 where the cell
- * above is known and the one below unknown (the face looks up, +ax), -1 the other way round;
- * then greedy rectangles of one sign. */
-static int plane_faces(const rs_freespace *fs, const uint32_t *label, int ax, int p, int8_t *mask, face_list *fl)
+/* The faces of one plane ax = p (between cells p - 1 and p) that look toward sign e_ax:
+ * mask[u + nu v] = +1 where the cell above is known and the one below unknown (the face looks up,
+ * +ax), -1 the other way round, 0 also where it is not sign; then greedy rectangles, each with the
+ * label (the proxy) of the unknown cell at its centre. */
+static int plane_faces(const rs_freespace *fs, const uint32_t *label, int ax, int p, int sign, int8_t *mask,
+                       face_list *fl)
 {
     int au = (ax + 1) % 3, av = (ax + 2) % 3, nu = fs->n[au], nv = fs->n[av];
     int any = 0;
@@ -189,8 +215,9 @@ static int plane_faces(const rs_freespace *fs, const uint32_t *label, int ax, in
             lo[au] = hi[au] = u;
             lo[av] = hi[av] = v;
             int kl = known(fs, lo), kh = known(fs, hi);
-            mask[u + (size_t)nu * v] = (int8_t)(kl == kh ? 0 : kh ? 1 : -1);
-            any |= kl != kh;
+            int8_t sg = (int8_t)(kl == kh ? 0 : kh ? 1 : -1);
+            mask[u + (size_t)nu * v] = sg == sign ? sg : 0;
+            any |= sg == sign;
         }
     if (!any) return 0;
     for (int v = 0; v < nv; v++)
@@ -220,14 +247,15 @@ int rs_freespace_occluders(rs_freespace *fs, const rs_mesh *m, double depth, rs_
 {
     *occ = NULL;
     *proxy = NULL;
-    uint8_t *dist = malloc(fs->ncells);
-    uint32_t *label = dist ? proxy_labels(fs, m, dist) : NULL;
+    uint8_t *dist = malloc(fs->ncells), *facing = facing_bits(m);
+    uint32_t *label = malloc(fs->ncells * sizeof *label), *queue = malloc(fs->ncells * sizeof *queue);
     int maxn = fs->n[0] * fs->n[1] > fs->n[1] * fs->n[2] ? fs->n[0] * fs->n[1] : fs->n[1] * fs->n[2];
     if (fs->n[0] * fs->n[2] > maxn) maxn = fs->n[0] * fs->n[2];
     int8_t *mask = malloc((size_t)maxn);
     face_list fl = {0};
     int rc = -1;
-    if (!label || !mask) goto oom;
+    if (!label || !queue || !dist || !facing || !mask) goto oom;
+    if (spread_labels(fs, m, NULL, 0, label, queue, dist) == SIZE_MAX) goto oom;
     if (keep == RS_FS_KEEP_BEHIND && open_unbacked(fs, m, depth, dist) != 0) goto oom;
     /* Unknown space farther than depth from every facet (or not backed by one) is taken as open. */
     double dmax = depth / fs->cell;
@@ -237,9 +265,17 @@ int rs_freespace_occluders(rs_freespace *fs, const rs_mesh *m, double depth, rs_
             fs->bits[idx >> 2] |= (uint8_t)(1 << (2 * (idx & 3)));
             fs->opened++;
         }
+    /* Per face direction, the proxies: the nearest facets facing that way (the nearest of all
+     * when none does). */
     for (int ax = 0; ax < 3; ax++)
-        for (int p = 1; p < fs->n[ax]; p++)
-            if (plane_faces(fs, label, ax, p, mask, &fl) != 0) goto oom;
+        for (int sign = 1; sign >= -1; sign -= 2) {
+            uint8_t bit = (uint8_t)(1 << (2 * ax + (sign < 0)));
+            size_t seeds = spread_labels(fs, m, facing, bit, label, queue, NULL);
+            if (seeds == 0) seeds = spread_labels(fs, m, NULL, 0, label, queue, NULL);
+            if (seeds == SIZE_MAX) goto oom;
+            for (int p = 1; p < fs->n[ax]; p++)
+                if (plane_faces(fs, label, ax, p, sign, mask, &fl) != 0) goto oom;
+        }
     if (fl.nrect) {
         rs_mesh *o = rs_mesh_new(4 * fl.nrect, 2 * fl.nrect);
         if (!o) goto oom;
@@ -258,7 +294,9 @@ oom:
     rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the occluders of %zu cells", fs->ncells);
 out:
     free(label);
+    free(queue);
     free(dist);
+    free(facing);
     free(mask);
     free(fl.verts);
     free(fl.proxy);

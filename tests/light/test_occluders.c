@@ -1,6 +1,7 @@
 /* The free-space map and its occluders (meshing/freespace.h, rs_scene_set_occluders): a box room
  * scanned from inside with one wall missing, and a floor under a walkway roof whose far half the
- * scan missed, lit by a uniform sky with and without the occluders and with the closed model. */
+ * scan missed, lit by a uniform sky with and without the occluders and with the closed model; an
+ * overhang scanned from below, whose unseen top's occluders must not take its underside as proxy. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -295,5 +296,80 @@ static void test_column_shadow(void **state)
     rs_mesh_free(real);
 }
 
+/* Ground [0, 8] x [-6, 6] (up), a wall x = 0 (8 m, facing +x) and an overhang [0, 1.5] x [-2, 2] x
+ * [3, 3.3] out of it: closed, or as scanned from below at (5, 0, 1.5): its underside and front edge
+ * only, the top never seen. */
+static rs_mesh *overhang(int closed)
+{
+    rs_meshgen g = rs_meshgen_new(8192, 8192);
+    rs_meshgen_rect(&g, rs_v3_make(0, -6, 0), rs_v3_make(8, 0, 0), rs_v3_make(0, 12, 0), 16, 24);
+    rs_meshgen_rect(&g, rs_v3_make(0, -6, 0), rs_v3_make(0, 12, 0), rs_v3_make(0, 0, 8), 24, 16);
+    if (closed) {
+        rs_meshgen_box(&g, rs_v3_make(0, -2, 3), rs_v3_make(1.5, 2, 3.3), 4, 0);
+    } else {
+        rs_meshgen_rect(&g, rs_v3_make(0, -2, 3), rs_v3_make(0, 4, 0), rs_v3_make(1.5, 0, 0), 8, 3);   /* down */
+        rs_meshgen_rect(&g, rs_v3_make(1.5, -2, 3), rs_v3_make(0, 4, 0), rs_v3_make(0, 0, 0.3), 8, 1); /* +x */
+    }
+    return rs_meshgen_done(&g);
+}
+
+/* The tower sample's error (docs/PIPELINE.md, occluders): the occluder over an overhang's unseen
+ * top took as its proxy the nearest scanned facet, the dark underside, so that the top's light came
+ * out as the underside's. Every occluder face's proxy must face the face's way wherever a facet of
+ * the mesh does, and the top's faces must find one (the ground) although the underside is nearer. */
+static void test_overhang_top_proxy(void **state)
+{
+    (void)state;
+    rs_mesh *real = overhang(1), *m = overhang(0);
+    rs_scene *rsc = rs_fx_scene(real);
+    rs_freespace fs;
+    rs_err err;
+    rs_freespace_opts fo = {.cell = 0.25, .margin = 2, .max_cells = 1 << 22};
+    assert_int_equal(rs_freespace_init(&fs, m, &fo, &err), 0);
+    scan_from(&fs, rsc, rs_v3_make(5, 0, 1.5), 1440, 0);
+    scan_from(&fs, rsc, rs_v3_make(5, 0.2, 1.6), 720, 1);
+    assert_int_equal(rs_freespace_state(&fs, rs_v3_make(0.75, 0, 3.4)), RS_FS_UNKNOWN); /* over the top */
+    rs_mesh *occ = NULL;
+    uint32_t *proxy = NULL;
+    assert_int_equal(rs_freespace_occluders(&fs, m, 0.5, RS_FS_KEEP_BEHIND, &occ, &proxy, &err), 0);
+    assert_non_null(occ);
+    int has_dir[6] = {0};
+    for (size_t f = 0; f < m->nfaces; f++) {
+        rs_v3 c, n;
+        double a;
+        rs_mesh_face(m, f, &c, &n, &a);
+        double nv[3] = {n.x, n.y, n.z};
+        for (int ax = 0; ax < 3; ax++) {
+            if (nv[ax] > RS_FS_PROXY_COS) has_dir[2 * ax] = 1;
+            if (nv[ax] < -RS_FS_PROXY_COS) has_dir[2 * ax + 1] = 1;
+        }
+    }
+    size_t tops = 0, checked = 0;
+    for (size_t f = 0; f < occ->nfaces; f++) {
+        rs_v3 c, n, pc, pn;
+        double a, pa;
+        rs_mesh_face(occ, f, &c, &n, &a);
+        rs_mesh_face(m, proxy[f], &pc, &pn, &pa);
+        double nv[3] = {n.x, n.y, n.z};
+        int ax = fabs(n.x) > 0.9 ? 0 : fabs(n.y) > 0.9 ? 1 : 2;
+        if (!has_dir[2 * ax + (nv[ax] < 0)]) continue;
+        checked++;
+        assert_true(rs_v3_dot(n, pn) > RS_FS_PROXY_COS);
+        if (n.z > 0.9 && c.x > 0 && c.x < 1.5 && c.z > 3.2 && c.z < 3.8) {
+            tops++;
+            assert_true(pn.z > 0.9 && pc.z < 0.01); /* the ground, not the underside 0.5 m below */
+        }
+    }
+    print_message("%zu occluder faces, %zu with a facet facing their way, %zu over the overhang's top\n", occ->nfaces,
+                  checked, tops);
+    assert_true(tops > 0);
+    rs_mesh_free(occ);
+    free(proxy);
+    rs_freespace_release(&fs);
+    rs_scene_free(rsc);
+    rs_mesh_free(m);
+    rs_mesh_free(real);
+}
+
 RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_room_missing_wall), cmocka_unit_test(test_walkway_slab),
-             cmocka_unit_test(test_column_shadow))
+             cmocka_unit_test(test_column_shadow), cmocka_unit_test(test_overhang_top_proxy))

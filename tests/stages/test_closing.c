@@ -1,8 +1,8 @@
 /* test_closing: the planar closing (meshing/closing.h). A wall with the scan shadow a box casts
  * on it gets that hole filled (every point of it covered, the area within half a cell along its
  * perimeter, nothing outside the wall's plane or the hole), while an opening the scanner saw
- * through stays open; a slab seen from below gets a top face and edges, one whose top was scanned
- * does not; in an open courtyard a pillar's shadow on the tall wall is closed and nothing is added
+ * through stays open; a slab seen from below gets a top face (whose proxy faces up) and edges, one
+ * whose top was scanned does not; in an open courtyard a pillar's shadow on the tall wall is closed and nothing is added
  * above the low walls' tops. */
 #include "tests/testutil.h"
 
@@ -154,6 +154,11 @@ static void test_slab_top(void **state)
             if (c.source[f] != RS_CLOSE_SLAB) continue;
             if (n.z > 0.999) {
                 assert_true(fabs(cen.z - 3.2) < 1e-4);
+                /* its proxy faces up (the ground), not the underside's dark radiance */
+                rs_v3 pc, pn;
+                double pa;
+                rs_mesh_face(m, c.proxy[f], &pc, &pn, &pa);
+                assert_true(pn.z > 0.9 && fabs(pc.z) < 1e-6);
                 top += a;
             } else {
                 assert_true(fabs(n.z) < 1e-6);

@@ -65,7 +65,8 @@ static void check_occluders_stay_out(const char *extra, int planes)
 {
     char *out = NULL;
     char off_dir[2048], on_dir[2048];
-    snprintf(off_dir, sizeof off_dir, "%s", run_scene(planes ? "occp_off" : "occ_off", NULL, NULL, 0, &out));
+    snprintf(off_dir, sizeof off_dir, "%s",
+             run_scene(planes ? "occp_off" : "occ_off", "occluders = off\n", NULL, 0, &out));
     free(out);
     snprintf(on_dir, sizeof on_dir, "%s", run_scene(planes ? "occp_on" : "occ_on", extra, NULL, 0, &out));
     free(out);
