@@ -6,7 +6,11 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include "common/pano.h"
 #include "common/sampling.h"
+#include "light/gather.h"
+#include "sky/skysh.h"
+#include "tests/fixtures.h"
 #include "sky/skyscale.h"
 #include "sky/skyscale_dir.h"
 #include "tests/testutil.h"
@@ -201,5 +205,63 @@ static void test_one_facing_no_direction(void **state)
     assert_true(fabs(got - eff) < 0.4);
 }
 
-RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_azimuthal_error_recovered),
+static void grey(rs_v3 d, size_t k, double rgb[3], void *ctx)
+{
+    (void)d, (void)k, (void)ctx;
+    rgb[0] = rgb[1] = rgb[2] = 1;
+}
+
+/* The moments the directional mode reads, gathered: under a uniform sky of radiance 1 whose
+ * half toward +x is filled with relative uncertainty 0.3, a floor facing up has fill_sigma_rgb
+ * 0.3 pi / 2 and fill_sigma_dir 0.3 (2 / 3, 0) (the integrals of cos and of x cos over that
+ * quarter sphere), by rays and by the sky's harmonics alike. */
+static void test_gather_moments(void **state)
+{
+    (void)state;
+    rs_capture cap = rs_fx_capture(256, 128, grey, NULL);
+    rs_skyenv env;
+    rs_fx_sky_env(&cap, RS_FX_SUN_MAX_SR, 0, &env);
+    size_t npx = (size_t)env.width * env.height;
+    free(env.fill_sigma_px);
+    env.fill_sigma_px = malloc(npx * sizeof *env.fill_sigma_px);
+    assert_non_null(env.fill_sigma_px);
+    for (int r = 0; r < env.height; r++)
+        for (int c = 0; c < env.width; c++) {
+            size_t p = (size_t)r * env.width + c;
+            rs_v3 d = rs_pose_dir_to_world(&env.pose, rs_pano_pixel_dir(env.width, env.height, c, r));
+            env.filled[p] = d.x > 0;
+            env.fill_sigma_px[p] = d.x > 0 ? 0.3f : 0;
+        }
+    rs_mesh *m = rs_fx_unit_square();
+    rs_scene *scene = rs_fx_scene(m);
+    rs_gather_ctx g = rs_fx_gather_ctx(scene, &env, 4096, 0, 5);
+    g.skip_convex = 0;
+    rs_gather_scratch *s = rs_gather_scratch_new(4096);
+    rs_facet_gather fg;
+    assert_int_equal(rs_gather_facet(&g, 0, s, &fg), 0);
+    double S = 0.3 * M_PI / 2, Sx = 0.3 * 2.0 / 3;
+    print_message("rays: S %.4f (%.4f) Sx %.4f (%.4f) Sy %.4f\n", fg.fill_sigma_rgb[1], S, fg.fill_sigma_dir[0][1], Sx,
+                  fg.fill_sigma_dir[1][1]);
+    for (int ch = 0; ch < 3; ch++) {
+        assert_true(fabs(fg.fill_sigma_rgb[ch] - S) < 0.02 * S);
+        assert_true(fabs(fg.fill_sigma_dir[0][ch] - Sx) < 0.02 * Sx);
+        assert_true(fabs(fg.fill_sigma_dir[1][ch]) < 0.02 * Sx);
+    }
+    free(fg.entries);
+    rs_skysh sh;
+    rs_err err;
+    assert_int_equal(rs_skysh_build(&env, 1, 256, &sh, &err), 0);
+    rs_facet_gather hs;
+    assert_true(rs_skysh_facet(&sh, rs_v3_make(0, 0, 1), &hs));
+    print_message("harmonics: S %.4f Sx %.4f Sy %.4f\n", hs.fill_sigma_rgb[1], hs.fill_sigma_dir[0][1],
+                  hs.fill_sigma_dir[1][1]);
+    for (int ch = 0; ch < 3; ch++) {
+        assert_true(fabs(hs.fill_sigma_dir[0][ch] - Sx) < 0.05 * Sx);
+        assert_true(fabs(hs.fill_sigma_dir[1][ch]) < 0.02 * Sx);
+    }
+    rs_gather_scratch_free(s);
+    rs_fx_release(&env, &cap, scene, m);
+}
+
+RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_azimuthal_error_recovered), cmocka_unit_test(test_gather_moments),
              cmocka_unit_test(test_uniform_error_left_to_one_mode), cmocka_unit_test(test_one_facing_no_direction))
