@@ -8,8 +8,9 @@
 #include "common/select.h"
 
 #define HUBER_K    1.345 /* Huber's constant, in units of the residuals' robust spread */
-#define T_LO       -0.9  /* every direction's multiplier t0 + t1 x + t2 y stays in [T_LO, T_HI] */
-#define T_HI       12.0  /* (skyscale.c's range for the one mode) */
+#define LIGHT_KEPT 0.1   /* every filled direction keeps at least this share of its light: the
+                            multiplier t0 + t1 x + t2 y stays at or above -(1 - it) / sigma_max */
+#define T_HI       12.0  /* ... and at or below this (skyscale.c's range for the one mode) */
 #define BOUND_TOL  0.05  /* a fit this close to the range's edge is at it */
 #define FIT_MAX    20000 /* the pairs a fit reads at most (every stride-th) */
 #define MAX_ITER   40
@@ -58,10 +59,10 @@ static double huber(double z)
 }
 
 /* Every direction's multiplier within the range (the moments' directions have |(x, y)| <= 1). */
-static int feasible(const double *t, double margin)
+static int feasible(const double *t, double lo, double margin)
 {
     double h = hypot(t[1], t[2]);
-    return t[0] - h >= T_LO + margin && t[0] + h <= T_HI - margin;
+    return t[0] - h >= lo + margin && t[0] + h <= T_HI - margin;
 }
 
 /* Inverse of a symmetric 3 x 3 matrix; 0 when singular. */
@@ -95,7 +96,7 @@ static double cost(const dpair *p, size_t n, size_t stride, long skip, double sc
 
 /* t minimising that cost from t (in place), by Gauss-Newton on the reweighted squares (Huber's
  * weights min(1, k / |r / scale|)), each step halved until it lowers the cost within range. */
-static void fit(const dpair *p, size_t n, size_t stride, long skip, double scale, double *t)
+static void fit(const dpair *p, size_t n, size_t stride, long skip, double scale, double lo, double *t)
 {
     double c = cost(p, n, stride, skip, scale, t);
     for (int it = 0; it < MAX_ITER; it++) {
@@ -117,7 +118,7 @@ static void fit(const dpair *p, size_t n, size_t stride, long skip, double scale
         double f = 1, tn[3], cn = INFINITY;
         for (int h = 0; h < 30; h++, f *= 0.5) {
             for (int a = 0; a < 3; a++) tn[a] = t[a] + f * step[a];
-            if (!feasible(tn, 0)) continue;
+            if (!feasible(tn, lo, 0)) continue;
             cn = cost(p, n, stride, skip, scale, tn);
             if (cn <= c) break;
         }
@@ -180,13 +181,13 @@ static size_t channel(const rs_skyscale_dir_input *in, int ch, dpair *p, double 
     size_t n = collect(in, ch, p);
     if (n < RS_SKYSCALE_MIN_PAIRS) return n;
     size_t stride = (n + FIT_MAX - 1) / FIT_MAX;
-    double t[3] = {0, 0, 0};
+    double lo = rs_skyscale_dir_lowest(in->sigma_max), t[3] = {0, 0, 0};
     double scale = fmax(spread(p, n, t, scratch), 1e-6);
-    fit(p, n, stride, -1, scale, t);
+    fit(p, n, stride, -1, scale, lo, t);
     scale = fmax(spread(p, n, t, scratch), 1e-6);
-    fit(p, n, stride, -1, scale, t);
+    fit(p, n, stride, -1, scale, lo, t);
     *mad = scale;
-    if (at_bound) *at_bound = !feasible(t, BOUND_TOL);
+    if (at_bound) *at_bound = !feasible(t, lo, BOUND_TOL);
     /* Curvature over every pair inside Huber's core, each facet counted once (skyscale.c): the
      * information Hc = sum J J^T / (scale^2 dep). A term no pair tells from the others leaves it
      * singular; the prior then holds that combination. */
@@ -216,7 +217,7 @@ static size_t channel(const rs_skyscale_dir_input *in, int ch, dpair *p, double 
         for (int g = 0; g < RS_SKYSCALE_DIR_GROUPS; g++) {
             if (!count[g]) continue;
             memcpy(tg[m], t, sizeof t);
-            fit(p, n, stride, g, scale, tg[m]);
+            fit(p, n, stride, g, scale, lo, tg[m]);
             for (int a = 0; a < 3; a++) mean[a] += tg[m][a];
             m++;
         }
@@ -255,6 +256,7 @@ static size_t channel(const rs_skyscale_dir_input *in, int ch, dpair *p, double 
 int rs_skyscale_dir_estimate(const rs_skyscale_dir_input *in, rs_skyscale_dir *out, rs_err *err)
 {
     memset(out, 0, sizeof *out);
+    out->lowest = rs_skyscale_dir_lowest(in->sigma_max);
     for (int c = 0; c < 4; c++)
         for (int a = 0; a < 3; a++) out->cov[c][a][a] = 1;
     size_t np = in->base.npairs ? in->base.npairs : 1;
@@ -274,6 +276,12 @@ int rs_skyscale_dir_estimate(const rs_skyscale_dir_input *in, rs_skyscale_dir *o
     free(p);
     free(scratch);
     return rc;
+}
+
+double rs_skyscale_dir_lowest(double sigma_max)
+{
+    if (!(sigma_max > 0) || sigma_max > 1) sigma_max = 1;
+    return -(1 - LIGHT_KEPT) / sigma_max;
 }
 
 double rs_skyscale_dir_delta(const rs_skyscale_dir *d, int ch, double S, double Sx, double Sy)

@@ -26,6 +26,8 @@
 typedef struct rs_skyscale_dir_input {
     rs_skyscale_input base; /* E, S, L, the pairs and their blocks as for rs_skyscale_estimate */
     const double *Sx, *Sy;  /* 3 nf each: S weighted by the filled directions' world x and y */
+    double sigma_max;       /* the largest relative uncertainty of a filled direction (0 or above 1:
+                               1): bounds how dark t may make a direction (rs_skyscale_dir_lowest) */
 } rs_skyscale_dir_input;
 
 typedef struct rs_skyscale_dir {
@@ -33,8 +35,10 @@ typedef struct rs_skyscale_dir {
     double cov[4][3][3];   /* its covariance */
     double chi2[4];        /* (t1, t2)'s chi-square against 0 under cov */
     double resid_mad[4];   /* robust spread of the pairs' residuals at the data's t */
-    int at_bound;          /* the luminance fit reached the edge of t's range: t0 -+ |(t1, t2)| outside
-                              [-0.9, 12], where some direction's light would turn negative (not applied) */
+    int at_bound;          /* the luminance fit reached the edge of t's range: t0 - |(t1, t2)| below
+                              rs_skyscale_dir_lowest, where some filled direction would keep less than
+                              a tenth of its light, or t0 + |(t1, t2)| above 12 (not applied) */
+    double lowest;         /* the range's lower end (rs_skyscale_dir_lowest) */
     size_t pairs;          /* informative pairs (luminance) */
     int groups;            /* non-empty jackknife groups (luminance; 0: the curvature alone) */
     double shared_ratio;   /* luminance: the jackknife's largest variance of a term over the
@@ -44,6 +48,10 @@ typedef struct rs_skyscale_dir {
 /* Returns 0 with the estimate, 1 when fewer than RS_SKYSCALE_MIN_PAIRS pairs are informative
  * (t then 0, covariance I), -1 out of memory (err set). */
 int rs_skyscale_dir_estimate(const rs_skyscale_dir_input *in, rs_skyscale_dir *out, rs_err *err);
+
+/* The lowest multiplier t0 + t1 x + t2 y allowed: -0.9 / sigma_max (every filled direction
+ * keeps a tenth of its light), sigma_max taken as 1 when not in (0, 1]. */
+double rs_skyscale_dir_lowest(double sigma_max);
 
 /* The correction t . (S, Sx, Sy) of one channel (out's channel ch, 0..2). */
 double rs_skyscale_dir_delta(const rs_skyscale_dir *d, int ch, double S, double Sx, double Sy);

@@ -115,8 +115,10 @@ static double wall_error(const court *c, int w, const rs_skyscale *one, const rs
     return s / n;
 }
 
-/* The fill errs by 0.6 + 1.2 x - 0.4 y (in its uncertainty) across the sky: the walls facing
- * +x see it 1.3 sigma too dark, those facing away 0.1 sigma too bright. The directional mode finds t0,
+/* The fill errs by 0.5 + 2 x - y (in its uncertainty) across the sky: the walls facing +x see
+ * it 1.4 sigma too dark, those facing away 0.4 sigma too bright; toward -x the light is
+ * 1.74 sigma (44 %) too bright, which a range that assumed sigma up to 1 (-0.9) would not reach:
+ * told sigma_max, the fit does; told nothing, it reports the bound. The directional mode finds t0,
  * t1, t2 within 3 of their sigmas or 0.25 of the truth, significant; every wall's albedo error
  * is within half a point of the noise's own 1 %, while the one mode (which can only split the
  * difference) leaves every wall above 2.5 %, the walls facing away worse than uncorrected. */
@@ -124,14 +126,14 @@ static void test_azimuthal_error_recovered(void **state)
 {
     (void)state;
     static court c;
-    const double tt[3] = {0.6, 1.2, -0.4};
+    const double tt[3] = {0.5, 2.0, -1.0};
     make_court(&c, tt);
     rs_skyscale_input in = base(&c);
     rs_skyscale one;
     rs_skyscale_dir dir;
     rs_err err;
     assert_int_equal(rs_skyscale_estimate(&in, &one, &err), 0);
-    rs_skyscale_dir_input din = {.base = in, .Sx = c.Sx, .Sy = c.Sy};
+    rs_skyscale_dir_input din = {.base = in, .Sx = c.Sx, .Sy = c.Sy, .sigma_max = SIGMA};
     assert_int_equal(rs_skyscale_dir_estimate(&din, &dir, &err), 0);
     print_message("one mode: t %.3f +- %.3f (at bound %d); directional: %.3f %.3f %.3f (+- %.3f %.3f %.3f), chi2 "
                   "%.1f, %d groups, %zu pairs\n",
@@ -146,6 +148,10 @@ static void test_azimuthal_error_recovered(void **state)
             assert_true(sd > 0 && sd < 0.3);
             assert_true(fabs(dir.t[ch][k] - tt[k]) < fmax(0.25, 3 * sd));
         }
+    rs_skyscale_dir blind;
+    din.sigma_max = 0;
+    assert_int_equal(rs_skyscale_dir_estimate(&din, &blind, &err), 0);
+    assert_true(blind.at_bound);
     for (int w = 0; w < WALLS; w++) {
         double none = wall_error(&c, w, NULL, NULL), e1 = wall_error(&c, w, &one, NULL),
                ed = wall_error(&c, w, NULL, &dir);
@@ -170,7 +176,7 @@ static void test_uniform_error_left_to_one_mode(void **state)
     rs_skyscale_dir dir;
     rs_err err;
     assert_int_equal(rs_skyscale_estimate(&in, &one, &err), 0);
-    rs_skyscale_dir_input din = {.base = in, .Sx = c.Sx, .Sy = c.Sy};
+    rs_skyscale_dir_input din = {.base = in, .Sx = c.Sx, .Sy = c.Sy, .sigma_max = SIGMA};
     assert_int_equal(rs_skyscale_dir_estimate(&din, &dir, &err), 0);
     print_message("one mode %.3f +- %.3f; directional %.3f %.3f %.3f, chi2 %.2f\n", one.t_lum, one.sigma_lum,
                   dir.t[3][0], dir.t[3][1], dir.t[3][2], dir.chi2[3]);
@@ -194,7 +200,7 @@ static void test_one_facing_no_direction(void **state)
     in.npairs = keep;
     rs_skyscale_dir dir;
     rs_err err;
-    rs_skyscale_dir_input din = {.base = in, .Sx = c.Sx, .Sy = c.Sy};
+    rs_skyscale_dir_input din = {.base = in, .Sx = c.Sx, .Sy = c.Sy, .sigma_max = SIGMA};
     assert_int_equal(rs_skyscale_dir_estimate(&din, &dir, &err), 0);
     double eff = tt[0] + SHARE * (tt[1] * cos(FACING_DEG[0] * M_PI / 180) + tt[2] * sin(FACING_DEG[0] * M_PI / 180));
     double got = dir.t[3][0] + SHARE * (dir.t[3][1] * cos(FACING_DEG[0] * M_PI / 180) +
