@@ -5,7 +5,9 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include "common/pano.h"
 #include "common/select.h"
+#include "sky/skyenv.h"
 
 #define HUBER_K    1.345 /* Huber's constant, in units of the residuals' robust spread */
 #define LIGHT_KEPT 0.1   /* every filled direction keeps at least this share of its light: the
@@ -59,10 +61,22 @@ static double huber(double z)
 }
 
 /* Every direction's multiplier within the range (the moments' directions have |(x, y)| <= 1). */
-static int feasible(const double *t, double lo, double margin)
+typedef struct {
+    double lo;           /* without limits: the lowest multiplier anywhere */
+    const double *limit; /* x, y, lowest per filled direction */
+    size_t n;
+} range;
+
+static int feasible(const double *t, const range *rg, double margin)
 {
     double h = hypot(t[1], t[2]);
-    return t[0] - h >= lo + margin && t[0] + h <= T_HI - margin;
+    if (t[0] + h > T_HI - margin) return 0;
+    if (!rg->limit) return t[0] - h >= rg->lo + margin;
+    for (size_t k = 0; k < rg->n; k++) {
+        const double *l = rg->limit + 3 * k;
+        if (t[0] + t[1] * l[0] + t[2] * l[1] < l[2] + margin) return 0;
+    }
+    return 1;
 }
 
 /* Inverse of a symmetric 3 x 3 matrix; 0 when singular. */
@@ -96,7 +110,7 @@ static double cost(const dpair *p, size_t n, size_t stride, long skip, double sc
 
 /* t minimising that cost from t (in place), by Gauss-Newton on the reweighted squares (Huber's
  * weights min(1, k / |r / scale|)), each step halved until it lowers the cost within range. */
-static void fit(const dpair *p, size_t n, size_t stride, long skip, double scale, double lo, double *t)
+static void fit(const dpair *p, size_t n, size_t stride, long skip, double scale, const range *lo, double *t)
 {
     double c = cost(p, n, stride, skip, scale, t);
     for (int it = 0; it < MAX_ITER; it++) {
@@ -181,7 +195,8 @@ static size_t channel(const rs_skyscale_dir_input *in, int ch, dpair *p, double 
     size_t n = collect(in, ch, p);
     if (n < RS_SKYSCALE_MIN_PAIRS) return n;
     size_t stride = (n + FIT_MAX - 1) / FIT_MAX;
-    double lo = rs_skyscale_dir_lowest(in->sigma_max), t[3] = {0, 0, 0};
+    range rg = {rs_skyscale_dir_lowest(in->sigma_max), in->limits, in->nlimits}, *lo = &rg;
+    double t[3] = {0, 0, 0};
     double scale = fmax(spread(p, n, t, scratch), 1e-6);
     fit(p, n, stride, -1, scale, lo, t);
     scale = fmax(spread(p, n, t, scratch), 1e-6);
@@ -276,6 +291,45 @@ int rs_skyscale_dir_estimate(const rs_skyscale_dir_input *in, rs_skyscale_dir *o
     free(p);
     free(scratch);
     return rc;
+}
+
+int rs_skyscale_dir_limits(const rs_skyenv *env, double **limits, size_t *n, rs_err *err)
+{
+    enum { AZ = 72, EL = 36 }; /* 5 degree cells over the sphere (elevation -90 to 90) */
+    double *cell = malloc((size_t)AZ * EL * 3 * sizeof *cell), *best = calloc((size_t)AZ * EL, sizeof *best);
+    *limits = NULL, *n = 0;
+    if (!cell || !best) {
+        free(cell);
+        free(best);
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory bounding the hidden sky's correction");
+    }
+    for (int r = 0; env->fill_sigma_px && r < env->height; r++)
+        for (int c = 0; c < env->width; c++) {
+            size_t p = (size_t)r * env->width + c;
+            double sg = env->fill_sigma_px[p];
+            if (!env->filled[p] || !(sg > 0)) continue;
+            rs_v3 d = rs_pose_dir_to_world(&env->pose, rs_pano_pixel_dir(env->width, env->height, c, r));
+            double az = atan2(d.y, d.x), el = asin(fmax(-1, fmin(1, d.z)));
+            int ia = (int)floor((az + M_PI) / (2 * M_PI) * AZ), ie = (int)floor((el + M_PI / 2) / M_PI * EL);
+            ia = ia < 0 ? 0 : ia >= AZ ? AZ - 1 : ia;
+            ie = ie < 0 ? 0 : ie >= EL ? EL - 1 : ie;
+            size_t k = (size_t)ie * AZ + ia;
+            if (sg > best[k]) best[k] = sg, cell[3 * k] = d.x, cell[3 * k + 1] = d.y;
+        }
+    size_t m = 0;
+    for (size_t k = 0; k < (size_t)AZ * EL; k++)
+        if (best[k] > 0) {
+            cell[3 * m] = cell[3 * k], cell[3 * m + 1] = cell[3 * k + 1];
+            cell[3 * m + 2] = -(1 - LIGHT_KEPT) / fmin(1, best[k]);
+            m++;
+        }
+    free(best);
+    if (!m) {
+        free(cell);
+        return 0;
+    }
+    *limits = cell, *n = m;
+    return 0;
 }
 
 double rs_skyscale_dir_lowest(double sigma_max)

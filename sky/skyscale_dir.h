@@ -27,7 +27,12 @@ typedef struct rs_skyscale_dir_input {
     rs_skyscale_input base; /* E, S, L, the pairs and their blocks as for rs_skyscale_estimate */
     const double *Sx, *Sy;  /* 3 nf each: S weighted by the filled directions' world x and y */
     double sigma_max;       /* the largest relative uncertainty of a filled direction (0 or above 1:
-                               1): bounds how dark t may make a direction (rs_skyscale_dir_lowest) */
+                               1): bounds how dark t may make a direction (rs_skyscale_dir_lowest),
+                               unless limits are given */
+    const double *limits;   /* 3 per limit, nlimits (NULL: sigma_max's rule): a filled direction's
+                               world x, y and the lowest multiplier t0 + t1 x + t2 y it allows
+                               (rs_skyscale_dir_limits) */
+    size_t nlimits;
 } rs_skyscale_dir_input;
 
 typedef struct rs_skyscale_dir {
@@ -35,10 +40,10 @@ typedef struct rs_skyscale_dir {
     double cov[4][3][3];   /* its covariance */
     double chi2[4];        /* (t1, t2)'s chi-square against 0 under cov */
     double resid_mad[4];   /* robust spread of the pairs' residuals at the data's t */
-    int at_bound;          /* the luminance fit reached the edge of t's range: t0 - |(t1, t2)| below
-                              rs_skyscale_dir_lowest, where some filled direction would keep less than
-                              a tenth of its light, or t0 + |(t1, t2)| above 12 (not applied) */
-    double lowest;         /* the range's lower end (rs_skyscale_dir_lowest) */
+    int at_bound;          /* the luminance fit reached the edge of t's range: some filled direction
+                              would keep less than a tenth of its light (the limits, or sigma_max's
+                              rule), or t0 + |(t1, t2)| above 12 (not applied) */
+    double lowest;         /* sigma_max's rule: the lowest multiplier (rs_skyscale_dir_lowest) */
     size_t pairs;          /* informative pairs (luminance) */
     int groups;            /* non-empty jackknife groups (luminance; 0: the curvature alone) */
     double shared_ratio;   /* luminance: the jackknife's largest variance of a term over the
@@ -52,6 +57,14 @@ int rs_skyscale_dir_estimate(const rs_skyscale_dir_input *in, rs_skyscale_dir *o
 /* The lowest multiplier t0 + t1 x + t2 y allowed: -0.9 / sigma_max (every filled direction
  * keeps a tenth of its light), sigma_max taken as 1 when not in (0, 1]. */
 double rs_skyscale_dir_lowest(double sigma_max);
+
+/* The map's filled directions as limits (3 doubles each into *limits, malloc'd; caller frees):
+ * per cell of 5 x 5 degrees (world azimuth and elevation) that holds filled pixels, the direction
+ * of its most uncertain one and -0.9 / its sigma, so that every filled direction keeps a tenth
+ * of its light (to within the multiplier's change over a cell, 0.09 |(t1, t2)| at most).
+ * Returns 0, -1 out of memory (err set). */
+struct rs_skyenv;
+int rs_skyscale_dir_limits(const struct rs_skyenv *env, double **limits, size_t *n, rs_err *err);
 
 /* The correction t . (S, Sx, Sy) of one channel (out's channel ch, 0..2). */
 double rs_skyscale_dir_delta(const rs_skyscale_dir *d, int ch, double S, double Sx, double Sy);

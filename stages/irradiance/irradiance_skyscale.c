@@ -111,13 +111,16 @@ static int estimate(const rs_irradiance_state *s, int directional, rs_skyscale *
                             .max_per_facet = PAIR_MAX};
     rc = rs_skyscale_estimate(&in, sc, err);
     if (rc >= 0 && directional) {
-        /* the largest uncertainty of a filled direction bounds how dark a direction may turn */
-        double smax = 0;
-        size_t npx = (size_t)s->env.width * s->env.height;
-        for (size_t k = 0; s->env.fill_sigma_px && k < npx; k++)
-            if (s->env.filled[k]) smax = fmax(smax, s->env.fill_sigma_px[k]);
-        rs_skyscale_dir_input din = {.base = in, .Sx = Sx, .Sy = Sy, .sigma_max = smax};
+        /* each filled direction's uncertainty bounds how dark the correction may make it */
+        double *limits = NULL;
+        size_t nlimits = 0;
+        if (rs_skyscale_dir_limits(&s->env, &limits, &nlimits, err) != 0) {
+            rc = -1;
+            goto out;
+        }
+        rs_skyscale_dir_input din = {.base = in, .Sx = Sx, .Sy = Sy, .limits = limits, .nlimits = nlimits};
         *rc_dir = rs_skyscale_dir_estimate(&din, sd, err);
+        free(limits);
         if (*rc_dir < 0) rc = -1;
     }
 out:
@@ -146,7 +149,6 @@ static void report_directional(rs_json *j, const rs_skyscale_dir *sd, int applie
     rs_json_set_num(d, "chi2_lum", sd->chi2[3]);
     rs_json_set_num(d, "residual_spread", sd->resid_mad[3]);
     rs_json_set_bool(d, "at_bound", sd->at_bound);
-    rs_json_set_num(d, "lowest_multiplier", sd->lowest);
     static const char *const tkey[3] = {"t_r", "t_g", "t_b"}, *const skey[3] = {"sigma_r", "sigma_g", "sigma_b"};
     for (int ch = 0; ch < 3; ch++) { /* t0 t1 t2 per channel */
         rs_json *tc = rs_json_set_arr(d, tkey[ch]), *sc = rs_json_set_arr(d, skey[ch]);

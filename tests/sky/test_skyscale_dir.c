@@ -220,7 +220,8 @@ static void grey(rs_v3 d, size_t k, double rgb[3], void *ctx)
 /* The moments the directional mode reads, gathered: under a uniform sky of radiance 1 whose
  * half toward +x is filled with relative uncertainty 0.3, a floor facing up has fill_sigma_rgb
  * 0.3 pi / 2 and fill_sigma_dir 0.3 (2 / 3, 0) (the integrals of cos and of x cos over that
- * quarter sphere), by rays and by the sky's harmonics alike. */
+ * quarter sphere), by rays and by the sky's harmonics alike; the correction's limits cover that
+ * half alone, each at -0.9 / 0.3. */
 static void test_gather_moments(void **state)
 {
     (void)state;
@@ -265,6 +266,16 @@ static void test_gather_moments(void **state)
         assert_true(fabs(hs.fill_sigma_dir[0][ch] - Sx) < 0.05 * Sx);
         assert_true(fabs(hs.fill_sigma_dir[1][ch]) < 0.02 * Sx);
     }
+    /* the limits: only the filled half's directions, each -0.9 / 0.3 */
+    double *lim;
+    size_t nlim;
+    assert_int_equal(rs_skyscale_dir_limits(&env, &lim, &nlim, &err), 0);
+    assert_true(nlim > 36 * 36 / 2 && nlim <= 36 * 36 + 36);
+    for (size_t k = 0; k < nlim; k++) {
+        assert_true(lim[3 * k] > 0);
+        assert_true(fabs(lim[3 * k + 2] + 0.9 / 0.3) < 1e-6);
+    }
+    free(lim);
     rs_gather_scratch_free(s);
     rs_fx_release(&env, &cap, scene, m);
 }
