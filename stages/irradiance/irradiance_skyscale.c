@@ -2,7 +2,9 @@
  * it ([sky] fill_from_facets, sky/skyscale.h): same-plane pairs of observed facets that see
  * different shares of the uncertain filled light say how bright it really is. The correction
  * t per channel (in units of the fill's own uncertainty) moves every gathered facet's E_sky by
- * t x fill_sigma_rgb: linear in the filled radiance, so no ray is traced again. */
+ * t x fill_sigma_rgb, or the directional mode's t0 t1 t2 (skyscale_dir.h) by t0 fill_sigma_rgb
+ * + t1 fill_sigma_dir x + t2 fill_sigma_dir y: linear in the filled radiance, so no ray is
+ * traced again. */
 #include <stdlib.h>
 #include <string.h>
 #include "common/log.h"
