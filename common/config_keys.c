@@ -258,6 +258,11 @@ const rs_cfg_key rs_cfg_keys[] = {
      "different shares of the fill's uncertain light fit one correction per channel, in units of that uncertainty "
      "(prior N(0, 1)), added to E_sky. auto: applied when it is at least 2 of its standard uncertainties; on: "
      "always when 50 pairs inform it; off: never"},
+    {"sky", "fill_from_facets_modes", RS_CFG_ENUM, "directional", 0, 0, "directional|one", "", "irradiance",
+     "with fill_from_facets: directional fits also a correction that varies with the filled direction "
+     "(t0 + t1 x + t2 y of its world horizontal components, prior N(0, 1) each) and applies it in place of the one "
+     "mode when its direction-dependent part is significant (chi-square on 2 degrees of freedom at least 6.18) and "
+     "within range; one: the one mode alone"},
     {"sky", "sun_clip_level", RS_CFG_REAL, NULL, 0, 1e30, NULL, "pano", "irradiance",
      "with sun_irradiance: luminance from which sky pixels are the clipped disc; default 0.9 x the brightest near the "
      "sun"},

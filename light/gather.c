@@ -217,8 +217,9 @@ static int read_seen(const rs_gather_ctx *g, uint32_t j, size_t k, double out[3]
 }
 
 /* Adds weight * (sky radiance of pixel pix) to E_sky, and to its sun part when pix is in the
- * sun set, whichever kind of ray brought it (cosine rays do when there are no sun rays). */
-static void add_sky(const rs_skyenv *env, size_t pix, double weight, rs_facet_gather *out)
+ * sun set, whichever kind of ray brought it (cosine rays do when there are no sun rays); dir is
+ * the ray's world direction (for the filled light's direction moments). */
+static void add_sky(const rs_skyenv *env, size_t pix, rs_v3 dir, double weight, rs_facet_gather *out)
 {
     const float *L = env->radiance + 3 * pix;
     for (int ch = 0; ch < 3; ch++) out->esky[ch] += weight * L[ch];
@@ -230,7 +231,12 @@ static void add_sky(const rs_skyenv *env, size_t pix, double weight, rs_facet_ga
         out->filled_lum += lum;
         if (env->fill_sigma_px) {
             out->fill_sigma_lum += lum * env->fill_sigma_px[pix];
-            for (int ch = 0; ch < 3; ch++) out->fill_sigma_rgb[ch] += weight * L[ch] * env->fill_sigma_px[pix];
+            for (int ch = 0; ch < 3; ch++) {
+                double u = weight * L[ch] * env->fill_sigma_px[pix];
+                out->fill_sigma_rgb[ch] += u;
+                out->fill_sigma_dir[0][ch] += u * dir.x;
+                out->fill_sigma_dir[1][ch] += u * dir.y;
+            }
         }
     }
 }
@@ -328,7 +334,7 @@ static int gather_round(const rs_gather_ctx *g, rs_gather_scratch *s, facet_stat
                 if (env->sun[pix] && Ns) continue; /* the sun rays have it (none: count it here) */
                 double pdf_c = rs_v3_dot(rays[i].dir, n) / M_PI, pdf_e = Ne ? rs_skyenv_pdf(env, pix) : 0;
                 double wgt = Nc * pdf_c / (Nc * pdf_c + Ne * pdf_e) * M_PI / Nc; /* L cos / pdf_c = pi L */
-                add_sky(env, pix, wgt, out);
+                add_sky(env, pix, rays[i].dir, wgt, out);
                 double y = Nc * wgt * rs_skyenv_luminance(env->radiance + 3 * pix);
                 out->cos_sum += y;
                 out->cos_sum_sq += y * y;
@@ -399,7 +405,7 @@ static int gather_round(const rs_gather_ctx *g, rs_gather_scratch *s, facet_stat
                     wgt = cosn * env->sun_power / (lum * div);
                 else /* balance heuristic, already / Ne */
                     wgt = cosn / (Nc * cosn / M_PI + Ne * rs_skyenv_pdf(env, pix));
-                add_sky(env, pix, wgt, dst);
+                add_sky(env, pix, rays[i].dir, wgt, dst);
                 double y = (pass ? div : Ne) * wgt * lum; /* this ray alone: its estimate of the whole */
                 st->y_sum[pass] += y;
                 st->y_sq[pass] += y * y;
@@ -420,7 +426,10 @@ static int gather_round(const rs_gather_ctx *g, rs_gather_scratch *s, facet_stat
             out->esky_lum += acc.esky_lum / done;
             out->filled_lum += acc.filled_lum / done;
             out->fill_sigma_lum += acc.fill_sigma_lum / done;
-            for (int ch = 0; ch < 3; ch++) out->fill_sigma_rgb[ch] += acc.fill_sigma_rgb[ch] / done;
+            for (int ch = 0; ch < 3; ch++) {
+                out->fill_sigma_rgb[ch] += acc.fill_sigma_rgb[ch] / done;
+                for (int k = 0; k < 2; k++) out->fill_sigma_dir[k][ch] += acc.fill_sigma_dir[k][ch] / done;
+            }
         }
         st->done[pass] += done - first;
     }
@@ -472,8 +481,12 @@ int rs_skysh_facet(const rs_skysh *sh, rs_v3 n, rs_facet_gather *out)
     out->filled_lum = e[3] + es[3];
     out->fill_sigma_lum = fmax(0, e[4]) + es[4];
     /* the harmonics carry the uncertain light's luminance only: its colour taken as E_sky's */
-    for (int ch = 0; ch < 3; ch++)
-        out->fill_sigma_rgb[ch] = out->esky_lum > 0 ? out->fill_sigma_lum * out->esky[ch] / out->esky_lum : 0;
+    for (int ch = 0; ch < 3; ch++) {
+        double colour = out->esky_lum > 0 ? out->esky[ch] / out->esky_lum : 0;
+        out->fill_sigma_rgb[ch] = out->fill_sigma_lum * colour;
+        out->fill_sigma_dir[0][ch] = (e[5] + es[5]) * colour;
+        out->fill_sigma_dir[1][ch] = (e[6] + es[6]) * colour;
+    }
     out->sees_nothing = 1;
     out->sky_sh = 1;
     out->sh_sigma = bound * rs_skyenv_luminance3(e);
@@ -512,7 +525,10 @@ int rs_gather_facet(const rs_gather_ctx *g, uint32_t f, rs_gather_scratch *s, rs
         out->esky_lum *= inv;
         out->filled_lum *= inv;
         out->fill_sigma_lum *= inv;
-        for (int ch = 0; ch < 3; ch++) out->fill_sigma_rgb[ch] *= inv;
+        for (int ch = 0; ch < 3; ch++) {
+            out->fill_sigma_rgb[ch] *= inv;
+            for (int k = 0; k < 2; k++) out->fill_sigma_dir[k][ch] *= inv;
+        }
     }
     double w = M_PI / ((double)N * (1 << rounds)); /* cosine-weighted: E = pi * mean radiance */
     for (int ch = 0; ch < 3; ch++) out->gseen[ch] *= w;

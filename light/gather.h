@@ -27,6 +27,9 @@ typedef struct rs_facet_gather {
     double fill_sigma_rgb[3];    /* the same per channel, from the sky map's filled pixels alone (a
                                   sun from the shadows adds to fill_sigma_lum, not here): the
                                   light skyscale.h rescales */
+    double fill_sigma_dir[2][3]; /* fill_sigma_rgb with each filled direction's light weighted by
+                                  that direction's world x [0] and y [1] (its horizontal part):
+                                  the moments skyscale_dir.h fits a direction-dependent error with */
     /* Monte Carlo noise, from the rays' own spread (luminance). Cosine rays: the sum and sum of
      * squares of each ray's value Y (E = mean Y): escapes carry their MIS-weighted sky, hits read
      * from the panorama pi L; hits through K carry 0 here, their pi L_j is added by the caller,

@@ -30,13 +30,16 @@ static double lum3(const double *e)
     return 0.2126 * e[0] + 0.7152 * e[1] + 0.0722 * e[2];
 }
 
-/* A pixel's four channels (R, G, B, luminance when filled), 0 when not finite. */
-static void pixel_values(const rs_skyenv *env, size_t p, double v[RS_SKYSH_CHANNELS])
+/* A pixel's channels (skysh.h), 0 when not finite; d: its world direction (the moments; the
+ * frequency test, which reads the first RS_SKYSH_TESTED alone, passes any). */
+static void pixel_values(const rs_skyenv *env, size_t p, rs_v3 d, double v[RS_SKYSH_CHANNELS])
 {
     const float *L = env->radiance + 3 * p;
     for (int ch = 0; ch < 3; ch++) v[ch] = isfinite(L[ch]) ? L[ch] : 0;
     v[3] = env->filled && env->filled[p] ? lum3(v) : 0;
     v[4] = env->fill_sigma_px ? v[3] * env->fill_sigma_px[p] : 0; /* gather.h: fill_sigma_lum */
+    v[5] = v[4] * d.x;                                             /* gather.h: fill_sigma_dir */
+    v[6] = v[4] * d.y;
 }
 
 /* The map's pixel directions from per-row and per-column tables (pano.h's convention:
@@ -74,7 +77,7 @@ static inline rs_v3 grid_dir(const grid *g, int c, int r)
  * n . V (all in front) or 0 (all behind); only blocks the plane cuts are summed by pixel. */
 enum { BLOCK = 8 };
 typedef struct {
-    double v[RS_SKYSH_CHANNELS][3];
+    double v[RS_SKYSH_TESTED][3];
     rs_v3 axis;
     double sin_half; /* > 1: the cone is a hemisphere or more, always summed by pixel */
 } block;
@@ -91,8 +94,8 @@ static void block_build(const rs_skyenv *env, const grid *g, int c0, int r0, blo
             ax = rs_v3_add(ax, rs_v3_scale(d, g->dom[r]));
             if (env->sun[p]) continue;
             double v[RS_SKYSH_CHANNELS];
-            pixel_values(env, p, v);
-            for (int ch = 0; ch < RS_SKYSH_CHANNELS; ch++) {
+            pixel_values(env, p, d, v);
+            for (int ch = 0; ch < RS_SKYSH_TESTED; ch++) {
                 b->v[ch][0] += v[ch] * g->dom[r] * d.x;
                 b->v[ch][1] += v[ch] * g->dom[r] * d.y;
                 b->v[ch][2] += v[ch] * g->dom[r] * d.z;
@@ -116,7 +119,7 @@ static void exact_blocks(const rs_skyenv *env, const grid *g, const block *bl, i
             const block *b = &bl[(size_t)br * nbc + bc];
             double t = rs_v3_dot(n, b->axis);
             if (t > b->sin_half + margin) {
-                for (int ch = 0; ch < RS_SKYSH_CHANNELS; ch++)
+                for (int ch = 0; ch < RS_SKYSH_TESTED; ch++)
                     e[ch] += n.x * b->v[ch][0] + n.y * b->v[ch][1] + n.z * b->v[ch][2];
                 continue;
             }
@@ -129,8 +132,8 @@ static void exact_blocks(const rs_skyenv *env, const grid *g, const block *bl, i
                     double cosn = rs_v3_dot(n, grid_dir(g, c, r));
                     if (cosn <= 0 || env->sun[p]) continue;
                     double v[RS_SKYSH_CHANNELS];
-                    pixel_values(env, p, v);
-                    for (int ch = 0; ch < RS_SKYSH_CHANNELS; ch++) e[ch] += v[ch] * cosn * g->dom[r];
+                    pixel_values(env, p, grid_dir(g, c, r), v);
+                    for (int ch = 0; ch < RS_SKYSH_TESTED; ch++) e[ch] += v[ch] * cosn * g->dom[r];
                 }
         }
 }
@@ -176,7 +179,7 @@ int rs_skysh_build(const rs_skyenv *env, double tol, int normals, rs_skysh *sh, 
             size_t p = (size_t)r * g.w + c;
             rs_v3 d = rs_pose_dir_to_world(&env->pose, grid_dir(&g, c, r));
             double v[RS_SKYSH_CHANNELS], y[RS_SKYSH_COEFS];
-            pixel_values(env, p, v);
+            pixel_values(env, p, d, v);
             if (env->sun[p]) {
                 sh->has_sun = 1;
                 sun_ax = rs_v3_add(sun_ax, rs_v3_scale(d, g.dom[r]));
@@ -281,7 +284,7 @@ int rs_skysh_sky_only(const rs_skysh *sh, rs_v3 n, double e[RS_SKYSH_CHANNELS], 
     eval_sh(sh, n, e);
     /* The projection's error is relative to what it carries (the map outside the sun set);
      * the sun set's part is exact. A projection that dips below 0 at this normal is clamped. */
-    for (int ch = 0; ch < RS_SKYSH_CHANNELS; ch++) e[ch] = fmax(0, e[ch]);
+    for (int ch = 0; ch < RS_SKYSH_TESTED; ch++) e[ch] = fmax(0, e[ch]);
     return 1;
 }
 
@@ -294,7 +297,7 @@ void rs_skysh_exact(const rs_skyenv *env, rs_v3 n, double e[RS_SKYSH_CHANNELS])
             rs_v3 d = rs_pose_dir_to_world(&env->pose, rs_pano_pixel_dir(env->width, env->height, c, r));
             double cosn = rs_v3_dot(n, d), v[RS_SKYSH_CHANNELS];
             if (cosn <= 0) continue;
-            pixel_values(env, (size_t)r * env->width + c, v);
+            pixel_values(env, (size_t)r * env->width + c, d, v);
             for (int ch = 0; ch < RS_SKYSH_CHANNELS; ch++) e[ch] += v[ch] * cosn * dom;
         }
     }

@@ -8,9 +8,12 @@
 #include "common/scene.h"
 #include "sky/skyenv.h"
 
-/* Channels carried: R, G, B, the luminance of the filled-in pixels (for sky_filled), and that
- * luminance times each pixel's fill uncertainty (for irradiance_sky_sigma). */
-enum { RS_SKYSH_CHANNELS = 5, RS_SKYSH_COEFS = 9, RS_SKYSH_MAX_NORMALS = 1024 };
+/* Channels carried: R, G, B, the luminance of the filled-in pixels (for sky_filled), that
+ * luminance times each pixel's fill uncertainty (for irradiance_sky_sigma), and the last times
+ * the pixel's world direction x and y (gather.h fill_sigma_dir: signed, never clamped). The
+ * frequency test covers the first RS_SKYSH_TESTED; the moments ride on the same order 2,
+ * untested (they only weigh the fill's uncertainty by direction). */
+enum { RS_SKYSH_CHANNELS = 7, RS_SKYSH_TESTED = 5, RS_SKYSH_COEFS = 9, RS_SKYSH_MAX_NORMALS = 1024 };
 
 /* A facet's error bound is the worst error of the test normals within this angle of its normal
  * (about twice their spacing at 256 normals): the error varies with the normal no faster than
@@ -60,7 +63,7 @@ double rs_skysh_bound(const rs_skysh *sh, rs_v3 n);
 
 /* For a facet with normal n that sees only sky (the model below its plane): when the bound at n
  * is within tol and n's plane does not cut the sun set, e = the projection's irradiance outside
- * the sun set (clamped at 0), es = the sun set's (exact), *bound = the relative error bound of e,
+ * the sun set (the first RS_SKYSH_TESTED channels clamped at 0), es = the sun set's (exact), *bound = the relative error bound of e,
  * and returns 1; else 0 (e, es and bound then mean nothing). */
 int rs_skysh_sky_only(const rs_skysh *sh, rs_v3 n, double e[RS_SKYSH_CHANNELS], double es[RS_SKYSH_CHANNELS],
                       double *bound);

@@ -103,6 +103,7 @@ static int read_opts(const rs_config *cfg, rs_irradiance_opts *o, rs_err *err)
     o->fill_from_facets = strcmp(ff, "on") == 0 ? RS_FILL_FROM_FACETS_ON
         : strcmp(ff, "off") == 0                ? RS_FILL_FROM_FACETS_OFF
                                                 : RS_FILL_FROM_FACETS_AUTO;
+    o->fill_directional = strcmp(rs_config_string(cfg, "sky", "fill_from_facets_modes"), "directional") == 0;
     o->ncaptures = rs_config_sections(cfg, "capture", o->captures, RS_SKYENV_MAX_OTHERS + 1);
     if (sky_fill_options(cfg, o, err) != 0) return -1;
     return rs_irradiance_sun_options(cfg, &o->sun, err);

@@ -8,9 +8,12 @@
 #include "pipeline/stage.h"
 #include "stages/irradiance/irradiance_state.h"
 
-/* After every gather and the explicit sun: estimates t (skyscale.h) and, with `on`, or with
- * `auto` when |t| is at least 2 of its standard uncertainties, adds t x fill_sigma_rgb to each
- * gathered facet's E_sky (and its luminance to filled_lum). The fill's uncertainty is left as it
+/* After every gather and the explicit sun: estimates t (skyscale.h) and, with [sky]
+ * fill_from_facets_modes = directional, t0 t1 t2 (skyscale_dir.h). When the directional part is
+ * significant (chi-square RS_SKYSCALE_DIR_CHI2) and within range, adds t0 fill_sigma_rgb + t1
+ * fill_sigma_dir x + t2 fill_sigma_dir y to each gathered facet's E_sky; otherwise, with `on`,
+ * or with `auto` when |t| is at least 2 of its standard uncertainties, adds t x fill_sigma_rgb
+ * (and either's luminance to filled_lum). The fill's uncertainty is left as it
  * was: the correction removes one smooth mode of its error, not the others. Reports the estimate
  * in irradiance.json (fill_from_facets) and the skip when not applied. Skipped when the sun
  * came from the shadows (its DNI rests on the same ratios). Returns 0, -1 out of

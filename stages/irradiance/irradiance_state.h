@@ -33,6 +33,7 @@ typedef struct rs_irradiance_opts {
     double solar_az_deg, solar_el_deg; /* with solar_when: the NOAA solar position */
     rs_sunsource_opts sun;
     int fill_from_facets; /* [sky] fill_from_facets (irradiance_skyscale.h) */
+    int fill_directional; /* [sky] fill_from_facets_modes = directional (sky/skyscale_dir.h) */
     /* The config's capture sections ("capture" and "capture.NAME"), in file order. */
     const char *captures[RS_SKYENV_MAX_OTHERS + 1];
     int ncaptures; /* all of them, also those beyond the array */
