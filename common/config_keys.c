@@ -185,7 +185,7 @@ const rs_cfg_key rs_cfg_keys[] = {
      "error (measured on the map at 256 normals, 1.5 x the worst near the facet's) is below this (0: never)"},
 
     {"irradiance", "occluders", RS_CFG_ENUM, "freespace+planes", 0, 0, "off|freespace|planes|freespace+planes|file", "",
-     "irradiance",
+     "irradiance texture",
      "close the open scanned shell for the light: freespace builds a map of the space the scanners' and the camera's "
      "rays crossed and blocks every gather, sun and search ray that enters space none crossed (within the model's "
      "box grown by occluder_margin); planes closes the large planar regions where their geometry makes it certain "
@@ -209,7 +209,7 @@ const rs_cfg_key rs_cfg_keys[] = {
      "by the unknown cells next to its own"},
     {"irradiance", "occluder_max_cells", RS_CFG_INT, "16777216", 4096, 268435456, NULL, "cells", "irradiance",
      "the free-space grid's largest cell count (2 bits each; the proxy search takes 8 bytes each while it runs)"},
-    {"irradiance", "occluders_file", RS_CFG_PATH, NULL, 0, 0, NULL, "", "irradiance",
+    {"irradiance", "occluders_file", RS_CFG_PATH, NULL, 0, 0, NULL, "", "irradiance texture",
      "with occluders = file: a PLY of occluder faces (vertex x y z, face vertex_indices, int proxy: the mesh.ply "
      "facet whose radiance stands for the face's unseen surface), as occluders.ply is written"},
 

@@ -15,8 +15,4 @@
  * occluders.ply an earlier run left. Figures into rep (metrics "occluders"). */
 int rs_irradiance_close(const rs_config *cfg, rs_irradiance_state *s, rs_report *rep, rs_err *err);
 
-/* An occluder PLY (vertex x y z, face vertex_indices, face int proxy) for a mesh of nf facets:
- * 0, or -1 with err naming the file, the element and what was expected. */
-int rs_occluders_read(const char *path, size_t nf, rs_mesh **occ, uint32_t **proxy, rs_err *err);
-
 #endif

@@ -11,7 +11,9 @@
  * V(x): the share of shadow rays toward the sun's disc that escape, per texel; U_chart the sun's
  *   normal irradiance that makes the chart's sun power equal the facets' (sum A_f E_sun,f /
  *   sum A_f cos_f V_f, V_f the facet's mean texel V). A texel the shadow's edge crosses
- *   (0 < V < 1) is flagged. The sun's direction is irradiance.json's `sun_direction`.
+ *   (0 < V < 1) is flagged. The sun's direction is irradiance.json's `sun_direction`; the shadow
+ *   rays see the occluders the irradiance stage closed the model with (its `occluders`), as its
+ *   facets' sun did.
  * Texels no capture sees take their facet's solved albedo. Outputs: albedo_texture.exr (R G B,
  * linear), albedo_texture_flags.exr (flags, sigma) and albedo_texture.png (sRGB) per page
  * (albedo_texture_P.* with several), and the exports (texture_export.c). */
@@ -26,6 +28,7 @@
 #include "common/log.h"
 #include "common/scene.h"
 #include "common/select.h"
+#include "meshing/occluders_ply.h"
 #include "pipeline/capture_load.h"
 #include "sky/skyenv.h"
 #include "stages/stages.h"
@@ -56,7 +59,10 @@ typedef struct {
                                       observe it (no facet albedo) but the irradiance stage gathered its light */
     tex_view views[TEX_MAX_VIEWS];
     int nviews;
-    rs_v3 sun; /* toward the sun; zero when none */
+    rs_v3 sun;    /* toward the sun; zero when none */
+    rs_mesh *occ; /* the irradiance stage's occluders (irradiance.json's occluders), NULL when it had none */
+    uint32_t *occ_proxy;
+    double occ_near; /* their near limit, m, as the irradiance stage attached them */
     double origin[3];
 } tex_inputs;
 
@@ -71,6 +77,8 @@ static void tex_inputs_free(tex_inputs *in)
     free(in->G);
     free(in->estimable);
     free(in->unobserved);
+    rs_mesh_free(in->occ);
+    free(in->occ_proxy);
     for (int v = 0; v < in->nviews; v++) {
         rs_capture_release(&in->views[v].cap);
         rs_image_free(in->views[v].ids);
@@ -99,6 +107,37 @@ static rs_v3 read_sun_direction(const cJSON *j)
         if (rs_v3_finite(v) && fabs(rs_v3_len(v) - 1) < 1e-3) s = rs_v3_norm(v);
     }
     return s;
+}
+
+/* The occluders the irradiance stage attached to its scene (irradiance.json's `occluders`: mode,
+ * faces, near_m): occluders.ply in the work folder, or [irradiance] occluders_file with
+ * occluders = file. Its facets' sun (irradiance_sun) was shadowed by them, so the texels' shadow
+ * rays must be too, or the chart's sun power (chart_sun) would be spread onto texels the
+ * occluders shade. None (in->occ NULL) when it attached none. */
+static int read_occluders(const rs_config *cfg, const cJSON *irr, tex_inputs *in, rs_err *err)
+{
+    const cJSON *o = cJSON_GetObjectItemCaseSensitive(irr, "occluders");
+    const cJSON *faces = cJSON_GetObjectItemCaseSensitive(o, "faces"),
+                *near = cJSON_GetObjectItemCaseSensitive(o, "near_m"),
+                *mode = cJSON_GetObjectItemCaseSensitive(o, "mode");
+    if (!cJSON_IsNumber(faces) || !(faces->valuedouble > 0)) return 0;
+    char path[4096], jp[4096];
+    rs_work_path(cfg, "irradiance.json", jp, sizeof jp);
+    if (!cJSON_IsNumber(near) || !(near->valuedouble >= 0) || !isfinite(near->valuedouble) || !cJSON_IsString(mode))
+        return rs_err_set(err, RS_ERR_INPUT, jp, 0,
+                          "occluders: expected mode and near_m (a distance >= 0) with faces > 0 (rerun irradiance)");
+    const char *fp = strcmp(mode->valuestring, "file") == 0
+        ? rs_config_path(cfg, "irradiance", "occluders_file", path, sizeof path)
+        : rs_work_path(cfg, "occluders.ply", path, sizeof path);
+    if (!fp)
+        return rs_err_set(err, RS_ERR_INPUT, jp, 0,
+                          "occluders: mode file, but [irradiance] occluders_file is not set (rerun irradiance)");
+    if (rs_occluders_read(fp, in->nf, &in->occ, &in->occ_proxy, err) != 0) return -1;
+    if ((double)in->occ->nfaces != faces->valuedouble)
+        return rs_err_set(err, RS_ERR_INPUT, fp, 0, "%zu faces, irradiance.json's occluders has %g: rerun irradiance",
+                          in->occ->nfaces, faces->valuedouble);
+    in->occ_near = near->valuedouble;
+    return 0;
 }
 
 /* The further captures ([capture.NAME], in file order, as many as the irradiance stage's sky map
@@ -194,6 +233,7 @@ static int read_inputs(const rs_config *cfg, tex_inputs *in, rs_err *err)
     cJSON *irr = read_irradiance_json(cfg);
     in->sun = read_sun_direction(irr);
     int rc = load_further_views(cfg, irr, in, err);
+    if (rc == 0 && rs_v3_len(in->sun) > 0.5) rc = read_occluders(cfg, irr, in, err);
     cJSON_Delete(irr);
     if (rc != 0) return -1;
     const char *o = rs_ply_find_comment(in->alb, "rhoscan_origin");
@@ -285,6 +325,7 @@ static double *corner_irradiance(const tex_inputs *in, const rs_atlas *a)
 typedef struct {
     const tex_inputs *in;
     const rs_scene *scene;
+    const rs_scene *sun_scene; /* scene, or with the irradiance stage's occluders attached: for the sun's rays */
     rs_tex_pages *t;
     double *Dc;  /* corner_irradiance */
     double *U;   /* 3 per chart: the sun's normal irradiance */
@@ -313,7 +354,7 @@ static float sun_visibility(const tex_ctx *c, rs_v3 p, rs_v3 n)
             rs_v3_add(s, rs_v3_add(rs_v3_scale(t1, jx[r] * SUN_RADIUS_RAD), rs_v3_scale(t2, jy[r] * SUN_RADIUS_RAD)));
         rays[r] = (rs_ray){rs_v3_add(p, rs_v3_scale(n, off)), rs_v3_norm(d), 0, INFINITY};
     }
-    rs_scene_occluded(c->scene, rays, occ, SUN_RAYS);
+    rs_scene_occluded(c->sun_scene, rays, occ, SUN_RAYS);
     int esc = 0;
     for (int r = 0; r < SUN_RAYS; r++) esc += !occ[r];
     return (float)esc / SUN_RAYS;
@@ -703,9 +744,18 @@ static int texture_compute(const rs_config *cfg, tex_inputs *in, rs_tex_pages *t
     tex_ctx c = {.in = in, .t = t, .sub_max = 3, .area = filter && strcmp(filter, "area") == 0};
     int rc = -1;
     double t0 = rs_now();
-    rs_scene *scene = rs_scene_new(in->mesh, err);
+    rs_scene *scene = rs_scene_new(in->mesh, err), *sun_scene = NULL;
     if (!scene) return -1;
-    c.scene = scene;
+    c.scene = c.sun_scene = scene;
+    /* the occluders on a scene of their own: they close the shell for the light, not for the
+     * cameras' view rays (a camera saw what it saw) */
+    if (in->occ) {
+        if (!(sun_scene = rs_scene_new(in->mesh, err)) ||
+            rs_scene_set_occluders(sun_scene, in->occ, in->occ_proxy, in->occ_near, err) != 0)
+            goto out;
+        c.sun_scene = sun_scene;
+        rs_log_info("texture: the sun's shadow rays see the irradiance stage's %zu occluder faces", in->occ->nfaces);
+    }
     double t1 = rs_now();
     for (int v = 1; v < in->nviews; v++)
         if (trace_ids(scene, &in->views[v], err) != 0) goto out;
@@ -738,6 +788,7 @@ static int texture_compute(const rs_config *cfg, tex_inputs *in, rs_tex_pages *t
 out:
     free(c.Dc);
     free(c.U);
+    rs_scene_free(sun_scene);
     rs_scene_free(scene);
     return rc;
 }
