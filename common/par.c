@@ -6,6 +6,7 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #ifdef RHOSCAN_MPI
 #include <mpi.h>
 #endif
@@ -39,11 +40,38 @@ rs_par_traffic rs_par_traffic_now(void)
 }
 
 #ifdef RHOSCAN_MPI
+/* Waits for req without spinning on a core (every collective here is started non-blocking and
+ * waited for so): the ranks other than 0 wait through every stage that rank 0 runs alone, and
+ * a blocking MPI call polls (Open MPI's mpi_yield_when_idle only
+ * yields the core, it still burns it when nothing else runs). Sleeps from 50 us up to 10 ms
+ * between tests: at most 10 ms late at the end of a long wait. */
+static void wait_gently(MPI_Request *req)
+{
+    long ns = 50000;
+    for (;;) {
+        int done = 0;
+        MPI_Test(req, &done, MPI_STATUS_IGNORE);
+        if (done) return;
+        struct timespec ts = {0, ns};
+        nanosleep(&ts, NULL);
+        if (ns < 10000000) ns *= 2;
+    }
+}
+
+static void gentle_barrier(void)
+{
+    MPI_Request req;
+    MPI_Ibarrier(MPI_COMM_WORLD, &req);
+    wait_gently(&req);
+}
+
 static void finalize_at_exit(void)
 {
     int done = 0;
     MPI_Finalized(&done);
-    if (!done) MPI_Finalize();
+    if (done) return;
+    gentle_barrier(); /* rank 0 may still be writing the run's metrics and report */
+    MPI_Finalize();
 }
 #endif
 
@@ -125,7 +153,9 @@ int rs_par_any(int flag)
     flag = flag != 0;
 #ifdef RHOSCAN_MPI
     if (rs_par_size() > 1) {
-        MPI_Allreduce(MPI_IN_PLACE, &flag, 1, MPI_INT, MPI_LOR, MPI_COMM_WORLD);
+        MPI_Request req;
+        MPI_Iallreduce(MPI_IN_PLACE, &flag, 1, MPI_INT, MPI_LOR, MPI_COMM_WORLD, &req);
+        wait_gently(&req);
         count_traffic(2.0 * sizeof flag * (world_size - 1), world_size - 1);
     }
 #endif
@@ -136,7 +166,9 @@ double rs_par_max(double v)
 {
 #ifdef RHOSCAN_MPI
     if (rs_par_size() > 1) {
-        MPI_Allreduce(MPI_IN_PLACE, &v, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+        MPI_Request req;
+        MPI_Iallreduce(MPI_IN_PLACE, &v, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD, &req);
+        wait_gently(&req);
         count_traffic(2.0 * sizeof v * (world_size - 1), world_size - 1);
     }
 #endif
@@ -151,7 +183,9 @@ static void bcast_from(void *buf, size_t n, int root)
 {
     for (size_t at = 0; at < n; at += RS_PAR_PIECE) {
         size_t piece = n - at < RS_PAR_PIECE ? n - at : RS_PAR_PIECE;
-        MPI_Bcast((unsigned char *)buf + at, (int)piece, MPI_BYTE, root, MPI_COMM_WORLD);
+        MPI_Request req;
+        MPI_Ibcast((unsigned char *)buf + at, (int)piece, MPI_BYTE, root, MPI_COMM_WORLD, &req);
+        wait_gently(&req);
     }
 }
 #endif
@@ -195,7 +229,9 @@ int rs_par_allgather_range(void *v, size_t n, size_t item_bytes, rs_err *err)
     MPI_Datatype item;
     MPI_Type_contiguous((int)item_bytes, MPI_BYTE, &item);
     MPI_Type_commit(&item);
-    MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, v, counts, displs, item, MPI_COMM_WORLD);
+    MPI_Request req;
+    MPI_Iallgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, v, counts, displs, item, MPI_COMM_WORLD, &req);
+    wait_gently(&req);
     MPI_Type_free(&item);
     double mine = (double)counts[world_rank] * (double)item_bytes;
     count_traffic((double)(n * item_bytes) - mine + mine * (size - 1), 2.0 * (size - 1));
@@ -218,7 +254,9 @@ int rs_par_allgather_bytes(const void *mine, size_t n, unsigned char **all, size
 #ifdef RHOSCAN_MPI
     if (size > 1) {
         uint64_t me = n;
-        MPI_Allgather(&me, 1, MPI_UINT64_T, len, 1, MPI_UINT64_T, MPI_COMM_WORLD);
+        MPI_Request req;
+        MPI_Iallgather(&me, 1, MPI_UINT64_T, len, 1, MPI_UINT64_T, MPI_COMM_WORLD, &req);
+        wait_gently(&req);
     }
 #endif
     size_t sum = 0;
@@ -268,6 +306,7 @@ rs_par_queue *rs_par_queue_new(size_t n, size_t block)
 #ifdef RHOSCAN_MPI
     if (rs_par_size() > 1) {
         int64_t *counter = NULL;
+        gentle_barrier(); /* ranks arrive apart: none polls in the window's creation */
         MPI_Win_allocate(world_rank == 0 ? (MPI_Aint)sizeof *counter : 0, sizeof *counter, MPI_INFO_NULL,
                          MPI_COMM_WORLD, &counter, &q->win);
         if (world_rank == 0) {
@@ -275,7 +314,7 @@ rs_par_queue *rs_par_queue_new(size_t n, size_t block)
             *counter = 0;
             MPI_Win_unlock(0, q->win);
         }
-        MPI_Barrier(MPI_COMM_WORLD); /* nobody takes before the counter is 0 */
+        gentle_barrier(); /* nobody takes before the counter is 0 */
         MPI_Win_lock_all(MPI_MODE_NOCHECK, q->win);
         q->shared = 1;
     }
@@ -317,7 +356,8 @@ void rs_par_queue_free(rs_par_queue *q)
 #ifdef RHOSCAN_MPI
     if (q->shared) {
         MPI_Win_unlock_all(q->win);
-        MPI_Win_free(&q->win); /* collective: every rank has drained the queue */
+        gentle_barrier(); /* the other ranks may still gather their last blocks */
+        MPI_Win_free(&q->win);
     }
 #endif
     free(q);

@@ -34,7 +34,8 @@ int rs_par_local_size(void);
 void rs_par_solo_begin(void);
 void rs_par_solo_end(void);
 
-/* Collective: 1 when flag is non-zero on any rank (also the team's barrier). */
+/* Collective: 1 when flag is non-zero on any rank (also the team's barrier; a rank waiting
+ * in it sleeps between tests instead of polling a core). */
 int rs_par_any(int flag);
 /* Collective: the largest of the ranks' v. */
 double rs_par_max(double v);
