@@ -108,6 +108,15 @@ int rs_par_init(rs_err *err)
 #endif
 }
 
+int rs_par_built_with_mpi(void)
+{
+#ifdef RHOSCAN_MPI
+    return 1;
+#else
+    return 0;
+#endif
+}
+
 int rs_par_rank(void)
 {
     return solo_depth ? 0 : world_rank;

@@ -21,6 +21,9 @@
  * err set when MPI would not start or lacks the thread support the work queue needs. */
 int rs_par_init(rs_err *err);
 
+/* 1 in a build with MPI (-DRHOSCAN_MPI=ON), else 0. */
+int rs_par_built_with_mpi(void);
+
 /* This rank and the team's size (0 and 1 without MPI, and inside a solo section). */
 int rs_par_rank(void);
 int rs_par_size(void);
