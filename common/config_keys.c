@@ -8,7 +8,8 @@ const rs_cfg_key rs_cfg_keys[] = {
     /* section, key, type, default, min, max, choices, unit, stages, help */
     {"pipeline", "workdir", RS_CFG_PATH, "out", 0, 0, NULL, "", "all", "output folder for every stage's files"},
     {"pipeline", "threads", RS_CFG_INT, "0", 0, 4096, NULL, "", "all",
-     "worker threads; 0 uses every core (results do not depend on it)"},
+     "worker threads (per MPI rank); 0 uses every core, shared out among the MPI ranks on the host (results "
+     "do not depend on it)"},
 
     {"ingest", "scan", RS_CFG_PATHS, NULL, 0, 0, NULL, "", "ingest",
      "one or more point clouds: Leica PTX (organized), PLY, PCD, LAS 1.0-1.4, or XYZ/CSV text (.xyz .txt .csv .pts)"},

@@ -8,6 +8,7 @@
 #include <string.h>
 #include <time.h>
 #include <unistd.h>
+#include "common/par.h"
 
 static char log_program[64] = "rhoscan";
 static rs_log_level log_level = RS_LOG_INFO;
@@ -26,9 +27,16 @@ const char *rs_log_program(void)
     return log_program;
 }
 
+/* In an MPI run every rank would say the same: the ranks other than 0 warn and inform not at
+ * all (rs_log_error still prints on every rank). */
+static int quiet_rank(void)
+{
+    return rs_par_world_rank() != 0;
+}
+
 static void log_v(rs_log_level level, const char *tag, const char *fmt, va_list ap)
 {
-    if (level > log_level) return;
+    if (level > log_level || quiet_rank()) return;
     char line[2048];
     vsnprintf(line, sizeof line, fmt, ap);
     fprintf(stderr, "%s: %s%s\n", log_program, tag, line);
@@ -105,6 +113,7 @@ struct rs_progress {
 
 rs_progress *rs_progress_start(const char *what, size_t total)
 {
+    if (quiet_rank()) return NULL; /* rank 0 shows the run's progress */
     rs_progress *p = calloc(1, sizeof *p);
     if (!p) return NULL;
     snprintf(p->what, sizeof p->what, "%s", what);

@@ -1,5 +1,5 @@
 /* gather_run: the gather of a whole model (rs_gather_run, gather.h): facets in Morton order on
- * all OpenMP threads, the closure of the light paths that end at the facets a camera sees, and
+ * all OpenMP threads of every MPI rank, the closure of the light paths that end at the facets a camera sees, and
  * the Monte Carlo noise calibration that gathers a sample of facets again. */
 #include "light/gather.h"
 
@@ -7,6 +7,8 @@
 #include <stdlib.h>
 #include <string.h>
 #include "common/log.h"
+#include "common/par.h"
+#include "light/gather_share.h"
 
 /* Morton code of a point scaled into [0, 1)^3: 10 bits per axis, interleaved. */
 static uint32_t spread10(uint32_t v)
@@ -63,26 +65,35 @@ static uint32_t *morton_order(const rs_mesh *m, size_t nf)
     return order;
 }
 
+/* Facets per block of the work queue: neighbours in the Morton order share BVH nodes in the
+ * cache, and a block is small against a rank's share (costs differ a lot: a roof's rays escape
+ * at once, a courtyard's bounce). */
+#define RS_GATHER_BLOCK 16
+
 /* Gathers the listed facets in parallel into fg[list[k]], or into fg[k] when by_position; -1 when
- * a thread ran out of memory. */
+ * a thread ran out of memory. Blocks of the list go to whichever thread, of whichever MPI rank
+ * (common/par.h), asks first; the ranks then exchange what they gathered (gather_share.h). */
 static int gather_list(const rs_gather_ctx *g, const uint32_t *list, size_t n, rs_facet_gather *fg, int by_position,
                        struct rs_progress *prog)
 {
     size_t scratch = (size_t)g->samples;
     if ((size_t)g->sky_samples > scratch) scratch = (size_t)g->sky_samples;
     if ((size_t)g->sun_samples > scratch) scratch = (size_t)g->sun_samples;
-    int failed = 0;
+    int ranks = rs_par_size() > 1;
+    uint8_t *mine = ranks ? calloc(n ? n : 1, 1) : NULL;
+    rs_par_queue *queue = rs_par_queue_new(n, RS_GATHER_BLOCK);
+    int failed = !queue || (ranks && !mine);
 #pragma omp parallel
     {
         rs_gather_scratch *s = rs_gather_scratch_new(scratch);
         int mine_failed = !s;
-        /* Dynamic chunks of neighbouring facets: costs differ a lot (a roof's rays escape at
-         * once, a courtyard's bounce), and neighbours share BVH nodes in the cache. */
-#pragma omp for schedule(dynamic, 16)
-        for (size_t k = 0; k < n; k++) {
-            if (mine_failed || failed) continue;
-            if (rs_gather_facet(g, list[k], s, &fg[by_position ? k : list[k]]) != 0) mine_failed = 1;
-            if (prog && (k & 255) == 255) rs_progress_add(prog, 256);
+        size_t begin, end;
+        while (!mine_failed && !failed && queue && rs_par_queue_take(queue, &begin, &end)) {
+            for (size_t k = begin; k < end && !mine_failed; k++) {
+                if (rs_gather_facet(g, list[k], s, &fg[by_position ? k : list[k]]) != 0) mine_failed = 1;
+                if (mine) mine[k] = 1;
+            }
+            if (prog) rs_progress_add(prog, (end - begin) * (size_t)rs_par_size());
         }
         if (mine_failed) {
 #pragma omp atomic write
@@ -90,7 +101,10 @@ static int gather_list(const rs_gather_ctx *g, const uint32_t *list, size_t n, r
         }
         rs_gather_scratch_free(s);
     }
-    return failed ? -1 : 0;
+    rs_par_queue_free(queue);
+    if (ranks && !rs_par_any(failed)) failed = rs_gather_share(list, n, fg, by_position, mine) != 0;
+    free(mine);
+    return rs_par_any(failed) ? -1 : 0;
 }
 
 /* Every failure of the gather's entry points (their steps return a bare -1). */

@@ -4,6 +4,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include "common/par.h"
 #include "common/ply.h"
 #include "common/vec.h"
 
@@ -110,20 +111,28 @@ void rs_transport_free(rs_transport *t)
 }
 
 /* Jacobi iteration: every sweep uses the previous sweep's L, so the result does not depend on
- * the order (or thread count) in which facets are updated. */
+ * the order (or thread count) in which facets are updated, nor on how the rows are split over
+ * MPI ranks (common/par.h): each rank updates its share of the rows, the ranks exchange the new
+ * L (allgather, 24 bytes a facet) and take the largest change over all of them. */
 int rs_transport_solve(const rs_transport *K, const double *rho, const double *esky, double *L, double *G, double tol,
                        int max_iter, double *residual)
 {
-    size_t nf = K->nfaces;
+    size_t nf = K->nfaces, lo, hi;
+    rs_par_range(nf, &lo, &hi);
     double *next = malloc(3 * nf * sizeof *next);
-    if (!next) return -1;
+    if (rs_par_any(!next)) {
+        free(next);
+        return -1;
+    }
     for (size_t i = 0; i < 3 * nf; i++) L[i] = rho[i] * esky[i] / M_PI;
-    int it;
+    int it, failed = 0;
     *residual = 0;
+    rs_err err;
+    rs_err_clear(&err);
     for (it = 1; it <= max_iter; it++) {
         double change = 0, scale = 0;
 #pragma omp parallel for schedule(static) reduction(max : change, scale)
-        for (size_t i = 0; i < nf; i++) {
+        for (size_t i = lo; i < hi; i++) {
             double g[3] = {0, 0, 0};
             for (size_t e = K->row_start[i]; e < K->row_start[i + 1]; e++)
                 for (int ch = 0; ch < 3; ch++) g[ch] += K->k[e] * L[3 * K->col[e] + ch];
@@ -135,10 +144,19 @@ int rs_transport_solve(const rs_transport *K, const double *rho, const double *e
                 scale = fmax(scale, fabs(v));
             }
         }
+        if (rs_par_allgather_range(next, nf, 3 * sizeof *next, &err) != 0) {
+            failed = 1;
+            break;
+        }
+        change = rs_par_max(change);
+        scale = rs_par_max(scale);
         memcpy(L, next, 3 * nf * sizeof *L);
         *residual = scale > 0 ? change / scale : 0;
         if (*residual < tol) break;
     }
+    /* G of the last sweep, every rank's rows. */
+    if (!failed && rs_par_allgather_range(G, nf, 3 * sizeof *G, &err) != 0) failed = 1;
     free(next);
+    if (failed) return -1;
     return it > max_iter ? max_iter : it;
 }

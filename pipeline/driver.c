@@ -6,6 +6,7 @@
 #include <string.h>
 #include "common/fileio.h"
 #include "common/log.h"
+#include "common/par.h"
 #include "pipeline/effective.h"
 #include "pipeline/options.h"
 #include "pipeline/report.h"
@@ -135,7 +136,9 @@ int rs_run_pipeline(const rs_stage_def *stages, const rs_config *cfg, const rs_r
         char why[512];
         if (opts->from && strcmp(d->name, opts->from) == 0) reached_from = 1;
         if (opts->only && strcmp(d->name, opts->only) != 0) continue;
-        why_not_run(d, cfg, opts, reached_from, why, sizeof why);
+        why[0] = 0;
+        if (rs_par_world_rank() == 0) why_not_run(d, cfg, opts, reached_from, why, sizeof why);
+        rs_par_bcast(why, sizeof why); /* MPI: rank 0's records decide for every rank */
         if (why[0]) {
             char what[64];
             snprintf(what, sizeof what, "stage %s", d->name);
@@ -156,9 +159,10 @@ int rs_run_pipeline(const rs_stage_def *stages, const rs_config *cfg, const rs_r
     rs_json_set_num(run, "wall_time_s", rs_now() - t0);
     if (rc == 0) {
         rs_skips_log(&skips);
-        rc = rs_merge_metrics(stages, cfg, run, err);
+        rc = rs_par_world_rank() == 0 ? rs_merge_metrics(stages, cfg, run, err) : 0;
         if (rc == 0) log_done(stages, opts, nran, rs_now() - t0);
-        if (rc == 0 && nran > 0 && rs_config_bool(cfg, "report", "write")) report_after(stages, cfg);
+        if (rc == 0 && nran > 0 && rs_config_bool(cfg, "report", "write") && rs_par_world_rank() == 0)
+            report_after(stages, cfg);
     }
     rs_skips_release(&skips);
     rs_json_free(run);
@@ -221,7 +225,7 @@ static int run_command(const rs_stage_def *stages, int argc, char **argv)
     free(sets);
     if (!cfg) return rc;
     if (print_config) {
-        rs_config_print_sections(cfg, NULL, stdout);
+        if (rs_par_world_rank() == 0) rs_config_print_sections(cfg, NULL, stdout);
         rc = rs_stdout_check("rhoscan");
     } else {
         rs_err err;

@@ -5,6 +5,7 @@
 #include <string.h>
 #include "common/fileio.h"
 #include "common/log.h"
+#include "common/par.h"
 
 void rs_opt_begin(rs_opt_scan *s, const rs_option *table, int argc, char **argv, int first)
 {
@@ -98,6 +99,12 @@ void rs_options_print(FILE *out, const rs_option *table)
 void rs_program_start(const char *prog)
 {
     rs_log_init(prog);
+    rs_err err;
+    rs_err_clear(&err);
+    if (rs_par_init(&err) != 0) { /* started by an MPI launcher: MPI first, or nothing */
+        rs_log_error(&err);
+        exit(err.kind ? (int)err.kind : 2);
+    }
     const char *fault = getenv("RHOSCAN_FAULT");
     if (fault && strncmp(fault, "enospc:", 7) == 0) rs_fault_inject_enospc(atol(fault + 7));
 }

@@ -16,6 +16,7 @@
 #endif
 #include "common/fileio.h"
 #include "common/log.h"
+#include "common/par.h"
 #include "pipeline/effective.h"
 #include "pipeline/options.h"
 #include "pipeline/report.h"
@@ -284,7 +285,37 @@ void rs_stage_report(const rs_config *cfg, const char *const *stages)
     rs_log_info("report: %s/report.html (%.3f s, CPU %.3f s)", dir, rs_now() - t0, cpu_seconds() - c0);
 }
 
-int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_skips *skips, rs_err *err)
+/* In an MPI run, what the stage's ranks exchanged (common/par.h): the host's, not the result's. */
+static void report_ranks(rs_report *rep, const rs_par_traffic *before, double cpu)
+{
+    if (rs_par_world_size() <= 1) return;
+    rs_par_traffic now = rs_par_traffic_now();
+    /* Collective for a stage of every rank: each rank's CPU seconds, in rank order. */
+    unsigned char *all = NULL;
+    size_t bytes = 0;
+    rs_err err;
+    rs_err_clear(&err);
+    if (rs_par_allgather_bytes(&cpu, sizeof cpu, &all, &bytes, NULL, &err) != 0) bytes = 0;
+    rs_json *r = rs_json_set_obj(rep->metrics, "mpi");
+    rs_json_set_int(r, "ranks", rs_par_world_size());
+    rs_json_set_int(r, "ranks_on_host", rs_par_local_size());
+#ifdef _OPENMP
+    rs_json_set_int(r, "threads_per_rank", omp_get_max_threads());
+#endif
+    rs_json_set_str(r, "ran_on", rs_par_size() > 1 ? "every rank" : "rank 0");
+    rs_json_set_num(r, "rank0_bytes", now.bytes - before->bytes);
+    rs_json_set_num(r, "rank0_messages", now.messages - before->messages);
+    rs_json *per = rs_json_set_arr(r, "cpu_time_s_per_rank");
+    for (size_t k = 0; k + sizeof cpu <= bytes; k += sizeof cpu) {
+        double c;
+        memcpy(&c, all + k, sizeof c);
+        rs_json_push_num(per, c);
+    }
+    free(all);
+}
+
+/* The stage on this rank: def->run, then (rank 0) <stage>.json and the state file. */
+static int execute_here(const rs_stage_def *def, const rs_config *cfg, rs_skips *skips, rs_err *err)
 {
     char dir[4096], path[4096];
     int existed = rs_config_path(cfg, "pipeline", "workdir", dir, sizeof dir) && access(dir, F_OK) == 0;
@@ -302,6 +333,7 @@ int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_skips *sk
     rep.skipped = rs_json_set_arr(rep.metrics, "skipped");
 
     rs_log_info("%s: started", def->name);
+    rs_par_traffic traffic = rs_par_traffic_now();
     double t0 = rs_now(), c0 = cpu_seconds();
     size_t warned = rs_log_warning_count();
     int rc = def->run(cfg, &rep, err);
@@ -313,6 +345,11 @@ int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_skips *sk
     }
     rs_json_set_num(rep.metrics, "wall_time_s", wall);
     rs_json_set_num(rep.metrics, "cpu_time_s", cpu); /* every thread's, this process */
+    report_ranks(&rep, &traffic, cpu);
+    if (!rs_par_is_root()) { /* rank 0 writes the stage's record */
+        rs_json_free(rep.metrics);
+        return 0;
+    }
     if (rs_log_warning_count() > warned) {           /* what it warned of, for the report */
         rs_json *w = rs_json_set_arr(rep.metrics, "warnings");
         for (size_t k = warned; k < rs_log_warning_count(); k++) rs_json_push_str(w, rs_log_warning(k));
@@ -336,6 +373,24 @@ int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_skips *sk
     return rc;
 }
 
+int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_skips *skips, rs_err *err)
+{
+    int rc = 0;
+    if (rs_par_world_size() <= 1) return execute_here(def, cfg, skips, err);
+    if (def->every_rank) {
+        rc = execute_here(def, cfg, skips, err);
+    } else if (rs_par_world_rank() == 0) { /* its library calls see a team of one */
+        rs_par_solo_begin();
+        rc = execute_here(def, cfg, skips, err);
+        rs_par_solo_end();
+    }
+    /* Also the barrier: no rank reads the stage's outputs before rank 0 has written them. */
+    if (rs_par_any(rc != 0) && rc == 0)
+        rc = rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "%s: the stage failed on another MPI rank (rank 0 says why)",
+                        def->name);
+    return rc;
+}
+
 int rs_stdout_check(const char *prog)
 {
     if (fflush(stdout) == 0 && !ferror(stdout)) return 0;
@@ -355,7 +410,14 @@ rs_config *rs_program_config(const char *path, const char *const *sets, int *exi
     }
 #ifdef _OPENMP
     long threads = rs_config_int(cfg, "pipeline", "threads");
-    if (threads > 0) omp_set_num_threads((int)threads);
+    if (threads > 0) {
+        omp_set_num_threads((int)threads);
+    } else if (rs_par_local_size() > 1 && !getenv("OMP_NUM_THREADS")) {
+        /* MPI ranks sharing a host share its cores: not every rank on every core. The host's
+         * count, not omp_get_num_procs: a launcher may have bound the rank to fewer. */
+        long cores = sysconf(_SC_NPROCESSORS_ONLN) / rs_par_local_size();
+        omp_set_num_threads(cores > 1 ? (int)cores : 1);
+    }
 #endif
     return cfg;
 }
@@ -446,7 +508,7 @@ static int run_stage(const rs_stage_def *def, const rs_stage_def *table, const r
         rc = err.kind ? (int)err.kind : 3;
     } else {
         rs_skips_log(&skips);
-        if (rs_config_bool(cfg, "report", "write")) rs_stage_report(cfg, NULL);
+        if (rs_config_bool(cfg, "report", "write") && rs_par_world_rank() == 0) rs_stage_report(cfg, NULL);
     }
     rs_skips_release(&skips);
     return rc;
@@ -497,7 +559,10 @@ int rs_stage_main_of(const rs_stage_def *def, const rs_stage_def *table, int arg
     rs_config *cfg = rs_program_config(opt.operand, sets, &rc);
     free(sets);
     if (!cfg) return rc;
-    rc = want_config ? print_config(def, cfg, prog) : run_stage(def, table, cfg);
+    if (want_config)
+        rc = rs_par_world_rank() == 0 ? print_config(def, cfg, prog) : 0;
+    else
+        rc = run_stage(def, table, cfg);
     rs_config_free(cfg);
     return rc;
 }

@@ -47,6 +47,8 @@ typedef struct rs_stage_def {
     const char *inputs;   /* work-folder files it reads, space-separated */
     const char *outputs;  /* work-folder files it writes, space-separated */
     const char *help;
+    int every_rank; /* in an MPI run (common/par.h): 1 runs it on every rank, whose costly loops
+                       split their work; 0 (the default) on rank 0 alone, the others waiting */
 } rs_stage_def;
 
 /* The stage called name in table (ended by {NULL}), or NULL. */
@@ -59,7 +61,9 @@ const char *rs_work_path(const rs_config *cfg, const char *name, char *out, size
 
 /* Runs one stage: calls def->run, writes <stage>.json (metrics, timings, skips, fingerprint,
  * input checksums) and the state file used for rerun decisions. The stage's skips are also
- * added to skips (may be NULL), under the stage's name. */
+ * added to skips (may be NULL), under the stage's name. In an MPI run it is collective: rank 0
+ * alone writes <stage>.json and the state, and every rank returns when rank 0's files are
+ * written; -1 on every rank when the stage failed on any. */
 int rs_stage_execute(const rs_stage_def *def, const rs_config *cfg, rs_skips *skips, rs_err *err);
 
 /* After a stage or a run: the run report (pipeline/report.h) for cfg's work folder and its

@@ -5,6 +5,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include "common/par.h"
 
 /* Real spherical harmonics up to order 2 at unit d (Ramamoorthi & Hanrahan 2001, eq. 3). */
 static void sh9(rs_v3 d, double y[RS_SKYSH_COEFS])
@@ -205,16 +206,28 @@ int rs_skysh_build(const rs_skyenv *env, double tol, int normals, rs_skysh *sh, 
         sh->sun_sin = mincos > 0 ? sqrt(1 - mincos * mincos) : 2;
     }
 
-    /* The frequency test: exact sums (by block) against the projection at each test normal. */
+    /* The frequency test: exact sums (by block) against the projection at each test normal.
+     * Rows of blocks and normals are independent: in an MPI run (common/par.h) each rank does
+     * its share of both and the ranks exchange them, the same bytes as one process. */
+    size_t lo, hi;
+    rs_par_range((size_t)nbr, &lo, &hi);
 #pragma omp parallel for schedule(dynamic, 1)
-    for (int br = 0; br < nbr; br++)
+    for (int br = (int)lo; br < (int)hi; br++)
         for (int bc = 0; bc < nbc; bc++) block_build(env, &g, bc * BLOCK, br * BLOCK, &bl[(size_t)br * nbc + bc]);
+    int shared = rs_par_allgather_range(bl, (size_t)nbr, (size_t)nbc * sizeof *bl, err);
+    rs_par_range((size_t)normals, &lo, &hi);
 #pragma omp parallel for schedule(dynamic, 4)
-    for (int k = 0; k < normals; k++) {
+    for (int k = (int)lo; k < (int)hi; k++) {
         rs_v3 n = rs_skysh_normal(k, normals);
         exact_blocks(env, &g, bl, nbc, nbr, rs_pose_dir_to_local(&env->pose, n),
                      ex + (size_t)k * 2 * RS_SKYSH_CHANNELS);
         eval_sh(sh, n, ex + ((size_t)k * 2 + 1) * RS_SKYSH_CHANNELS);
+    }
+    if (shared != 0 || rs_par_allgather_range(ex, (size_t)normals, 2 * RS_SKYSH_CHANNELS * sizeof *ex, err) != 0) {
+        free(bl);
+        free(ex);
+        free(g.st);
+        return -1;
     }
     double emax[RS_SKYSH_CHANNELS + 1] = {0};
     for (int k = 0; k < normals; k++) {

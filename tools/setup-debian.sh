@@ -15,8 +15,9 @@ if [ "${1:-}" = "--tests" ]; then
     # report's page test (tests/report/report_page.py); blender and python3-open3d: the viewers
     # the texture stage's exports must open in (tests/stages/texture_viewers.py; about 45 s to
     # install, 85 MB of packages, 266 MB on disk); cloudcompare with xvfb and xauth: the same
-    # test reads albedo_vertex.ply's colours through CloudCompare's command line.
-    pkgs="$pkgs libcmocka-dev python3 python3-numpy python3-scipy python3-openimageio clang libclang-rt-14-dev libomp-dev blender-data chromium chromium-driver python3-selenium blender python3-open3d cloudcompare xvfb xauth"
+    # test reads albedo_vertex.ply's colours through CloudCompare's command line;
+    # libopenmpi-dev and openmpi-bin: the MPI build and its test (tests/mpi, ctest -L mpi).
+    pkgs="$pkgs libcmocka-dev python3 python3-numpy python3-scipy python3-openimageio clang libclang-rt-14-dev libomp-dev blender-data chromium chromium-driver python3-selenium blender python3-open3d cloudcompare xvfb xauth libopenmpi-dev openmpi-bin"
 fi
 if [ "${1:-}" = "--bench" ]; then
     pkgs="$pkgs liboctomap-dev libopenvdb-dev"

@@ -17,6 +17,7 @@
 #include <string.h>
 #include "common/faceprop.h"
 #include "common/log.h"
+#include "common/par.h"
 #include "common/ply.h"
 #include "light/skyground.h"
 #include "pipeline/capture_load.h"
@@ -465,7 +466,7 @@ int rs_irradiance_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     if (rs_irradiance_skyscale(&o, &s, rep, err) != 0) goto out;
     double fill_rate = rs_skyfill_rate_used(&s.info.fill, s.so.fill.method);
     rs_irradiance_report(&o, &s, fill_rate, rep);
-    rc = rs_irradiance_write(cfg, &s, fill_rate, rep, err);
+    rc = rs_par_is_root() ? rs_irradiance_write(cfg, &s, fill_rate, rep, err) : 0; /* MPI: rank 0 writes */
 out:
     release_state(&s);
     return rc;

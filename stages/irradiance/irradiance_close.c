@@ -10,6 +10,7 @@
 #include "common/fileio.h"
 #include "common/log.h"
 #include "common/pano.h"
+#include "common/par.h"
 #include "common/ply.h"
 #include "meshing/closing.h"
 #include "meshing/freespace.h"
@@ -266,14 +267,16 @@ int rs_irradiance_close(const rs_config *cfg, rs_irradiance_state *s, rs_report 
             return rs_err_set(err, RS_ERR_INPUT, rs_config_file(cfg), 0,
                               "[irradiance] occluders = file without occluders_file: expected the occluder PLY");
         if (rs_occluders_read(fp, s->nf, &s->occ, &s->occ_proxy, err) != 0) return -1;
-        if (rs_file_exists(occ_path)) unlink(occ_path);
+        if (rs_file_exists(occ_path) && rs_par_is_root()) unlink(occ_path);
     } else {
         uint8_t *source = NULL;
         int planes = strstr(mode, "planes") != NULL;
         if (strstr(mode, "freespace") && build_freespace(cfg, s, fig, err) != 0) return -1;
         if (planes && build_planes(cfg, s, fig, &source, err) != 0) return -1;
         int rc = 0;
-        if (s->occ)
+        if (!rs_par_is_root()) /* MPI: rank 0 writes */
+            ;
+        else if (s->occ)
             rc = write_occluders(occ_path, s->occ, s->occ_proxy, source, err);
         else if (rs_file_exists(occ_path))
             unlink(occ_path);

@@ -13,6 +13,7 @@
 #include "common/mesh.h"
 #include "common/faceprop.h"
 #include "common/log.h"
+#include "common/par.h"
 #include "common/select.h"
 #include "stages/stages.h"
 #include "light/transport.h"
@@ -305,6 +306,10 @@ int rs_render_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     n.converged = n.residual < o.tolerance;
     if (!n.converged)
         rs_log_warn("forward solve stopped after %d iterations with relative change %.3g", n.iterations, n.residual);
+    if (!rs_par_is_root()) { /* MPI: the solve was split over the ranks; the images are rank 0's */
+        rc = 0;
+        goto out;
+    }
 
     if (render_images_alloc(&im, ids->width, ids->height) != 0) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");

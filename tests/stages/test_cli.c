@@ -12,6 +12,7 @@
 #include "tests/fixtures.h"
 #include "tests/meshgen.h"
 #include "common/ply.h"
+#include "common/par.h"
 #include "pipeline/options.h"
 #include "tests/testutil.h"
 
@@ -59,6 +60,28 @@ static void write_scene(const char *dir, int pano_w, int pano_h, int nan_pixels)
 static const char *write_config(const char *dir, const char *extra)
 {
     return rs_fx_write_scene_ini(dir, "0 -4 1.5", 64, 16, extra);
+}
+
+/* A build without MPI started by mpirun as one of several ranks (the launcher's environment
+ * says so) refuses before it writes anything: every rank would write the same files. */
+static void test_mpi_launch_without_mpi(void **state)
+{
+    (void)state;
+    if (rs_par_built_with_mpi()) skip(); /* there MPI would start: tests/mpi covers it */
+    const char *dir = rs_test_tmpdir("cli_mpi");
+    write_scene(dir, 64, 32, 0);
+    const char *cfg = write_config(dir, "");
+    char cmd[4096], *out = NULL, work[4200];
+    snprintf(cmd, sizeof cmd, "OMPI_COMM_WORLD_SIZE=3 '%s' run '%s'", prog("rhoscan"), cfg);
+    int rc = rs_test_run(cmd, &out);
+    print_message("exit %d: %s", rc, out);
+    assert_int_equal(rc, 1);
+    assert_non_null(strstr(out, "one of 3 MPI ranks"));
+    assert_non_null(strstr(out, "-DRHOSCAN_MPI=ON"));
+    snprintf(work, sizeof work, "%s/work", dir);
+    assert_int_not_equal(access(work, F_OK), 0); /* not even the work folder */
+    free(out);
+    rs_test_rmtree(dir);
 }
 
 static void test_misspelt_key(void **state)
@@ -379,4 +402,5 @@ RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_misspelt_key), cmocka_unit_test(t
              cmocka_unit_test(test_truncated_ply), cmocka_unit_test(test_pano_not_2_to_1),
              cmocka_unit_test(test_nonfinite_pixels), cmocka_unit_test(test_reruns), cmocka_unit_test(test_options),
              cmocka_unit_test(test_run_options), cmocka_unit_test(test_help_version_and_stage_commands),
-             cmocka_unit_test(test_effective_config), cmocka_unit_test(test_missing_inputs))
+             cmocka_unit_test(test_effective_config), cmocka_unit_test(test_missing_inputs),
+             cmocka_unit_test(test_mpi_launch_without_mpi))

@@ -236,7 +236,7 @@ static void test_stage_warnings_recorded(void **state)
     const char *sets[] = {NULL};
     rs_config *cfg = rs_program_config(ini, sets, &rc);
     assert_non_null(cfg);
-    rs_stage_def def = {"warner", warning_stage, "pipeline", "", "", "a stage that warns"};
+    rs_stage_def def = {"warner", warning_stage, "pipeline", "", "", "a stage that warns", 0};
     rs_err err;
     rs_err_clear(&err);
     assert_int_equal(rs_stage_execute(&def, cfg, NULL, &err), 0);

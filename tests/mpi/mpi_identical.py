@@ -1,0 +1,74 @@
+#!/usr/bin/env python3
+"""The MPI build (cmake -DRHOSCAN_MPI=ON) against itself: `rhoscan run CONFIG` as one process,
+then under `mpirun --oversubscribe -np N` for every N of --ranks, each into a fresh work folder;
+every output file must be the same byte for byte: PLY, EXR, PNG, GLB, OBJ and MTL as written,
+JSON once the keys that are no result are taken out (tests/playback/digests.py: timings, rates,
+peak memory, the fingerprint; and the `mpi` record of ranks and traffic) and the work folders'
+paths replaced. report.html is left out: it shows the timings.
+
+Open MPI refuses root (CI runs as root) unless told twice; idle ranks yield the core instead of
+polling (mpi_yield_when_idle), since N ranks share the test machine's cores.
+"""
+import argparse, os, shutil, subprocess, sys, tempfile, time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, '..', 'playback'))
+import digests  # noqa: E402
+
+digests.VOLATILE.add('mpi')  # ranks, threads per rank, bytes exchanged: the host's, not the result's
+
+
+def run(cmd, env, log):
+    t0 = time.time()
+    with open(log, 'w') as fh:
+        rc = subprocess.call(cmd, env=env, stdout=fh, stderr=subprocess.STDOUT)
+    if rc != 0:
+        sys.stdout.write(open(log).read()[-4000:])
+        sys.exit('FAIL: %s exited %d' % (' '.join(cmd), rc))
+    print('%.1f s: %s' % (time.time() - t0, ' '.join(cmd)))
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument('--bin', required=True)
+    ap.add_argument('--config', required=True)
+    ap.add_argument('--mpirun', default='mpirun')
+    ap.add_argument('--ranks', default='1,2,3')
+    ap.add_argument('--set', action='append', default=[], help='section.key=value for every run')
+    a = ap.parse_args()
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT='1', OMPI_ALLOW_RUN_AS_ROOT_CONFIRM='1',
+               OMPI_MCA_mpi_yield_when_idle='1')
+    rhoscan = os.path.join(a.bin, 'rhoscan')
+    top = tempfile.mkdtemp(prefix='rhoscan_mpi_')
+    sets = []
+    for s in a.set:
+        sets += ['--set', s]
+    try:
+        works = {}
+        for n in ['single'] + a.ranks.split(','):
+            work = os.path.join(top, 'work_' + n)
+            cmd = [rhoscan, 'run', a.config, '--force', '--set', 'pipeline.workdir=' + work] + sets
+            if n != 'single':
+                cmd = [a.mpirun, '--oversubscribe', '-np', n] + cmd
+            run(cmd, env, os.path.join(top, n + '.log'))
+            works[n] = digests.digest_folder(work, [(work, 'WORK')])
+        want = works.pop('single')
+        if len(want) < 5:
+            sys.exit('FAIL: the single-process run wrote only %d files' % len(want))
+        problems = []
+        for n, got in works.items():
+            for name in sorted(set(want) | set(got)):
+                if want.get(name) != got.get(name):
+                    problems.append('-np %s: %s %s' % (n, name, 'differs' if name in got and name in want
+                                                      else 'missing' if name in want else 'extra'))
+        print('%d files compared for -np %s' % (len(want), a.ranks))
+        if problems:
+            print('\n'.join(problems))
+            sys.exit('FAIL: %d files differ from the single process' % len(problems))
+        print('PASS: every output identical for -np %s' % a.ranks)
+    finally:
+        shutil.rmtree(top, ignore_errors=True)
+
+
+if __name__ == '__main__':
+    main()
