@@ -12,7 +12,9 @@ why in its commit.
 import hashlib, json, os
 
 # Keys that are not results: they change between two runs of the same build on the same input.
-VOLATILE = {'timings_s', 'wall_time_s', 'cpu_time_s', 'peak_rss_mb', 'rays_per_second', 'fingerprint', 'git_commit'}
+# faces_s, map_s, time_s: the occluders' report (irradiance.json's occluders and its planes).
+VOLATILE = {'timings_s', 'wall_time_s', 'cpu_time_s', 'peak_rss_mb', 'rays_per_second', 'fingerprint', 'git_commit',
+            'faces_s', 'map_s', 'time_s'}
 KINDS = ('.ply', '.exr', '.png', '.json', '.glb', '.obj', '.mtl')
 
 
