@@ -7,11 +7,15 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 #ifdef RHOSCAN_MPI
 #include <mpi.h>
 #endif
 
 static int world_rank, world_size = 1, local_size = 1, solo_depth;
+static int solo_threads, saved_threads; /* rs_par_set_solo_threads; the rank's own count meanwhile */
 static rs_par_traffic traffic;
 
 /* The rank count a launcher gave this process in its environment (Open MPI's mpirun, PMIx as
@@ -147,14 +151,63 @@ int rs_par_local_size(void)
     return local_size;
 }
 
+void rs_par_set_solo_threads(int threads)
+{
+    solo_threads = threads > 0 ? threads : 0;
+}
+
 void rs_par_solo_begin(void)
 {
+#ifdef _OPENMP
+    if (solo_depth == 0 && world_rank == 0 && solo_threads > 0) {
+        saved_threads = omp_get_max_threads();
+        omp_set_num_threads(solo_threads);
+    }
+#endif
     solo_depth++;
 }
 
 void rs_par_solo_end(void)
 {
     if (solo_depth > 0) solo_depth--;
+#ifdef _OPENMP
+    if (solo_depth == 0 && world_rank == 0 && solo_threads > 0 && saved_threads > 0) {
+        omp_set_num_threads(saved_threads);
+        saved_threads = 0;
+    }
+#endif
+}
+
+int rs_par_root_run(int (*fn)(void *ctx, rs_err *err), void *ctx, rs_err *err)
+{
+    int rc = 0;
+    if (rs_par_is_root()) {
+        rs_par_solo_begin();
+        rc = fn(ctx, err);
+        rs_par_solo_end();
+    }
+    if (rs_par_any(rc != 0) && rc == 0)
+        rc = rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "a step failed on MPI rank 0 (rank 0 says why)");
+    return rc;
+}
+
+int rs_par_bcast_alloc(void **buf, size_t *n, rs_err *err)
+{
+    if (rs_par_size() <= 1) return 0;
+    uint64_t len = *n;
+    rs_par_bcast(&len, sizeof len);
+    int failed = 0;
+    if (!rs_par_is_root()) {
+        *n = (size_t)len;
+        failed = !(*buf = malloc(len ? (size_t)len : 1));
+    }
+    if (rs_par_any(failed)) {
+        if (!rs_par_is_root()) free(*buf), *buf = NULL;
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %llu bytes from MPI rank 0",
+                          (unsigned long long)len);
+    }
+    rs_par_bcast(*buf, (size_t)len);
+    return 0;
 }
 
 int rs_par_any(int flag)

@@ -33,9 +33,23 @@ int rs_par_world_rank(void);
 int rs_par_world_size(void);
 int rs_par_local_size(void);
 
-/* This rank alone until the matching end (nested pairs allowed). */
+/* This rank alone until the matching end (nested pairs allowed). On world rank 0, when
+ * rs_par_set_solo_threads gave a count, the outermost section runs with that many OpenMP
+ * threads: the other ranks on the host sleep meanwhile, so their cores are free. */
 void rs_par_solo_begin(void);
 void rs_par_solo_end(void);
+/* The thread count for rank 0's solo sections (0: keep the rank's own); set by the program
+ * when it shares the host's cores out between its ranks itself. */
+void rs_par_set_solo_threads(int threads);
+
+/* Collective: fn(ctx, err) on rank 0 alone, in a solo section, while the other ranks wait
+ * asleep: for a step whose result is cheap to send and dear to compute again, which rank 0
+ * then sends with rs_par_bcast. Returns fn's code on rank 0; on the others 0, or -1 with err
+ * saying that rank 0 failed (rank 0's err says why). */
+int rs_par_root_run(int (*fn)(void *ctx, rs_err *err), void *ctx, rs_err *err);
+/* Collective: *n bytes at *buf on rank 0 to every rank; on the others *buf is malloc'd here
+ * (caller frees) and *n set. -1 with err set when out of memory on any rank. */
+int rs_par_bcast_alloc(void **buf, size_t *n, rs_err *err);
 
 /* Collective: 1 when flag is non-zero on any rank (also the team's barrier; a rank waiting
  * in it sleeps between tests instead of polling a core). */

@@ -415,8 +415,9 @@ rs_config *rs_program_config(const char *path, const char *const *sets, int *exi
     } else if (rs_par_local_size() > 1 && !getenv("OMP_NUM_THREADS")) {
         /* MPI ranks sharing a host share its cores: not every rank on every core. The host's
          * count, not omp_get_num_procs: a launcher may have bound the rank to fewer. */
-        long cores = sysconf(_SC_NPROCESSORS_ONLN) / rs_par_local_size();
+        long host = sysconf(_SC_NPROCESSORS_ONLN), cores = host / rs_par_local_size();
         omp_set_num_threads(cores > 1 ? (int)cores : 1);
+        rs_par_set_solo_threads((int)host); /* rank 0 alone: the other ranks sleep */
     }
 #endif
     return cfg;

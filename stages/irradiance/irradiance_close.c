@@ -247,6 +247,52 @@ static int build_planes(const rs_config *cfg, rs_irradiance_state *s, rs_json *f
     return 0;
 }
 
+typedef struct {
+    const rs_config *cfg;
+    rs_irradiance_state *s;
+    rs_json *fig;
+    const char *mode, *occ_path;
+} close_job;
+
+/* The free-space map's faces and the planar closing, as mode asks, into s; occluders.ply. */
+static int build_and_write(void *ctx, rs_err *err)
+{
+    close_job *j = ctx;
+    uint8_t *source = NULL;
+    if (strstr(j->mode, "freespace") && build_freespace(j->cfg, j->s, j->fig, err) != 0) return -1;
+    if (strstr(j->mode, "planes") && build_planes(j->cfg, j->s, j->fig, &source, err) != 0) return -1;
+    int rc = 0;
+    if (j->s->occ)
+        rc = write_occluders(j->occ_path, j->s->occ, j->s->occ_proxy, source, err);
+    else if (rs_file_exists(j->occ_path))
+        unlink(j->occ_path);
+    free(source);
+    return rc;
+}
+
+/* Collective: rank 0's occluders (faces, proxies, cell) to every rank. */
+static int share_occluders(rs_irradiance_state *s, rs_err *err)
+{
+    if (rs_par_size() <= 1) return 0;
+    uint64_t count[2] = {s->occ ? s->occ->nverts : 0, s->occ ? s->occ->nfaces : 0};
+    rs_par_bcast(count, sizeof count);
+    rs_par_bcast(&s->occ_cell, sizeof s->occ_cell);
+    if (!count[1]) return 0;
+    int failed = 0;
+    if (!rs_par_is_root()) {
+        s->occ = rs_mesh_new((size_t)count[0], (size_t)count[1]);
+        s->occ_proxy = malloc((size_t)count[1] * sizeof *s->occ_proxy);
+        failed = !s->occ || !s->occ_proxy;
+    }
+    if (rs_par_any(failed))
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %llu occluder faces from MPI rank 0",
+                          (unsigned long long)count[1]);
+    rs_par_bcast(s->occ->verts, 3 * s->occ->nverts * sizeof *s->occ->verts);
+    rs_par_bcast(s->occ->tris, 3 * s->occ->nfaces * sizeof *s->occ->tris);
+    rs_par_bcast(s->occ_proxy, s->occ->nfaces * sizeof *s->occ_proxy);
+    return 0;
+}
+
 int rs_irradiance_close(const rs_config *cfg, rs_irradiance_state *s, rs_report *rep, rs_err *err)
 {
     const char *mode = rs_config_string(cfg, "irradiance", "occluders");
@@ -269,19 +315,9 @@ int rs_irradiance_close(const rs_config *cfg, rs_irradiance_state *s, rs_report 
         if (rs_occluders_read(fp, s->nf, &s->occ, &s->occ_proxy, err) != 0) return -1;
         if (rs_file_exists(occ_path) && rs_par_is_root()) unlink(occ_path);
     } else {
-        uint8_t *source = NULL;
-        int planes = strstr(mode, "planes") != NULL;
-        if (strstr(mode, "freespace") && build_freespace(cfg, s, fig, err) != 0) return -1;
-        if (planes && build_planes(cfg, s, fig, &source, err) != 0) return -1;
-        int rc = 0;
-        if (!rs_par_is_root()) /* MPI: rank 0 writes */
-            ;
-        else if (s->occ)
-            rc = write_occluders(occ_path, s->occ, s->occ_proxy, source, err);
-        else if (rs_file_exists(occ_path))
-            unlink(occ_path);
-        free(source);
-        if (rc != 0) return -1;
+        /* MPI: rank 0 builds them (seconds of one thread's work, cheap to send) */
+        close_job job = {cfg, s, fig, mode, occ_path};
+        if (rs_par_root_run(build_and_write, &job, err) != 0 || share_occluders(s, err) != 0) return -1;
     }
     double near = rs_config_real(cfg, "irradiance", "occluder_near") * s->occ_cell;
     if (s->occ && rs_scene_set_occluders(s->scene, s->occ, s->occ_proxy, near, err) != 0) return -1;

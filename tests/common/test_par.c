@@ -4,6 +4,9 @@
 #include <stdlib.h>
 #include <string.h>
 #include "common/par.h"
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 #include "tests/testutil.h"
 
 static void test_single_rank(void **state)
@@ -80,5 +83,55 @@ static void test_exchanges_keep_data(void **state)
     free(all);
 }
 
+static int count_call(void *ctx, rs_err *err)
+{
+    int *calls = ctx;
+    (*calls)++;
+    return *calls > 1 ? rs_err_set(err, RS_ERR_INPUT, "x.ply", 3, "second call") : 0;
+}
+
+/* Rank 0 alone runs the step (once), its failure is the caller's, and what it made stays. */
+static void test_root_run_and_bcast(void **state)
+{
+    (void)state;
+    rs_err err;
+    rs_err_clear(&err);
+    int calls = 0;
+    assert_int_equal(rs_par_root_run(count_call, &calls, &err), 0);
+    assert_int_equal(calls, 1);
+    assert_int_equal(rs_par_root_run(count_call, &calls, &err), -1);
+    assert_int_equal(err.kind, RS_ERR_INPUT);
+    char text[] = "occluders";
+    void *buf = text;
+    size_t n = sizeof text;
+    assert_int_equal(rs_par_bcast_alloc(&buf, &n, &err), 0);
+    assert_ptr_equal(buf, text);
+    assert_int_equal(n, sizeof text);
+}
+
+/* Rank 0's solo sections take the thread count given, and give the rank's own back after. */
+static void test_solo_threads(void **state)
+{
+    (void)state;
+#ifdef _OPENMP
+    omp_set_num_threads(1);
+    rs_par_set_solo_threads(3);
+    rs_par_solo_begin();
+    assert_int_equal(omp_get_max_threads(), 3);
+    rs_par_solo_begin(); /* nested: the outermost decides */
+    assert_int_equal(omp_get_max_threads(), 3);
+    rs_par_solo_end();
+    rs_par_solo_end();
+    assert_int_equal(omp_get_max_threads(), 1);
+    rs_par_set_solo_threads(0);
+    rs_par_solo_begin();
+    assert_int_equal(omp_get_max_threads(), 1);
+    rs_par_solo_end();
+#else
+    skip();
+#endif
+}
+
 RS_TEST_MAIN(NULL, NULL, cmocka_unit_test(test_single_rank), cmocka_unit_test(test_queue_deals_each_item_once),
-             cmocka_unit_test(test_exchanges_keep_data))
+             cmocka_unit_test(test_exchanges_keep_data), cmocka_unit_test(test_root_run_and_bcast),
+             cmocka_unit_test(test_solo_threads))
