@@ -272,6 +272,72 @@ void rs_par_range(size_t n, size_t *lo, size_t *hi)
     *hi = *lo + n / size + (rank < n % size);
 }
 
+#ifdef RHOSCAN_MPI
+/* Each rank's share of n items as rs_par_range deals them, as MPI counts and displacements
+ * (counts[0..size), displs after them; malloc'd, caller frees). NULL when out of memory. */
+static int *range_counts(size_t n, int size)
+{
+    int *counts = malloc(2 * (size_t)size * sizeof *counts);
+    if (!counts) return NULL;
+    int *displs = counts + size;
+    for (int r = 0; r < size; r++) {
+        size_t part = n / (size_t)size, extra = n % (size_t)size;
+        displs[r] = (int)(part * (size_t)r + ((size_t)r < extra ? (size_t)r : extra));
+        counts[r] = (int)(part + ((size_t)r < extra));
+    }
+    return counts;
+}
+#endif
+
+int rs_par_gather_range(void *v, size_t n, size_t item_bytes, rs_err *err)
+{
+#ifdef RHOSCAN_MPI
+    int size = rs_par_size();
+    if (size <= 1) return 0;
+    if (n > INT_MAX || item_bytes > INT_MAX)
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "%zu items of %zu bytes: too many for one MPI exchange", n,
+                          item_bytes);
+    int *counts = range_counts(n, size);
+    if (!counts) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
+    int *displs = counts + size;
+    MPI_Datatype item;
+    MPI_Type_contiguous((int)item_bytes, MPI_BYTE, &item);
+    MPI_Type_commit(&item);
+    MPI_Request req;
+    if (world_rank == 0)
+        MPI_Igatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, v, counts, displs, item, 0, MPI_COMM_WORLD, &req);
+    else
+        MPI_Igatherv((unsigned char *)v + (size_t)displs[world_rank] * item_bytes, counts[world_rank], item, NULL,
+                     NULL, NULL, item, 0, MPI_COMM_WORLD, &req);
+    wait_gently(&req);
+    MPI_Type_free(&item);
+    double mine = (double)counts[world_rank] * (double)item_bytes;
+    if (world_rank == 0)
+        count_traffic((double)(n * item_bytes) - mine, size - 1);
+    else
+        count_traffic(mine, 1);
+    free(counts);
+#else
+    (void)v;
+    (void)n;
+    (void)item_bytes;
+    (void)err;
+#endif
+    return 0;
+}
+
+static size_t rows_done;
+
+void rs_par_rows_done(size_t rows)
+{
+    rows_done += rows;
+}
+
+size_t rs_par_rows_total(void)
+{
+    return rows_done;
+}
+
 int rs_par_allgather_range(void *v, size_t n, size_t item_bytes, rs_err *err)
 {
 #ifdef RHOSCAN_MPI

@@ -70,6 +70,16 @@ int rs_par_allgather_range(void *v, size_t n, size_t item_bytes, rs_err *err);
  * is not NULL, rs_par_size() + 1 entries). -1 with err set when out of memory. */
 int rs_par_allgather_bytes(const void *mine, size_t n, unsigned char **all, size_t *total, size_t *starts, rs_err *err);
 
+/* Collective: like rs_par_allgather_range, but only rank 0 ends with every share (the other
+ * ranks' v beyond their own share is left as it was): for results that rank 0 alone writes,
+ * at 1 / N of the allgather's traffic. -1 with err set when n is too large (2^31 items). */
+int rs_par_gather_range(void *v, size_t n, size_t item_bytes, rs_err *err);
+
+/* Image rows this rank computed since the start (the stages that split by pixel rows add
+ * theirs), for the stages' `mpi` record: a rank that skipped its rows shows there. */
+void rs_par_rows_done(size_t rows);
+size_t rs_par_rows_total(void);
+
 /* A work queue over n items dealt in blocks of block items, to whichever rank and thread asks
  * first (dynamic load balancing across ranks: costs per item may differ by orders of
  * magnitude). With MPI the next block's index is a counter on rank 0 that the ranks advance

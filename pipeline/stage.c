@@ -286,7 +286,32 @@ void rs_stage_report(const rs_config *cfg, const char *const *stages)
 }
 
 /* In an MPI run, what the stage's ranks exchanged (common/par.h): the host's, not the result's. */
-static void report_ranks(rs_report *rep, const rs_par_traffic *before, double cpu)
+/* The pixel rows each rank computed in the stage (observe and render split by rows), in rank
+ * order: every rank's share is there, so a rank that skipped its rows shows (tests/mpi). */
+static void report_rows(rs_json *r, size_t rows)
+{
+    uint64_t mine = rows;
+    unsigned char *all = NULL;
+    size_t bytes = 0;
+    rs_err err;
+    rs_err_clear(&err);
+    if (rs_par_allgather_bytes(&mine, sizeof mine, &all, &bytes, NULL, &err) != 0) return;
+    uint64_t sum = 0, v;
+    for (size_t k = 0; k + sizeof v <= bytes; k += sizeof v) {
+        memcpy(&v, all + k, sizeof v);
+        sum += v;
+    }
+    if (sum > 0) {
+        rs_json *per = rs_json_set_arr(r, "rows_per_rank");
+        for (size_t k = 0; k + sizeof v <= bytes; k += sizeof v) {
+            memcpy(&v, all + k, sizeof v);
+            rs_json_push_num(per, (double)v);
+        }
+    }
+    free(all);
+}
+
+static void report_ranks(rs_report *rep, const rs_par_traffic *before, size_t rows, double cpu)
 {
     if (rs_par_world_size() <= 1) return;
     rs_par_traffic now = rs_par_traffic_now();
@@ -312,6 +337,7 @@ static void report_ranks(rs_report *rep, const rs_par_traffic *before, double cp
         rs_json_push_num(per, c);
     }
     free(all);
+    report_rows(r, rows);
 }
 
 /* The stage on this rank: def->run, then (rank 0) <stage>.json and the state file. */
@@ -334,6 +360,7 @@ static int execute_here(const rs_stage_def *def, const rs_config *cfg, rs_skips 
 
     rs_log_info("%s: started", def->name);
     rs_par_traffic traffic = rs_par_traffic_now();
+    size_t rows0 = rs_par_rows_total();
     double t0 = rs_now(), c0 = cpu_seconds();
     size_t warned = rs_log_warning_count();
     int rc = def->run(cfg, &rep, err);
@@ -345,7 +372,7 @@ static int execute_here(const rs_stage_def *def, const rs_config *cfg, rs_skips 
     }
     rs_json_set_num(rep.metrics, "wall_time_s", wall);
     rs_json_set_num(rep.metrics, "cpu_time_s", cpu); /* every thread's, this process */
-    report_ranks(&rep, &traffic, cpu);
+    report_ranks(&rep, &traffic, rs_par_rows_total() - rows0, cpu);
     if (!rs_par_is_root()) { /* rank 0 writes the stage's record */
         rs_json_free(rep.metrics);
         return 0;

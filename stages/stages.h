@@ -36,7 +36,7 @@ int rs_texture_run(const rs_config *cfg, rs_report *rep, rs_err *err);     /* ->
 #define RS_STAGE_DEF_OBSERVE                                                                                          \
     {                                                                                                                 \
         "observe", rs_observe_run, "observe capture rig", "mesh.ply pano_stitched.exr capture_pose.txt",              \
-            "observe.ply facet_id.exr", "which facet each panorama pixel sees, and each facet's observed radiance", 0 \
+            "observe.ply facet_id.exr", "which facet each panorama pixel sees, and each facet's observed radiance", 1 \
     }
 #define RS_STAGE_DEF_IRRADIANCE                                                                                     \
     {                                                                                                               \

@@ -13,6 +13,7 @@
 #include "common/faceprop.h"
 #include "common/fileio.h"
 #include "common/log.h"
+#include "common/par.h"
 #include "common/sampling.h"
 #include "common/scene.h"
 #include "common/select.h"
@@ -27,9 +28,11 @@ typedef struct {
     float depth;    /* distance to the hit (m) */
 } pixel_hit;
 
-/* Casts a centre ray and four guard rays per pixel, row by row. */
-static void trace_pixels(const rs_scene *scene, const rs_capture *cap, double cos_max_view, double guard,
-                         pixel_hit *out)
+/* Casts a centre ray and four guard rays per pixel, rows [row_lo, row_hi) (this MPI rank's
+ * band: common/par.h); returns how many rows it traced. Each pixel's result depends on its own
+ * rays alone, so any split of the rows gives the same bytes. */
+static size_t trace_pixels(const rs_scene *scene, const rs_capture *cap, double cos_max_view, double guard,
+                           int row_lo, int row_hi, pixel_hit *out)
 {
     int w = cap->pano->width, h = cap->pano->height;
     /* The four guard rays sit `guard` pixels from the centre along the diagonals: a camera's
@@ -49,14 +52,16 @@ static void trace_pixels(const rs_scene *scene, const rs_capture *cap, double co
             for (int s = 0; s < 5; s++) {
                 rs_sincos_pi(1.0 - 2.0 * ((c + sub[s][0]) / w), &azi[2 * (5 * c + s) + 1], &azi[2 * (5 * c + s)]);
             }
-    rs_progress *prog = rs_progress_start("observe: tracing pixels", (size_t)h);
-#pragma omp parallel
+    rs_progress *prog = rs_progress_start("observe: tracing pixels", (size_t)(row_hi - row_lo));
+    size_t traced = 0;
+#pragma omp parallel reduction(+ : traced)
     {
         rs_ray *rays = malloc((size_t)w * 5 * sizeof *rays);
         rs_hit *hits = malloc((size_t)w * 5 * sizeof *hits);
 #pragma omp for schedule(dynamic, 4)
-        for (int r = 0; r < h; r++) {
+        for (int r = row_lo; r < row_hi; r++) {
             if (!rays || !hits) continue;
+            traced++;
             double st[5], ct[5];
             for (int s = 0; s < 5; s++) rs_sincos_pi((r + sub[s][1]) / h, &st[s], &ct[s]);
             for (int c = 0; c < w; c++)
@@ -109,6 +114,7 @@ static void trace_pixels(const rs_scene *scene, const rs_capture *cap, double co
     }
     rs_progress_end(prog);
     free(azi);
+    return traced;
 }
 
 /* Radiance of a facet too small for pixel averaging: mean over points sampled on it that the
@@ -180,7 +186,8 @@ static int small_facet_radiance(const rs_scene *scene, const rs_capture *cap, co
  * over two pixels except at shadow edges (where the estimate then errs high). Two pixels apart,
  * not one, because a camera's demosaicing and a renderer's pixel filter correlate neighbours.
  * Pixels with no such pair get -1; returns the median over those with one (0 if none). */
-static double pixel_noise(const rs_scene *scene, const rs_capture *cap, const pixel_hit *px, float *noise2)
+static int pixel_noise(const rs_scene *scene, const rs_capture *cap, const pixel_hit *px, float *noise2,
+                       double *median, rs_err *err)
 {
     int w = cap->pano->width, h = cap->pano->height;
     size_t npx = (size_t)w * h;
@@ -192,8 +199,12 @@ static double pixel_noise(const rs_scene *scene, const rs_capture *cap, const pi
 #define PIXEL_DIR(c, r)                                                                                      \
     (azi && pol ? rs_v3_make(pol[2 * (r)] * azi[2 * (c)], pol[2 * (r)] * azi[2 * (c) + 1], pol[2 * (r) + 1]) \
                 : rs_pano_uv_to_dir(((c) + 0.5) / w, ((r) + 0.5) / h)) /* out of memory: the slow way */
+    /* MPI: each rank its band of rows (px holds every row: the pairs reach two rows out), then
+     * every rank every row, for the small facets' points. */
+    size_t lo, hi;
+    rs_par_range((size_t)h, &lo, &hi);
 #pragma omp parallel for schedule(dynamic, 8)
-    for (int r = 0; r < h; r++)
+    for (int r = (int)lo; r < (int)hi; r++)
         for (int c = 0; c < w; c++) {
             size_t k = (size_t)r * w + c;
             noise2[k] = -1;
@@ -230,6 +241,8 @@ static double pixel_noise(const rs_scene *scene, const rs_capture *cap, const pi
 #undef PIXEL_DIR
     free(azi);
     free(pol);
+    if (rs_par_allgather_range(noise2, (size_t)h, (size_t)w * sizeof *noise2, err) != 0) return -1;
+    *median = 0;
     float *vals = malloc((npx ? npx : 1) * sizeof *vals);
     size_t nv = 0;
     if (!vals) return 0;
@@ -240,7 +253,8 @@ static double pixel_noise(const rs_scene *scene, const rs_capture *cap, const pi
         med = rs_select_kth(vals, nv, nv / 2);
     }
     free(vals);
-    return med;
+    *median = med;
+    return 0;
 }
 
 static int write_facet_ids(const rs_config *cfg, const rs_capture *cap, const pixel_hit *px, rs_err *err)
@@ -343,19 +357,21 @@ static void accumulate_pure_pixels(const rs_capture *cap, const pixel_hit *px, c
 }
 
 /* Each facet's radiance: the mean of its pure pixels when it has enough, else from points
- * sampled on it (small_facet_radiance); unobserved facets get 0. */
-static void finish_facets(const rs_scene *scene, const rs_capture *cap, const pixel_hit *px, const float *noise2,
-                          const observe_opts *o, facet_radiance *fr, observe_counts *n)
+ * sampled on it (small_facet_radiance); unobserved facets get 0. MPI: each rank finishes its
+ * range of facets (every rank holds every pixel and every facet's sums), then every rank holds
+ * every facet's result; each facet's depends on that facet alone. */
+static int finish_facets(const rs_scene *scene, const rs_capture *cap, const pixel_hit *px, const float *noise2,
+                         const observe_opts *o, facet_radiance *fr, observe_counts *n, rs_err *err)
 {
-    size_t by_pixels = 0, by_points = 0;
     double *rgb = fr->rgb, *wsum = fr->wsum, *var_rel = fr->var_rel;
-#pragma omp parallel for schedule(dynamic, 64) reduction(+ : by_pixels, by_points)
-    for (size_t f = 0; f < fr->nf; f++) {
+    size_t lo, hi;
+    rs_par_range(fr->nf, &lo, &hi);
+#pragma omp parallel for schedule(dynamic, 64)
+    for (size_t f = lo; f < hi; f++) {
         if (fr->npix[f] >= (double)o->min_pixels) {
             for (int ch = 0; ch < 3; ch++) rgb[3 * f + ch] /= wsum[f];
             var_rel[f] /= wsum[f] * wsum[f];
             fr->observed[f] = 1;
-            by_pixels++;
             continue;
         }
         double share, l[3], v;
@@ -370,13 +386,22 @@ static void finish_facets(const rs_scene *scene, const rs_capture *cap, const pi
             for (int ch = 0; ch < 3; ch++) rgb[3 * f + ch] = l[ch];
             var_rel[f] = v;
             fr->observed[f] = 1;
-            by_points++;
         } else {
             rgb[3 * f] = rgb[3 * f + 1] = rgb[3 * f + 2] = 0;
         }
     }
-    n->by_pixels = by_pixels;
-    n->by_points = by_points;
+    if (rs_par_allgather_range(rgb, fr->nf, 3 * sizeof *rgb, err) != 0 ||
+        rs_par_allgather_range(var_rel, fr->nf, sizeof *var_rel, err) != 0 ||
+        rs_par_allgather_range(fr->observed, fr->nf, sizeof *fr->observed, err) != 0)
+        return -1;
+    n->by_pixels = n->by_points = 0;
+    for (size_t f = 0; f < fr->nf; f++) {
+        if (fr->npix[f] >= (double)o->min_pixels)
+            n->by_pixels++;
+        else if (fr->observed[f])
+            n->by_points++;
+    }
+    return 0;
 }
 
 /* Area of the facets the camera sees, and of those that ended up observed: the coverage figure. */
@@ -468,22 +493,35 @@ int rs_observe_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     n.excluded_px = cap.nonfinite + cap.negative;
     px = malloc(n.pixels * sizeof *px);
     noise2 = malloc(n.pixels * sizeof *noise2);
-    if (facet_radiance_alloc(&fr, nf) != 0 || !px || !noise2) {
+    /* A rank short of memory fails them all: the exchanges below are collective. */
+    if (rs_par_any(facet_radiance_alloc(&fr, nf) != 0 || !px || !noise2)) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu pixels and %zu facets", n.pixels, nf);
         goto out;
     }
+    /* MPI (common/par.h): each rank traces its band of rows, then every rank holds every row:
+     * the noise pairs, the facets' sums and their sampled points read any pixel. */
     t0 = rs_now();
-    trace_pixels(scene, &cap, o.cos_max_view, o.guard_px, px);
+    size_t row_lo, row_hi;
+    int w = cap.pano->width, h = cap.pano->height;
+    rs_par_range((size_t)h, &row_lo, &row_hi);
+    rs_par_rows_done(trace_pixels(scene, &cap, o.cos_max_view, o.guard_px, (int)row_lo, (int)row_hi, px));
+    if (rs_par_allgather_range(px, (size_t)h, (size_t)w * sizeof *px, err) != 0) goto out;
     rs_report_time(rep, "trace_pixels", rs_now() - t0);
     t0 = rs_now();
-    n.noise_median = pixel_noise(scene, &cap, px, noise2);
+    if (pixel_noise(scene, &cap, px, noise2, &n.noise_median, err) != 0) goto out;
     fill_noise_gaps(noise2, n.pixels, n.noise_median);
     rs_report_time(rep, "pixel_noise", rs_now() - t0);
 
+    /* Every rank sums every pixel, serially in pixel order: the same bits on every rank and for
+     * any N, and a pass over the pixels costs little beside their rays. */
     accumulate_pure_pixels(&cap, px, noise2, &fr, &n);
     t0 = rs_now();
-    finish_facets(scene, &cap, px, noise2, &o, &fr, &n);
+    if (finish_facets(scene, &cap, px, noise2, &o, &fr, &n, err) != 0) goto out;
     rs_report_time(rep, "small_facets", rs_now() - t0);
+    if (!rs_par_is_root()) { /* MPI: rank 0 writes */
+        rc = 0;
+        goto out;
+    }
     if (seen_area(mesh, px, fr.observed, &n, err) != 0) goto out;
 
     if (write_facet_ids(cfg, &cap, px, err) != 0 || write_observe_ply(cfg, mesh, &fr, n.noise_median, err) != 0)

@@ -150,16 +150,16 @@ static size_t cap_albedo(double *rho, size_t n, double rho_max)
     return capped;
 }
 
-/* The camera's view of the forward model: each model pixel takes its facet's irradiance,
- * albedo and radiance, the sky stays as observed; the relative difference to the observation
- * over the model pixels with a usable value goes to n. */
-static void compose_view(const rs_capture *cap, const rs_image *ids, const render_facets *fb, render_images *im,
-                         render_counts *n)
+/* The camera's view of the forward model in rows [row_lo, row_hi) (this MPI rank's band):
+ * each model pixel takes its facet's irradiance, albedo and radiance, the sky stays as observed.
+ * Each pixel's values depend on that pixel alone, so any split of the rows gives the same bytes.
+ * Returns how many rows it composed. */
+static size_t compose_rows(const rs_capture *cap, const rs_image *ids, const render_facets *fb, render_images *im,
+                           size_t row_lo, size_t row_hi)
 {
-    double sum_abs[3] = {0, 0, 0}, sum_obs[3] = {0, 0, 0};
-    size_t npx = (size_t)cap->pano->width * cap->pano->height, used = 0, nf = fb->nf;
+    size_t w = (size_t)cap->pano->width, nf = fb->nf;
     const double *esky = fb->esky, *G = fb->G, *rho = fb->rho, *L = fb->L;
-    for (size_t k = 0; k < npx; k++) {
+    for (size_t k = row_lo * w; k < row_hi * w; k++) {
         const float *o = cap->pano->data + 3 * k;
         float id = ids->data[k];
         for (int ch = 0; ch < 3; ch++) im->obs->data[3 * k + ch] = isfinite(o[ch]) ? o[ch] : 0;
@@ -174,10 +174,26 @@ static void compose_view(const rs_capture *cap, const rs_image *ids, const rende
             im->synth->data[3 * k + ch] = (float)L[3 * f + ch];
         }
         if (!rs_capture_pixel_ok(o)) continue;
+        for (int ch = 0; ch < 3; ch++) im->diff->data[3 * k + ch] = (float)(L[3 * f + ch] - o[ch]);
+    }
+    return row_hi - row_lo;
+}
+
+/* The relative difference of the forward model to the observation over the model pixels with
+ * a usable value, into n: summed serially in pixel order over the whole view (rank 0, after the
+ * rows are gathered), so its bits do not depend on how the rows were split. */
+static void compare_view(const rs_capture *cap, const rs_image *ids, const render_facets *fb, render_counts *n)
+{
+    double sum_abs[3] = {0, 0, 0}, sum_obs[3] = {0, 0, 0};
+    size_t npx = (size_t)cap->pano->width * cap->pano->height, used = 0, nf = fb->nf;
+    for (size_t k = 0; k < npx; k++) {
+        const float *o = cap->pano->data + 3 * k;
+        float id = ids->data[k];
+        if (!(id >= 0 && id < (float)nf) || !rs_capture_pixel_ok(o)) continue;
+        size_t f = (size_t)id;
         used++;
         for (int ch = 0; ch < 3; ch++) {
-            im->diff->data[3 * k + ch] = (float)(L[3 * f + ch] - o[ch]);
-            sum_abs[ch] += fabs(L[3 * f + ch] - o[ch]);
+            sum_abs[ch] += fabs(fb->L[3 * f + ch] - o[ch]);
             sum_obs[ch] += o[ch];
         }
     }
@@ -185,6 +201,19 @@ static void compose_view(const rs_capture *cap, const rs_image *ids, const rende
     for (int ch = 0; ch < 3; ch++) rel += (sum_obs[ch] > 0 ? sum_abs[ch] / sum_obs[ch] : 0) / 3;
     n->used = used;
     n->rel = rel;
+}
+
+/* MPI: each rank composes its band of rows (common/par.h rs_par_range), rank 0 gathers them. */
+static int compose_view(const rs_capture *cap, const rs_image *ids, const render_facets *fb, render_images *im,
+                        rs_err *err)
+{
+    size_t h = (size_t)ids->height, row_bytes = (size_t)ids->width * 3 * sizeof(float), lo, hi;
+    rs_par_range(h, &lo, &hi);
+    rs_par_rows_done(compose_rows(cap, ids, fb, im, lo, hi));
+    rs_image *all[] = {im->irr, im->albedo, im->synth, im->diff, im->obs};
+    for (size_t k = 0; k < sizeof all / sizeof *all; k++)
+        if (rs_par_gather_range(all[k]->data, h, row_bytes, err) != 0) return -1;
+    return 0;
 }
 
 /* How well the facet-constant model explains the observed facets: the same figure per facet. */
@@ -306,16 +335,17 @@ int rs_render_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     n.converged = n.residual < o.tolerance;
     if (!n.converged)
         rs_log_warn("forward solve stopped after %d iterations with relative change %.3g", n.iterations, n.residual);
-    if (!rs_par_is_root()) { /* MPI: the solve was split over the ranks; the images are rank 0's */
+    /* A rank short of memory for the images fails them all (the gathers below are collective). */
+    if (rs_par_any(render_images_alloc(&im, ids->width, ids->height) != 0)) {
+        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the rendered images");
+        goto out;
+    }
+    if (compose_view(&in.cap, ids, &fb, &im, err) != 0) goto out;
+    if (!rs_par_is_root()) { /* MPI: rank 0 writes */
         rc = 0;
         goto out;
     }
-
-    if (render_images_alloc(&im, ids->width, ids->height) != 0) {
-        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
-        goto out;
-    }
-    compose_view(&in.cap, ids, &fb, &im, &n);
+    compare_view(&in.cap, ids, &fb, &n);
     n.rel_facets = facet_difference(&fb);
     n.expo = o.exposure_given ? o.exposure : auto_exposure(im.obs, ids->data);
     if (write_view(cfg, &im, ids, n.expo, err) != 0) goto out;

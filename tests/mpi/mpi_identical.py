@@ -9,7 +9,7 @@ paths replaced. report.html is left out: it shows the timings.
 Open MPI refuses root (CI runs as root) unless told twice; idle ranks yield the core instead of
 polling (mpi_yield_when_idle), since N ranks share the test machine's cores.
 """
-import argparse, os, shutil, subprocess, sys, tempfile, time
+import argparse, json, os, shutil, subprocess, sys, tempfile, time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, '..', 'playback'))
@@ -26,6 +26,30 @@ def run(cmd, env, log):
         sys.stdout.write(open(log).read()[-4000:])
         sys.exit('FAIL: %s exited %d' % (' '.join(cmd), rc))
     print('%.1f s: %s' % (time.time() - t0, ' '.join(cmd)))
+
+
+ROW_STAGES = ('observe', 'render')  # split by the panorama's rows over the ranks
+
+
+def rows_problems(work, ranks):
+    """What is wrong with the rows each rank reported in the row-split stages' `mpi` record
+    (pipeline/stage.c): every rank must have computed its own band of rs_par_range, the bands
+    covering the panorama's rows once (a rank that skipped its rows, or a stage left on rank 0,
+    shows here even when rank 0 alone would have written the same files)."""
+    import OpenImageIO as oiio
+    spec = oiio.ImageInput.open(os.path.join(work, 'facet_id.exr'))
+    h = spec.spec().height
+    spec.close()
+    want = [h // ranks + (1 if r < h % ranks else 0) for r in range(ranks)]
+    out = []
+    for st in ROW_STAGES:
+        path = os.path.join(work, st + '.json')
+        if not os.path.exists(path):
+            continue  # the sample's run did not reach the stage: the file comparison says so
+        got = json.load(open(path)).get('mpi', {}).get('rows_per_rank')
+        if got != want:
+            out.append('-np %d: %s.json rows_per_rank %s, expected %s' % (ranks, st, got, want))
+    return out
 
 
 def main():
@@ -45,12 +69,15 @@ def main():
         sets += ['--set', s]
     try:
         works = {}
+        row_problems = []
         for n in ['single'] + a.ranks.split(','):
             work = os.path.join(top, 'work_' + n)
             cmd = [rhoscan, 'run', a.config, '--force', '--set', 'pipeline.workdir=' + work] + sets
             if n != 'single':
                 cmd = [a.mpirun, '--oversubscribe', '-np', n] + cmd
             run(cmd, env, os.path.join(top, n + '.log'))
+            if n != 'single' and int(n) > 1:
+                row_problems += rows_problems(work, int(n))
             works[n] = digests.digest_folder(work, [(work, 'WORK')])
         want = works.pop('single')
         if len(want) < 5:
@@ -62,9 +89,10 @@ def main():
                     problems.append('-np %s: %s %s' % (n, name, 'differs' if name in got and name in want
                                                       else 'missing' if name in want else 'extra'))
         print('%d files compared for -np %s' % (len(want), a.ranks))
+        problems += row_problems
         if problems:
             print('\n'.join(problems))
-            sys.exit('FAIL: %d files differ from the single process' % len(problems))
+            sys.exit('FAIL: %d problems: files that differ from the single process, or rows split wrongly' % len(problems))
         print('PASS: every output identical for -np %s' % a.ranks)
     finally:
         shutil.rmtree(top, ignore_errors=True)
