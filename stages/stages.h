@@ -67,7 +67,7 @@ int rs_texture_run(const rs_config *cfg, rs_report *rep, rs_err *err);     /* ->
         "texture", rs_texture_run, "texture capture rig",                                              \
             "albedo.ply irradiance.ply facet_id.exr pano_stitched.exr capture_pose.txt",               \
             "albedo.glb albedo.obj albedo.mtl albedo_vertex.ply",                                      \
-            "per-texel albedo on a UV atlas; albedo.glb, albedo.obj, albedo_vertex.ply for viewers", 0 \
+            "per-texel albedo on a UV atlas; albedo.glb, albedo.obj, albedo_vertex.ply for viewers", 1 \
     }
 
 /* Every stage in pipeline order, ended by {NULL} (stages.c): the driver's table. It references

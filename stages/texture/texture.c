@@ -26,6 +26,7 @@
 #include "common/faceprop.h"
 #include "common/fileio.h"
 #include "common/log.h"
+#include "common/par.h"
 #include "common/scene.h"
 #include "common/select.h"
 #include "meshing/occluders_ply.h"
@@ -478,37 +479,61 @@ static int texel_radiance(const tex_ctx *c, uint32_t f, int x, int y, float L[3]
     return nseen;
 }
 
-/* First pass over the texels: L and V, and what each view saw. */
-static void pass_measure(tex_ctx *c)
+/* Texel rows per block of the work queue: a row's cost runs from nothing (no surface) to
+ * several views' rays per texel, so blocks are small against a rank's share. */
+#define TEX_ROW_BLOCK 4
+
+/* The texels of row `row` (of the pages' npages x side): L and V, and what each view saw. */
+static void measure_row(tex_ctx *c, long row, size_t *by, size_t *multi, size_t *others)
 {
     rs_tex_pages *t = c->t;
-    int S = t->side, nv = c->in->nviews;
-    long rows = (long)t->npages * S;
-    int has_sun = rs_v3_len(c->in->sun) > 0.5;
+    int S = t->side, nv = c->in->nviews, has_sun = rs_v3_len(c->in->sun) > 0.5;
+    uint8_t seen[TEX_MAX_VIEWS];
+    for (int x = 0; x < S; x++) {
+        size_t k = (size_t)row * S + (size_t)x;
+        if (t->face[k] < 0) continue;
+        uint32_t f = (uint32_t)t->face[k];
+        int y = (int)(row % S);
+        int ns = texel_radiance(c, f, x, y, c->L + 3 * k, seen);
+        if (ns) {
+            t->flags[k] |= TEX_SEEN;
+            if (ns > seen[0]) t->flags[k] |= TEX_FURTHER;
+            for (int v = 0; v < nv; v++) by[v] += seen[v];
+            *multi += ns > 1;
+            *others += !seen[0];
+        }
+        if (has_sun) {
+            double b[3];
+            c->vis[k] = sun_visibility(c, rs_tex_point(t, f, x, y, b), rs_scene_normal(c->scene, f));
+        }
+    }
+}
+
+/* First pass over the texels: L and V, and what each view saw. The rows go in blocks to
+ * whichever thread of whichever MPI rank asks first (common/par.h), and the ranks then exchange
+ * them (rs_tex_share): each texel's figures depend on the texel alone, so every rank ends with
+ * the single process's bytes. Collective. */
+static int pass_measure(tex_ctx *c, rs_err *err)
+{
+    rs_tex_pages *t = c->t;
+    int nv = c->in->nviews;
+    size_t rows = (size_t)t->npages * (size_t)t->side;
+    for (size_t k = 0; k < t->ntex; k++) c->vis[k] = -1; /* also off the surface: the flags file's sigma */
+    int ranks = rs_par_size() > 1;
+    uint8_t *mine = ranks ? calloc(rows ? rows : 1, 1) : NULL;
+    rs_par_queue *queue = rs_par_queue_new(rows, TEX_ROW_BLOCK);
+    if (rs_par_any(!queue || (ranks && !mine))) {
+        rs_par_queue_free(queue);
+        free(mine);
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for the texels' work queue");
+    }
 #pragma omp parallel
     {
-        size_t by[TEX_MAX_VIEWS] = {0}, multi = 0, others = 0;
-        uint8_t seen[TEX_MAX_VIEWS];
-#pragma omp for schedule(dynamic, 4)
-        for (long row = 0; row < rows; row++)
-            for (int x = 0; x < S; x++) {
-                size_t k = (size_t)row * S + (size_t)x;
-                c->vis[k] = -1;
-                if (t->face[k] < 0) continue;
-                uint32_t f = (uint32_t)t->face[k];
-                int y = (int)(row % S);
-                int ns = texel_radiance(c, f, x, y, c->L + 3 * k, seen);
-                if (ns) {
-                    t->flags[k] |= TEX_SEEN;
-                    if (ns > seen[0]) t->flags[k] |= TEX_FURTHER;
-                    for (int v = 0; v < nv; v++) by[v] += seen[v];
-                    multi += ns > 1;
-                    others += !seen[0];
-                }
-                if (has_sun) {
-                    double b[3];
-                    c->vis[k] = sun_visibility(c, rs_tex_point(t, f, x, y, b), rs_scene_normal(c->scene, f));
-                }
+        size_t by[TEX_MAX_VIEWS] = {0}, multi = 0, others = 0, begin, end;
+        while (rs_par_queue_take(queue, &begin, &end))
+            for (size_t row = begin; row < end; row++) {
+                measure_row(c, (long)row, by, &multi, &others);
+                if (mine) mine[row] = 1;
             }
 #pragma omp critical(tex_measure_counts)
         {
@@ -517,6 +542,18 @@ static void pass_measure(tex_ctx *c)
             c->others_only += others;
         }
     }
+    rs_par_queue_free(queue);
+    rs_tex_measured m = {.L = c->L, .vis = c->vis, .flag_mask = TEX_SEEN | TEX_FURTHER, .ncounts = nv + 2};
+    for (int v = 0; v < nv; v++) m.counts[v] = c->view_seen[v];
+    m.counts[nv] = c->multi_seen;
+    m.counts[nv + 1] = c->others_only;
+    int rc = rs_tex_share(t, &m, mine, err);
+    free(mine);
+    if (rc != 0) return -1;
+    for (int v = 0; v < nv; v++) c->view_seen[v] = (size_t)m.counts[v];
+    c->multi_seen = (size_t)m.counts[nv];
+    c->others_only = (size_t)m.counts[nv + 1];
+    return 0;
 }
 
 /* U per chart from the facets' sun term and their mean texel V. */
@@ -737,40 +774,54 @@ static int trace_ids(const rs_scene *scene, tex_view *v, rs_err *err)
     return fail ? rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory tracing [%s]", v->name) : 0;
 }
 
+/* Collective: rc, or -1 when any rank's was (err says so where rc was 0): no rank goes on into
+ * the work queue or the exchange without the others. */
+static int ranks_agree(int rc, rs_err *err)
+{
+    if (rs_par_any(rc != 0) && rc == 0)
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "texture: failed on another MPI rank (rank 0 says why)");
+    return rc;
+}
+
+/* Collective: the texels measured on every rank (the costly part: a view ray and up to 3 x 3
+ * lookups per view, and the sun's shadow rays, per texel); the rest on rank 0 alone. */
 static int texture_compute(const rs_config *cfg, tex_inputs *in, rs_tex_pages *t, rs_report *rep, tex_counts *n,
                            rs_err *err)
 {
     const char *filter = rs_config_string(cfg, "texture", "filter");
     tex_ctx c = {.in = in, .t = t, .sub_max = 3, .area = filter && strcmp(filter, "area") == 0};
-    int rc = -1;
     double t0 = rs_now();
     rs_scene *scene = rs_scene_new(in->mesh, err), *sun_scene = NULL;
-    if (!scene) return -1;
+    int rc = scene ? 0 : -1;
     c.scene = c.sun_scene = scene;
     /* the occluders on a scene of their own: they close the shell for the light, not for the
      * cameras' view rays (a camera saw what it saw) */
-    if (in->occ) {
+    if (rc == 0 && in->occ) {
         if (!(sun_scene = rs_scene_new(in->mesh, err)) ||
             rs_scene_set_occluders(sun_scene, in->occ, in->occ_proxy, in->occ_near, err) != 0)
-            goto out;
+            rc = -1;
         c.sun_scene = sun_scene;
-        rs_log_info("texture: the sun's shadow rays see the irradiance stage's %zu occluder faces", in->occ->nfaces);
+        if (rc == 0)
+            rs_log_info("texture: the sun's shadow rays see the irradiance stage's %zu occluder faces",
+                        in->occ->nfaces);
     }
     double t1 = rs_now();
-    for (int v = 1; v < in->nviews; v++)
-        if (trace_ids(scene, &in->views[v], err) != 0) goto out;
-    if (in->nviews > 1) rs_report_time(rep, "trace_views", rs_now() - t1);
-    c.Dc = corner_irradiance(in, t->atlas);
+    for (int v = 1; v < in->nviews && rc == 0; v++) rc = trace_ids(scene, &in->views[v], err);
+    if (rc == 0 && in->nviews > 1) rs_report_time(rep, "trace_views", rs_now() - t1);
+    c.Dc = rc == 0 ? corner_irradiance(in, t->atlas) : NULL;
     c.vis = t->sigma;
     c.L = t->rgb;
-    if (!c.Dc) {
-        rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu texels", t->ntex);
-        goto out;
-    }
-    rs_tex_raster(t);
+    if (rc == 0 && !c.Dc) rc = rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %zu texels", t->ntex);
+    if (rc == 0) rs_tex_raster(t);
+    if ((rc = ranks_agree(rc, err)) != 0) goto out;
     rs_report_time(rep, "raster", rs_now() - t0);
     t0 = rs_now();
-    pass_measure(&c);
+    rc = -1;
+    if (pass_measure(&c, err) != 0) goto out;
+    if (!rs_par_is_root()) { /* MPI: rank 0 has every texel; the albedo and the files are its */
+        rc = 0;
+        goto out;
+    }
     if (chart_sun(&c) != 0) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
         goto out;
@@ -802,17 +853,21 @@ int rs_texture_run(const rs_config *cfg, rs_report *rep, rs_err *err)
     int rc = -1;
     char(*names)[64] = NULL;
     double t0 = rs_now();
-    if (read_inputs(cfg, &in, err) != 0 || build_atlas(cfg, &in, &atlas, err) != 0) goto out;
+    if (read_inputs(cfg, &in, err) != 0 || build_atlas(cfg, &in, &atlas, err) != 0) goto failed;
     rs_report_time(rep, "atlas", rs_now() - t0);
     rs_log_info("texture: %zu charts, %d page(s) of %d x %d texels of %.4g m", atlas->ncharts, atlas->npages,
                 atlas->side, atlas->side, atlas->texel);
     if (rs_tex_pages_alloc(&t, in.mesh, atlas) != 0 || !(names = calloc((size_t)atlas->npages, sizeof *names))) {
         rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for %d texture pages of %d x %d", atlas->npages,
                    atlas->side, atlas->side);
-        goto out;
+        goto failed;
     }
     if (rs_v3_len(in.sun) < 0.5) rs_report_skip(rep, "sun shadows per texel", "irradiance.json names no sun direction");
     if (texture_compute(cfg, &in, &t, rep, &n, err) != 0) goto out;
+    if (!rs_par_is_root()) {
+        rc = 0;
+        goto out;
+    }
     t0 = rs_now();
     if (write_pages(cfg, &t, names, err) != 0) goto out;
     const char *pn[1024];
@@ -833,6 +888,9 @@ int rs_texture_run(const rs_config *cfg, rs_report *rep, rs_err *err)
         rs_log_info("texture: %zu texels blended from two captures or more, %zu from further captures only",
                     n.multi_seen, n.others_only);
     rc = 0;
+    goto out;
+failed: /* before texture_compute's collective steps: the other ranks learn of it there */
+    ranks_agree(-1, err);
 out:
     free(names);
     rs_tex_pages_free(&t);

@@ -57,6 +57,22 @@ typedef struct {
 
 int rs_tex_export_all(rs_tex_export *e, rs_err *err);
 
+/* What the ranks measured of the texels (the first pass: L and V) and the counts that go with
+ * it. The counts are sums over texels, so adding the ranks' gives the single process's. */
+#define RS_TEX_MAX_COUNTS 32
+typedef struct {
+    float *L;          /* 3 per texel */
+    float *vis;        /* 1 per texel */
+    uint8_t flag_mask; /* the pages' flags bits the measurement sets */
+    int ncounts;       /* at most RS_TEX_MAX_COUNTS */
+    uint64_t counts[RS_TEX_MAX_COUNTS];
+} rs_tex_measured;
+
+/* Collective (common/par.h): every rank measured the rows marked in mine (npages x side of
+ * them, a row each rank took from the work queue); afterwards every rank holds every row's L, V
+ * and measurement flags, and counts holds the sums over the ranks. A no-op on one rank. */
+int rs_tex_share(rs_tex_pages *t, rs_tex_measured *m, const uint8_t *mine, rs_err *err);
+
 /* Bilinear sample of the pages' albedo at (u, v) of page p (glTF's convention: v down),
  * clamped at the page's edge; into rgb. */
 void rs_tex_sample(const rs_tex_pages *t, int p, double u, double v, float rgb[3]);

@@ -6,6 +6,12 @@ JSON once the keys that are no result are taken out (tests/playback/digests.py: 
 peak memory, the fingerprint; and the `mpi` record of ranks and traffic) and the work folders'
 paths replaced. report.html is left out: it shows the timings.
 
+--split STAGE (repeatable) names a stage that must have split its work over the ranks: with
+N > 1 its record (STAGE.json) must say it ran on every rank, each with CPU time of its own, and
+--expect FILE (repeatable) a file the single process must have written: the comparison then
+covers that stage's exchange (a rank's lost share changes rank 0's files) and not a rank-0-only
+run of it.
+
 Open MPI refuses root (CI runs as root) unless told twice; idle ranks yield the core instead of
 polling (mpi_yield_when_idle), since N ranks share the test machine's cores.
 """
@@ -51,6 +57,14 @@ def rows_problems(work, ranks):
             out.append('-np %d: %s.json rows_per_rank %s, expected %s' % (ranks, st, got, want))
     return out
 
+def check_split(work, stage, ranks):
+    """STAGE.json of an N-rank run: the stage ran on every rank, each with CPU time of its own."""
+    with open(os.path.join(work, stage + '.json')) as fh:
+        mpi = json.load(fh).get('mpi', {})
+    per = mpi.get('cpu_time_s_per_rank', [])
+    if mpi.get('ran_on') != 'every rank' or len(per) != ranks or not all(c > 0 for c in per):
+        sys.exit('FAIL: -np %d: %s did not split over the ranks (mpi record %s)' % (ranks, stage, mpi))
+
 
 def main():
     ap = argparse.ArgumentParser()
@@ -59,6 +73,8 @@ def main():
     ap.add_argument('--mpirun', default='mpirun')
     ap.add_argument('--ranks', default='1,2,3')
     ap.add_argument('--set', action='append', default=[], help='section.key=value for every run')
+    ap.add_argument('--split', action='append', default=[], help='a stage that must run on every rank')
+    ap.add_argument('--expect', action='append', default=[], help='a file the single run must write')
     a = ap.parse_args()
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT='1', OMPI_ALLOW_RUN_AS_ROOT_CONFIRM='1',
                OMPI_MCA_mpi_yield_when_idle='1')
@@ -79,9 +95,15 @@ def main():
             if n != 'single' and int(n) > 1:
                 row_problems += rows_problems(work, int(n))
             works[n] = digests.digest_folder(work, [(work, 'WORK')])
+            if n != 'single' and int(n) > 1:
+                for stage in a.split:
+                    check_split(work, stage, int(n))
         want = works.pop('single')
         if len(want) < 5:
             sys.exit('FAIL: the single-process run wrote only %d files' % len(want))
+        missing = [f for f in a.expect if f not in want]
+        if missing:
+            sys.exit('FAIL: the single-process run did not write %s' % ', '.join(missing))
         problems = []
         for n, got in works.items():
             for name in sorted(set(want) | set(got)):
