@@ -346,14 +346,9 @@ int rs_par_allgather_range(void *v, size_t n, size_t item_bytes, rs_err *err)
     if (n > INT_MAX || item_bytes > INT_MAX)
         return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "%zu items of %zu bytes: too many for one MPI exchange", n,
                           item_bytes);
-    int *counts = malloc(2 * (size_t)size * sizeof *counts);
+    int *counts = range_counts(n, size);
     if (!counts) return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory");
     int *displs = counts + size;
-    for (int r = 0; r < size; r++) {
-        size_t part = n / (size_t)size, extra = n % (size_t)size;
-        displs[r] = (int)(part * (size_t)r + ((size_t)r < extra ? (size_t)r : extra));
-        counts[r] = (int)(part + ((size_t)r < extra));
-    }
     MPI_Datatype item;
     MPI_Type_contiguous((int)item_bytes, MPI_BYTE, &item);
     MPI_Type_commit(&item);
