@@ -24,6 +24,7 @@
 #include "sky/solar.h"
 #include "stages/irradiance/irradiance_close.h"
 #include "stages/irradiance/irradiance_out.h"
+#include "stages/irradiance/irradiance_share.h"
 #include "stages/irradiance/irradiance_skyscale.h"
 #include "stages/irradiance/irradiance_state.h"
 #include "stages/irradiance/irradiance_sun.h"
@@ -230,18 +231,40 @@ static void log_sky_map(const rs_irradiance_opts *o, const rs_irradiance_state *
         rs_report_skip(rep, "sun sampling", "no sky pixel is brighter than %g x the median sky", o->sky.sun_threshold);
 }
 
-/* The sky map: the explicit sun set up (its disc leaves the panoramas), the sky panorama and
- * the further captures loaded, the map built and completed (skyenv.h), then the sun's last word
+typedef struct {
+    const rs_config *cfg; /* NULL: the sources are loaded already */
+    const rs_irradiance_opts *o;
+    rs_irradiance_state *s;
+} sky_map_job;
+
+/* The sky panorama and the further captures loaded (unless loaded already), the map built and
+ * completed (skyenv.h): rank 0's alone under MPI (rs_irradiance_share_sky_map sends it). */
+static int sky_map_build(void *ctx, rs_err *err)
+{
+    sky_map_job *j = ctx;
+    rs_irradiance_state *s = j->s;
+    if (j->cfg && (load_sky_panorama(j->cfg, j->o, s, err) != 0 || load_other_captures(j->cfg, j->o, s, err) != 0))
+        return -1;
+    return rs_skyenv_build_opts(&s->cap, s->ids->data, &s->so, &s->env, &s->info, err);
+}
+
+/* Collective: sky_map_build on rank 0, its map on every rank. */
+static int sky_map_run(const rs_config *cfg, const rs_irradiance_opts *o, rs_irradiance_state *s, rs_err *err)
+{
+    sky_map_job job = {cfg, o, s};
+    if (rs_par_root_run(sky_map_build, &job, err) != 0) return -1;
+    return rs_irradiance_share_sky_map(&s->env, &s->info, &s->sun, err);
+}
+
+/* The sky map: the explicit sun set up (its disc leaves the capture; every rank's copy of the
+ * capture needs that), the map built (sky_map_run), then the sun's last word
  * (rs_sunsource_auto). */
 static int build_sky_map(const rs_config *cfg, const rs_irradiance_opts *o, rs_irradiance_state *s, rs_report *rep,
                          rs_err *err)
 {
     double t0 = rs_now();
     s->so = o->sky;
-    if (rs_irradiance_setup_sun(o, s, err) != 0 || load_sky_panorama(cfg, o, s, err) != 0 ||
-        load_other_captures(cfg, o, s, err) != 0 ||
-        rs_skyenv_build_opts(&s->cap, s->ids->data, &s->so, &s->env, &s->info, err) != 0)
-        return -1;
+    if (rs_irradiance_setup_sun(o, s, err) != 0 || sky_map_run(cfg, o, s, err) != 0) return -1;
     rs_irradiance_sun_auto(o, s);
     for (int i = 0; i < s->nothers; i++)
         rs_log_info("irradiance: capture %s: exposure factor %.4g %.4g %.4g from %.3g sr of shared sky",
@@ -272,6 +295,18 @@ static void gather_context(const rs_irradiance_opts *o, rs_irradiance_state *s)
                            .observed = s->observed};
 }
 
+typedef struct {
+    const rs_skyenv *env;
+    rs_irradiance_pass *p;
+} sky_sh_job;
+
+/* The sky's harmonics and their test: rank 0's alone under MPI (a pass over the map). */
+static int sky_sh_build(void *ctx, rs_err *err)
+{
+    sky_sh_job *j = ctx;
+    return rs_skysh_build(j->env, j->p->sh_tol, 256, &j->p->sh, err);
+}
+
 /* One gather into s->fg (zeroed) and s->pass; s->g.sky_sh points into s->pass. suffix names its
  * timings. */
 static int gather_pass_run(const rs_irradiance_opts *o, rs_irradiance_state *s, rs_report *rep, const char *suffix,
@@ -289,7 +324,9 @@ static int gather_pass_run(const rs_irradiance_opts *o, rs_irradiance_state *s, 
     double t0;
     if (p->sh_candidates) { /* the test costs a pass over the map: only when a facet can use it */
         t0 = rs_now();
-        if (rs_skysh_build(g->env, p->sh_tol, 256, &p->sh, err) != 0) return -1;
+        sky_sh_job job = {g->env, p};
+        if (rs_par_root_run(sky_sh_build, &job, err) != 0) return -1;
+        rs_irradiance_share_sky_sh(&p->sh);
         snprintf(key, sizeof key, "sky_sh%s", suffix);
         rs_report_time(rep, key, rs_now() - t0);
         if (p->sh.usable) g->sky_sh = &p->sh;
@@ -408,7 +445,7 @@ static int regather_around_searched_sun(const rs_irradiance_opts *o, rs_irradian
     s->so.fill.sun_dir = s->sun.dir_world;
     rs_skyenv_release(&s->env);
     double t0 = rs_now();
-    if (rs_skyenv_build_opts(&s->cap, s->ids->data, &s->so, &s->env, &s->info, err) != 0) return -1;
+    if (sky_map_run(NULL, o, s, err) != 0) return -1;
     rs_report_time(rep, "sky_map_searched_sun", rs_now() - t0);
     s->info.fill.sun_source = RS_SUN_SHADOWS;
     /* The sun is explicit now: the unseen ground copies the measured ground, as the first map's
