@@ -741,15 +741,17 @@ static int build_atlas(const rs_config *cfg, const tex_inputs *in, rs_atlas **ou
     return *out ? 0 : -1;
 }
 
-/* A further view's facet image: the facet each pixel's centre ray hits from the front, -1 none
- * (what the observe stage's facet_id.exr holds for [capture], traced the same way). */
+/* Collective: a further view's facet image, the facet each pixel's centre ray hits from the
+ * front, -1 none (what the observe stage's facet_id.exr holds for [capture], traced the same
+ * way). Under MPI each rank traces its band of rows (rs_par_range) and every rank ends with
+ * the whole image: each rank's texels look into it. */
 static int trace_ids(const rs_scene *scene, tex_view *v, rs_err *err)
 {
     int w = v->cap.pano->width, h = v->cap.pano->height;
-    if (!(v->ids = rs_image_new(w, h, 1)))
-        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory for [%s]'s facet image", v->name);
-    int fail = 0;
-#pragma omp parallel
+    size_t lo, hi;
+    rs_par_range((size_t)h, &lo, &hi);
+    int fail = !(v->ids = rs_image_new(w, h, 1));
+#pragma omp parallel if (!fail)
     {
         rs_ray *rays = malloc((size_t)w * sizeof *rays);
         rs_hit *hits = malloc((size_t)w * sizeof *hits);
@@ -758,11 +760,11 @@ static int trace_ids(const rs_scene *scene, tex_view *v, rs_err *err)
             fail = 1;
         }
 #pragma omp for schedule(dynamic, 4)
-        for (int r = 0; r < h; r++) {
-            if (!rays || !hits) continue;
+        for (long r = (long)lo; r < (long)hi; r++) {
+            if (!rays || !hits || !v->ids) continue;
             for (int x = 0; x < w; x++)
                 rays[x] = (rs_ray){v->cap.pose.position,
-                                   rs_pose_dir_to_world(&v->cap.pose, rs_pano_pixel_dir(w, h, x, r)), 0, INFINITY};
+                                   rs_pose_dir_to_world(&v->cap.pose, rs_pano_pixel_dir(w, h, x, (int)r)), 0, INFINITY};
             rs_scene_intersect_coherent(scene, rays, hits, (size_t)w);
             for (int x = 0; x < w; x++)
                 v->ids->data[(size_t)r * w + x] =
@@ -771,7 +773,10 @@ static int trace_ids(const rs_scene *scene, tex_view *v, rs_err *err)
         free(rays);
         free(hits);
     }
-    return fail ? rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory tracing [%s]", v->name) : 0;
+    if (rs_par_any(fail))
+        return rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "out of memory tracing [%s]'s facet image (on this or another "
+                          "MPI rank)", v->name);
+    return rs_par_allgather_range(v->ids->data, (size_t)h, (size_t)w * sizeof *v->ids->data, err);
 }
 
 /* Collective: rc, or -1 when any rank's was (err says so where rc was 0): no rank goes on into
@@ -806,6 +811,7 @@ static int texture_compute(const rs_config *cfg, tex_inputs *in, rs_tex_pages *t
                         in->occ->nfaces);
     }
     double t1 = rs_now();
+    rc = ranks_agree(rc, err); /* trace_ids is collective */
     for (int v = 1; v < in->nviews && rc == 0; v++) rc = trace_ids(scene, &in->views[v], err);
     if (rc == 0 && in->nviews > 1) rs_report_time(rep, "trace_views", rs_now() - t1);
     c.Dc = rc == 0 ? corner_irradiance(in, t->atlas) : NULL;
