@@ -365,6 +365,11 @@ static int execute_here(const rs_stage_def *def, const rs_config *cfg, rs_skips 
     size_t warned = rs_log_warning_count();
     int rc = def->run(cfg, &rep, err);
     double wall = rs_now() - t0, cpu = cpu_seconds() - c0;
+    /* A stage of every rank can fail on rank 0 alone (its files, written there alone): every
+     * rank must know before report_ranks' collective, or the others would wait in it forever. */
+    if (rs_par_size() > 1 && rs_par_any(rc != 0) && rc == 0)
+        rc = rs_err_set(err, RS_ERR_SYSTEM, NULL, 0, "%s: the stage failed on another MPI rank (rank 0 says why)",
+                        def->name);
     if (rc != 0) {
         rs_json_free(rep.metrics);
         remove_if_created(dir, existed);
