@@ -12,9 +12,10 @@ python3 tools/check_functions.py
 cmake -S . -B build -DCMAKE_BUILD_TYPE=RelWithDebInfo
 cmake --build build -j2
 ctest --test-dir build --output-on-failure -j2
-# MPI (cmake -DRHOSCAN_MPI=ON): the samples under mpirun -np 1, 2, 3 against one process.
+# MPI (cmake -DRHOSCAN_MPI=ON): the samples under mpirun -np 1, 2, 3 against one process, and
+# the stage programs that mpi_rank0_fails starts on their own.
 cmake -S . -B build-mpi -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRHOSCAN_MPI=ON
-cmake --build build-mpi -j2 --target rhoscan test_par
+cmake --build build-mpi -j2 --target rhoscan rhoscan-render rhoscan-texture test_par
 ctest --test-dir build-mpi -L mpi --output-on-failure
 # Sanitizers: any report aborts the test that triggered it (-fno-sanitize-recover).
 cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRHOSCAN_SANITIZE=ON
